@@ -1,0 +1,18 @@
+# Options. Defaults follow PROJECT_IS_TOP_LEVEL, so that vigil used through add_subdirectory()
+# builds only its libraries (fmt's FMT_MASTER_PROJECT habit).
+option(VIGIL_BUILD_TESTS "Build the Catch2 test suite" ${PROJECT_IS_TOP_LEVEL})
+option(VIGIL_BUILD_BENCHES "Build the Google Benchmark benchmarks" ${PROJECT_IS_TOP_LEVEL})
+option(VIGIL_BUILD_EXAMPLES "Build the examples" ${PROJECT_IS_TOP_LEVEL})
+option(VIGIL_BUILD_APPS "Build the vigil command-line tool" ON)
+option(VIGIL_INSTALL "Generate the install target" ${PROJECT_IS_TOP_LEVEL})
+option(VIGIL_WERROR "Treat compiler warnings as errors" OFF)
+option(VIGIL_CLANG_TIDY "Run clang-tidy on vigil's own targets" OFF)
+set(VIGIL_SANITIZE "" CACHE STRING "Sanitizers for vigil's targets and tests: '', 'address,undefined' or 'thread'")
+set_property(CACHE VIGIL_SANITIZE PROPERTY STRINGS "" "address,undefined" "thread")
+set(VIGIL_EXPECTED "auto" CACHE STRING "vigil::expected backend: auto (tl if found), tl, std")
+set_property(CACHE VIGIL_EXPECTED PROPERTY STRINGS auto tl std)
+
+if(PROJECT_IS_TOP_LEVEL AND NOT CMAKE_BUILD_TYPE AND NOT CMAKE_CONFIGURATION_TYPES)
+  set(CMAKE_BUILD_TYPE RelWithDebInfo CACHE STRING "Build type" FORCE)
+endif()
+set(CMAKE_EXPORT_COMPILE_COMMANDS ON)

@@ -1,0 +1,28 @@
+#pragma once
+/// @file
+/// `vigil::expected<T, E>`: the result type of vigil's fallible operations off the real-time path.
+///
+/// It is `tl::expected` where CMake found tl-expected, otherwise `std::expected` (C++23; GCC 12
+/// ships it with -std=c++23). Both spell the same API (`has_value()`, `value()`, `error()`,
+/// `operator*`, `value_or`); use `vigil::unexpected(e)` to return an error. GCC 12's
+/// std::expected has no monadic operations (and_then, transform): vigil does not use them.
+
+#include "vigil/config.hpp"
+
+#if VIGIL_EXPECTED_TL
+#include <tl/expected.hpp>
+namespace vigil {
+template <class T, class E>
+using expected = tl::expected<T, E>;
+template <class E>
+using unexpected = tl::unexpected<E>;
+}  // namespace vigil
+#else
+#include <expected>
+namespace vigil {
+template <class T, class E>
+using expected = std::expected<T, E>;
+template <class E>
+using unexpected = std::unexpected<E>;
+}  // namespace vigil
+#endif

@@ -1,0 +1,43 @@
+#pragma once
+/// @file
+/// Process set-up for real time: memory locking and prefaulting. Call once, early in main(),
+/// before real-time threads start. None of these functions is RT-safe.
+
+#include <cstddef>
+#include <string>
+
+namespace vigil::platform {
+
+/// What `setup_realtime_process` should do.
+struct RealtimeSetupOptions {
+  /// mlockall(MCL_CURRENT | MCL_FUTURE): no page of the process is ever paged out.
+  bool lock_memory = true;
+  /// Bytes of the calling thread's stack to touch now.
+  std::size_t prefault_stack_bytes = 256 * 1024;
+  /// Bytes of heap to allocate, touch and give back to malloc, which then keeps them
+  /// (M_TRIM_THRESHOLD and M_MMAP_MAX are set so that glibc neither returns nor mmaps them).
+  std::size_t prefault_heap_bytes = 16 * 1024 * 1024;
+};
+
+/// What `setup_realtime_process` achieved. Every step reports success or the errno it failed with;
+/// nothing is hidden, so the caller can print or act on it (e.g. warn that memory is not locked).
+struct RealtimeSetupReport {
+  bool memory_locked = false;
+  int lock_errno = 0;  ///< errno of mlockall when it failed (EPERM, ENOMEM), else 0.
+  bool malloc_tuned = false;
+  std::size_t stack_prefaulted = 0;
+  std::size_t heap_prefaulted = 0;
+  /// True when SCHED_FIFO threads can be created (privilege probe, nothing changed).
+  bool can_use_fifo = false;
+
+  /// One line per step, e.g. "memory locked: yes", for logs and reports.
+  [[nodiscard]] std::string describe() const;
+};
+
+/// Locks and prefaults memory as `options` says. Never throws; failures are in the report.
+RealtimeSetupReport setup_realtime_process(const RealtimeSetupOptions& options = {});
+
+/// Touches `bytes` of the calling thread's stack so later use takes no page fault.
+void prefault_stack(std::size_t bytes) noexcept;
+
+}  // namespace vigil::platform

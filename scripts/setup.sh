@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Installs every Debian 12 package that vigil's build, tests, examples and benchmarks need.
+# Idempotent: it calls apt-get only when a package is missing. Needs root (or sudo) for that case.
+#
+#   scripts/setup.sh            build + test + bench dependencies
+#   scripts/setup.sh --check    list what is missing, install nothing (exit 1 if anything is)
+set -euo pipefail
+
+packages=(
+  # toolchain
+  g++ cmake ninja-build pkg-config clang-format-14 git
+  # libraries
+  libboost-dev libfmt-dev libyaml-cpp-dev libcpp-httplib-dev libcli11-dev
+  # tests and benchmarks
+  catch2 libbenchmark-dev can-utils rt-tests
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [[ ${#missing[@]} -eq 0 ]]; then
+  echo "setup: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+if [[ "${1:-}" == "--check" ]]; then
+  echo "setup: missing: ${missing[*]}"
+  exit 1
+fi
+
+echo "setup: installing ${missing[*]}"
+sudo_cmd=()
+if [[ $(id -u) -ne 0 ]]; then
+  command -v sudo >/dev/null || { echo "setup: need root or sudo to install: ${missing[*]}" >&2; exit 1; }
+  sudo_cmd=(sudo)
+fi
+export DEBIAN_FRONTEND=noninteractive
+"${sudo_cmd[@]}" apt-get update -qq
+"${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+echo "setup: done"

@@ -1,0 +1,10 @@
+#!/usr/bin/env bash
+# Installs what is missing, builds and runs the whole test suite.
+#   scripts/test.sh [PRESET]    PRESET: dev (default), release, asan-ubsan, tsan
+set -euo pipefail
+cd "$(dirname "$0")/.."
+preset="${1:-dev}"
+scripts/setup.sh
+cmake --preset "$preset" >/dev/null
+cmake --build --preset "$preset" -j "$(nproc)"
+ctest --preset "$preset" -j "$(nproc)"
