@@ -1,0 +1,89 @@
+#pragma once
+/// @file
+/// `Port<Variant, N>`: the bounded, wait-free, single-producer single-consumer queue that carries a
+/// component's messages to the supervisor.
+///
+/// Design: one producer (the component's thread) and one consumer (the supervisor thread).
+/// The ring is boost::lockfree::spsc_queue with its capacity fixed at compile time, so the
+/// storage lives inside the Port and push never allocates. When the ring is full the NEW message
+/// is dropped and counted (the producer never pops). The consumer reads through the
+/// type-erased `PortReader<Variant>` so that one supervisor drains ports of any capacity.
+
+#include <atomic>
+#include <boost/lockfree/spsc_queue.hpp>
+#include <cstddef>
+#include <cstdint>
+
+#include "vigil/assert.hpp"
+
+namespace vigil {
+
+/// The consumer's view of a port (type-erased capacity). Supervisor side only.
+template <class Variant>
+class PortReader {
+ public:
+  virtual ~PortReader() = default;
+
+  /// Moves up to `max` messages into `out`, oldest first; returns how many. Consumer only.
+  /// Wait-free, no allocation.
+  virtual std::size_t pop(Variant* out, std::size_t max) noexcept = 0;
+  /// Messages waiting. Consumer only.
+  [[nodiscard]] virtual std::size_t read_available() const noexcept = 0;
+  /// Messages the port can hold.
+  [[nodiscard]] virtual std::size_t capacity() const noexcept = 0;
+  /// Messages dropped because the port was full. Any thread.
+  [[nodiscard]] std::uint64_t dropped() const noexcept {
+    return dropped_.load(std::memory_order_relaxed);
+  }
+
+ protected:
+  // Written by the producer only; a relaxed load + store is enough (single writer) and avoids
+  // a locked read-modify-write on the hot path.
+  std::atomic<std::uint64_t> dropped_{0};
+};
+
+/// A component's port: `N` messages of type `Variant`.
+template <class Variant, std::size_t N>
+class Port final : public PortReader<Variant> {
+  static_assert(N >= 1, "a Port needs a capacity of at least 1");
+  static_assert(std::is_trivially_copyable_v<Variant>,
+                "Port messages must be trivially copyable (use FixedString, not std::string)");
+
+ public:
+  /// Pushes `m`, or drops it and counts the drop when the port is full.
+  /// RT-safe: wait-free, no allocation, no system call. Producer thread only.
+  [[nodiscard]] bool try_push(const Variant& m) noexcept {
+#ifndef NDEBUG
+    ProducerGuard guard(producers_);
+#endif
+    if (queue_.push(m)) return true;
+    this->dropped_.store(this->dropped_.load(std::memory_order_relaxed) + 1,
+                         std::memory_order_relaxed);
+    return false;
+  }
+
+  std::size_t pop(Variant* out, std::size_t max) noexcept override { return queue_.pop(out, max); }
+  [[nodiscard]] std::size_t read_available() const noexcept override {
+    return queue_.read_available();
+  }
+  [[nodiscard]] std::size_t capacity() const noexcept override { return N; }
+
+ private:
+#ifndef NDEBUG
+  // Debug builds assert that only one thread pushes at a time (readerwriterqueue's
+  // ReentrantGuard): two producers on one SPSC ring corrupt it silently.
+  struct ProducerGuard {
+    explicit ProducerGuard(std::atomic<int>& n) noexcept : n_(n) {
+      VIGIL_ASSERT(n_.fetch_add(1, std::memory_order_relaxed) == 0,
+                   "Port::try_push called from two threads at once (single producer only)");
+    }
+    ~ProducerGuard() { n_.fetch_sub(1, std::memory_order_relaxed); }
+    std::atomic<int>& n_;
+  };
+  std::atomic<int> producers_{0};
+#endif
+  // boost's compile-time ring keeps one slot empty to tell full from empty: N + 1 slots hold N.
+  boost::lockfree::spsc_queue<Variant, boost::lockfree::capacity<N + 1>> queue_;
+};
+
+}  // namespace vigil

@@ -1,0 +1,56 @@
+#pragma once
+/// @file
+/// `ManualActivity`: no thread; `step()` runs one cycle of its task in the caller's thread. For
+/// tests (with a controllable clock) and for embedding a task in a loop you own (Orocos'
+/// SlaveActivity).
+
+#include <string>
+
+#include "vigil/exec/schedule.hpp"
+#include "vigil/task/task_core.hpp"
+
+namespace vigil {
+
+/// Configuration of a ManualActivity.
+struct ManualConfig {
+  std::string name = "manual";
+  /// Period used for release times and overrun detection; 0 = not periodic (each step is
+  /// released when it is called).
+  Nanos period_ns = 0;
+  OverrunPolicy overrun_policy = OverrunPolicy::Skip;
+  OverrunLimit overrun_limit{};
+  /// The clock the task's supervision reads (replace it to control time in tests).
+  Clock clock = Clock::system();
+};
+
+class ManualActivity {
+ public:
+  /// Takes `task` (which must outlive the activity). Not RT-safe.
+  explicit ManualActivity(TaskCore& task, ManualConfig config = {});
+  ~ManualActivity();
+  ManualActivity(const ManualActivity&) = delete;
+  ManualActivity& operator=(const ManualActivity&) = delete;
+
+  /// Starts the task in the calling thread; the first release is `first_release_ns`, or now.
+  bool start(Nanos first_release_ns = 0);
+  /// Stops the task.
+  bool stop();
+  /// Runs one cycle (the release of the cycle is the schedule's, or now when not periodic).
+  /// Returns false when the task is not Running. RT-safe when the task's hooks are.
+  bool step() noexcept;
+
+  /// The release of the next cycle (periodic only).
+  [[nodiscard]] Nanos next_release() const noexcept { return schedule_.release(); }
+  [[nodiscard]] const Schedule& schedule() const noexcept { return schedule_; }
+  [[nodiscard]] const ActivityInfo& info() const noexcept { return info_; }
+  [[nodiscard]] TaskCore& task() const noexcept { return task_; }
+
+ private:
+  TaskCore& task_;
+  ManualConfig config_;
+  ActivityInfo info_;
+  Schedule schedule_;
+  std::uint32_t missed_carry_ = 0;
+};
+
+}  // namespace vigil

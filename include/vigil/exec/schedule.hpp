@@ -1,0 +1,67 @@
+#pragma once
+/// @file
+/// `Schedule`: release times of a periodic activity, overrun policies and the overrun limit.
+/// Shared by PeriodicActivity and ManualActivity so both behave identically.
+
+#include <cstdint>
+#include <vector>
+
+#include "vigil/bus/messages.hpp"
+#include "vigil/platform/clock.hpp"
+
+namespace vigil {
+
+/// Optional escalation: after `max_overruns` overruns within the last `window_cycles` cycles,
+/// the thread's tasks are moved to Exception. Off when max_overruns == 0 (the default).
+struct OverrunLimit {
+  std::uint32_t max_overruns = 0;
+  std::uint32_t window_cycles = 0;
+};
+
+/// The release schedule of a periodic activity. advance() is RT-safe (no allocation; the window
+/// is allocated by the constructor).
+class Schedule {
+ public:
+  /// What one cycle's end means for the schedule.
+  struct Outcome {
+    bool overrun = false;      ///< the cycle ended after the next release
+    std::uint32_t missed = 0;  ///< releases skipped before the next cycle
+    bool limit_reached = false;
+  };
+
+  Schedule(Nanos period_ns, OverrunPolicy policy, OverrunLimit limit = {});
+
+  /// Sets the first release. RT-safe.
+  void start(Nanos first_release) noexcept {
+    release_ = first_release;
+    cycle_ = 0;
+  }
+  /// The current release (the one the next cycle belongs to).
+  [[nodiscard]] Nanos release() const noexcept { return release_; }
+  [[nodiscard]] Nanos period() const noexcept { return period_; }
+  [[nodiscard]] OverrunPolicy policy() const noexcept { return policy_; }
+
+  /// Advances past a cycle released at release() that ended at `end`. RT-safe, O(1).
+  ///
+  /// No overrun: next release = release + period. Overrun (end > release + period):
+  /// CatchUp: next = release + period (runs at once, late; nothing missed);
+  /// Skip: next = the first release at or after `end`, the ones before it are missed;
+  /// Reanchor: next = end + period, the releases that passed are missed.
+  Outcome advance(Nanos end) noexcept;
+
+  [[nodiscard]] std::uint64_t overruns() const noexcept { return overruns_; }
+  [[nodiscard]] std::uint64_t missed() const noexcept { return missed_; }
+
+ private:
+  Nanos period_;
+  OverrunPolicy policy_;
+  OverrunLimit limit_;
+  Nanos release_ = 0;
+  std::uint64_t cycle_ = 0;
+  std::uint64_t overruns_ = 0;
+  std::uint64_t missed_ = 0;
+  std::vector<std::uint64_t> window_;  // one bit per cycle of the window, a ring
+  std::uint32_t in_window_ = 0;
+};
+
+}  // namespace vigil

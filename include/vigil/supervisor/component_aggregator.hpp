@@ -1,0 +1,144 @@
+#pragma once
+/// @file
+/// `ComponentAggregator`: the supervisor handler for component messages. It keeps one record per
+/// component (identity, state, cumulative counters, statistics of user time, total time, wake-up
+/// latency, period and supervision overhead) and hands consistent snapshots to readers.
+///
+/// Design: the supervisor thread is the only writer. Each record has its own mutex, held by the
+/// supervisor while it applies one port's batch and by a reader while it copies one record, so a
+/// reader never blocks the supervisor for longer than one record copy and never touches the RT
+/// side. The record list has a separate mutex, taken exclusively only when components join or are
+/// forgotten.
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <shared_mutex>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "vigil/bus/messages.hpp"
+#include "vigil/platform/clock.hpp"
+#include "vigil/supervisor/registry.hpp"
+#include "vigil/supervisor/running_stats.hpp"
+#include "vigil/supervisor/supervisor.hpp"
+
+namespace vigil {
+
+/// The cumulative counters of a component (exact even when samples were dropped).
+struct ComponentCounters {
+  std::uint64_t cycles = 0;
+  std::uint64_t overruns = 0;
+  std::uint64_t missed_cycles = 0;
+  std::array<std::uint64_t, kLossCauses> losses{};
+  std::uint64_t exceptions = 0;
+  std::uint64_t dropped = 0;  ///< messages its port dropped
+
+  [[nodiscard]] std::uint64_t total_losses() const noexcept {
+    std::uint64_t n = 0;
+    for (auto v : losses) n += v;
+    return n;
+  }
+};
+
+/// Everything known about one component at one moment. Plain data: copy it freely.
+struct ComponentSnapshot {
+  std::uint32_t id = 0;
+  std::string name;
+  bool alive = true;      ///< false once the component left (kept for a while)
+  bool has_info = false;  ///< a TaskInfo arrived (the component was configured)
+  TaskInfo info;
+  TaskState state = TaskState::PreOperational;
+  bool has_sample = false;
+  CycleSample last;  ///< latest cycle sample received
+  std::uint64_t samples = 0;
+  ComponentCounters counters;
+  StatsSummary user_ns;      ///< on_update() alone
+  StatsSummary total_ns;     ///< user + the latest measured supervision overhead
+  StatsSummary latency_ns;   ///< wake-up latency: start - scheduled release
+  StatsSummary period_ns;    ///< start-to-start of consecutive cycles
+  StatsSummary overhead_ns;  ///< supervision's own time per cycle (sampled)
+  bool has_exception = false;
+  ExceptionReport last_exception;
+  std::string last_exception_type;  ///< demangled
+  bool has_state_change = false;
+  StateChange last_change;
+  Nanos joined_at = 0;       ///< supervisor clock
+  Nanos last_sample_at = 0;  ///< supervisor clock when the latest sample was drained; 0 if none
+  Nanos left_at = 0;
+  std::size_t port_capacity = 0;
+  std::size_t port_high_water = 0;
+
+  /// Overhead as a share of total time (mean overhead / mean total), 0 when unknown.
+  [[nodiscard]] double overhead_share() const noexcept {
+    return total_ns.mean > 0 ? overhead_ns.mean / total_ns.mean : 0.0;
+  }
+};
+
+/// Options of the aggregator.
+struct AggregatorOptions {
+  /// Weight of the newest sample in the EWMAs (0 < w <= 1).
+  double ewma_weight = 0.05;
+  /// How long a component that left stays in snapshots.
+  Nanos retain_left_ns = 60 * kNanosPerSecond;
+  /// Supervisor-side clock used to stamp arrivals (for staleness checks).
+  Clock clock = Clock::system();
+};
+
+/// The supervisor handler for `Message`. Not RT-safe (supervisor thread and readers only).
+class ComponentAggregator {
+ public:
+  using Entry = RegistryEntry<Message>;
+
+  explicit ComponentAggregator(AggregatorOptions options = {});
+  ~ComponentAggregator();
+  ComponentAggregator(const ComponentAggregator&) = delete;
+  ComponentAggregator& operator=(const ComponentAggregator&) = delete;
+
+  // --- SupervisorHandler (supervisor thread) ---
+  void on_join(const Entry& e);
+  void on_leave(const Entry& e);
+  void begin(const Entry& e);
+  void on(const Entry& e, const TaskInfo& m);
+  void on(const Entry& e, const CycleSample& m);
+  void on(const Entry& e, const RealTimeLoss& m);
+  void on(const Entry& e, const ExceptionReport& m);
+  void on(const Entry& e, const StateChange& m);
+  void end(const Entry& e, const PortDrain& d);
+  void on_cycle(const SupervisorCycle& c);
+
+  // --- readers (any thread) ---
+  /// A consistent copy of every component's record, ordered by id.
+  [[nodiscard]] std::vector<ComponentSnapshot> snapshot() const;
+  /// The record of component `name` (the first alive one of that name), if any.
+  [[nodiscard]] std::optional<ComponentSnapshot> find(std::string_view name) const;
+  /// Number of records (alive and recently left).
+  [[nodiscard]] std::size_t size() const;
+  /// Changes the EWMA weight for every record (takes effect for new samples).
+  void set_ewma_weight(double w);
+
+  struct Slot;
+
+ private:
+  Slot* slot_for(const Entry& e);
+  AggregatorOptions options_;
+  std::atomic<double> ewma_weight_;
+  mutable std::shared_mutex list_mutex_;
+  std::vector<std::unique_ptr<Slot>> slots_;  // ordered by id
+  Slot* current_ = nullptr;                   // the slot between begin() and end()
+};
+
+static_assert(SupervisorHandler<ComponentAggregator, Message>);
+
+/// The supervisor of components.
+using ComponentSupervisorLoop = Supervisor<Message, ComponentAggregator>;
+
+/// The process's default registry of components, for the one-line use case. Components join it
+/// unless given another. Thread-safe; created on first use.
+Registry<Message>& default_registry();
+
+}  // namespace vigil

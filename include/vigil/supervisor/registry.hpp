@@ -1,0 +1,160 @@
+#pragma once
+/// @file
+/// `Registry<Variant>`: where components' ports meet the supervisor. It replaces the original's
+/// process-wide singleton with an explicit object (and `default_registry()` for the one-line use).
+///
+/// Design: components join and leave at any time from any non-RT thread; joining creates the
+/// component's port (the only allocation) and returns a `Membership` that the component keeps.
+/// The supervisor polls `generation()` (one atomic load per cycle) and copies the entry list only
+/// when it changed. Entries are shared: a component that leaves marks its entry closed, and the
+/// supervisor drains what is left before forgetting it. No start order is required: ports
+/// created before the supervisor exists are simply found on its first cycle.
+
+#include <algorithm>
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "vigil/bus/port.hpp"
+
+namespace vigil {
+
+/// One registered port. Shared by the registry, the member and the supervisor.
+template <class Variant>
+struct RegistryEntry {
+  std::uint32_t id = 0;  ///< unique for the registry's lifetime, never reused
+  std::string name;
+  std::shared_ptr<PortReader<Variant>> port;
+  std::atomic<bool> closed{false};  ///< set when the member left; drain, then forget
+};
+
+template <class Variant>
+class Registry;
+
+/// A component's membership: owns the producer end of its port; leaves on destruction.
+/// Move-only. `port()` is RT-safe to use from the component's thread.
+template <class Variant, std::size_t N>
+class Membership {
+ public:
+  Membership() = default;
+  Membership(Membership&& o) noexcept
+      : registry_(std::exchange(o.registry_, nullptr)),
+        entry_(std::move(o.entry_)),
+        port_(std::exchange(o.port_, nullptr)) {}
+  Membership& operator=(Membership&& o) noexcept {
+    if (this != &o) {
+      leave();
+      registry_ = std::exchange(o.registry_, nullptr);
+      entry_ = std::move(o.entry_);
+      port_ = std::exchange(o.port_, nullptr);
+    }
+    return *this;
+  }
+  Membership(const Membership&) = delete;
+  Membership& operator=(const Membership&) = delete;
+  ~Membership() { leave(); }
+
+  /// The producer end. Null for a default-constructed membership.
+  [[nodiscard]] Port<Variant, N>* port() const noexcept { return port_; }
+  [[nodiscard]] std::uint32_t id() const noexcept { return entry_ ? entry_->id : 0; }
+  [[nodiscard]] bool joined() const noexcept { return entry_ != nullptr; }
+
+  /// Leaves the registry (idempotent). Messages already pushed are still drained. Not RT-safe.
+  void leave();
+
+ private:
+  friend class Registry<Variant>;
+  Registry<Variant>* registry_ = nullptr;
+  std::shared_ptr<RegistryEntry<Variant>> entry_;
+  Port<Variant, N>* port_ = nullptr;
+};
+
+/// The set of ports a supervisor drains. Thread-safe; none of it is RT-safe (it allocates and
+/// locks), and none of it is called by the RT side after joining.
+template <class Variant>
+class Registry {
+ public:
+  using Entry = RegistryEntry<Variant>;
+
+  Registry() = default;
+  Registry(const Registry&) = delete;
+  Registry& operator=(const Registry&) = delete;
+
+  /// Creates a port of capacity N for component `name` and registers it. Names need not be
+  /// unique (ids are). Not RT-safe.
+  template <std::size_t N>
+  Membership<Variant, N> join(std::string name) {
+    auto port = std::make_shared<Port<Variant, N>>();
+    auto entry = std::make_shared<Entry>();
+    entry->name = std::move(name);
+    entry->port = port;
+    Membership<Variant, N> m;
+    m.registry_ = this;
+    m.port_ = port.get();
+    {
+      std::lock_guard lock(mutex_);
+      entry->id = next_id_++;
+      entries_.push_back(entry);
+      generation_.fetch_add(1, std::memory_order_release);
+    }
+    m.entry_ = std::move(entry);
+    return m;
+  }
+
+  /// Changes whenever a member joins or leaves. One atomic load: the supervisor's fast check.
+  [[nodiscard]] std::uint64_t generation() const noexcept {
+    return generation_.load(std::memory_order_acquire);
+  }
+
+  /// Copies the current entries, and those that left since the last call, into `out`
+  /// (ordered by id). Takes the lock briefly. Meant for the registry's one supervisor: a member
+  /// that joins and leaves between two supervisor cycles is still handed over once, so its
+  /// messages are drained. At most kMaxDeparted departed entries are kept for a supervisor that
+  /// has not collected yet (the oldest go first).
+  void collect(std::vector<std::shared_ptr<Entry>>& out) {
+    std::lock_guard lock(mutex_);
+    out.assign(entries_.begin(), entries_.end());
+    out.insert(out.end(), departed_.begin(), departed_.end());
+    departed_.clear();
+    std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a->id < b->id; });
+  }
+
+  static constexpr std::size_t kMaxDeparted = 4096;
+
+  /// Number of current members.
+  [[nodiscard]] std::size_t size() const {
+    std::lock_guard lock(mutex_);
+    return entries_.size();
+  }
+
+  /// Called by Membership::leave.
+  void remove(const std::shared_ptr<Entry>& entry) {
+    entry->closed.store(true, std::memory_order_release);
+    std::lock_guard lock(mutex_);
+    std::erase(entries_, entry);
+    if (departed_.size() == kMaxDeparted) departed_.erase(departed_.begin());
+    departed_.push_back(entry);
+    generation_.fetch_add(1, std::memory_order_release);
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::vector<std::shared_ptr<Entry>> entries_;
+  std::vector<std::shared_ptr<Entry>> departed_;
+  std::uint32_t next_id_ = 1;
+  std::atomic<std::uint64_t> generation_{0};
+};
+
+template <class Variant, std::size_t N>
+void Membership<Variant, N>::leave() {
+  if (registry_ != nullptr && entry_) registry_->remove(entry_);
+  registry_ = nullptr;
+  entry_.reset();
+  port_ = nullptr;
+}
+
+}  // namespace vigil

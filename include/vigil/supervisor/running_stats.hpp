@@ -1,0 +1,229 @@
+#pragma once
+/// @file
+/// `RunningStats`: the statistics the supervisor keeps for one measured quantity of one
+/// component (cycle time, user time, period...), and `StatsSummary`, its plain-value snapshot.
+///
+/// Design: everything lives inline (a `LogLinearHistogram<>` plus a few scalars, 9.3 KB), so
+/// `add()` is a handful of instructions on memory the supervisor thread owns: no allocation,
+/// no lock, no virtual call. Readers in other threads get copies (`summary()` or the whole
+/// object, which is trivially copyable) through whatever hand-over the Registry uses.
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <type_traits>
+
+#include "vigil/platform/clock.hpp"
+#include "vigil/supervisor/histogram.hpp"
+
+namespace vigil {
+
+/**
+ * A snapshot of `RunningStats`, trivially copyable and 80 bytes, for reports and exporters.
+ *
+ * With no samples every field is 0. Percentiles are nearest-rank upper bounds with relative
+ * error < 1/32 (see `RunningStats`).
+ */
+struct StatsSummary {
+  std::uint64_t count = 0;  ///< samples seen
+  Nanos last = 0;           ///< most recent sample
+  Nanos min = 0;            ///< smallest sample (exact)
+  Nanos max = 0;            ///< largest sample (exact)
+  double mean = 0.0;        ///< arithmetic mean (exact sum / count, rounded to double)
+  double ewma = 0.0;        ///< exponentially weighted moving average
+  Nanos p50 = 0;            ///< median
+  Nanos p90 = 0;            ///< 90th percentile
+  Nanos p99 = 0;            ///< 99th percentile
+  Nanos p999 = 0;           ///< 99.9th percentile
+
+  friend constexpr bool operator==(const StatsSummary&, const StatsSummary&) = default;
+};
+static_assert(std::is_trivially_copyable_v<StatsSummary> && sizeof(StatsSummary) == 80);
+
+namespace detail {
+
+/// An exact signed 128-bit sum of int64 values, in two words (portable: no `__int128`, which
+/// 32-bit ARM lacks and -Wpedantic rejects). Two's complement: value = hi * 2^64 + lo.
+struct WideSum {
+  std::uint64_t lo = 0;
+  std::uint64_t hi = 0;  // the signed high word, kept unsigned so that wrap-around is defined
+
+  constexpr void add(std::int64_t v) noexcept {
+    const auto u = static_cast<std::uint64_t>(v);
+    lo += u;
+    hi += (lo < u ? 1U : 0U) + (v < 0 ? ~std::uint64_t{0} : 0U);  // carry + sign extension
+  }
+
+  constexpr void add(const WideSum& other) noexcept {
+    lo += other.lo;
+    hi += other.hi + (lo < other.lo ? 1U : 0U);
+  }
+
+  /// The sum rounded to double: one rounding while it fits in int64, at most three beyond.
+  [[nodiscard]] constexpr double to_double() const noexcept {
+    const bool fits = (hi == 0 && lo >> 63 == 0) || (hi == ~std::uint64_t{0} && lo >> 63 == 1);
+    // Converting the two words separately would cancel catastrophically for small negative
+    // sums (hi = -1, lo ~ 2^64), hence the exact path.
+    if (fits) return static_cast<double>(static_cast<std::int64_t>(lo));
+    return static_cast<double>(static_cast<std::int64_t>(hi)) * 0x1p64 + static_cast<double>(lo);
+  }
+};
+
+}  // namespace detail
+
+/**
+ * Running statistics of a stream of nanosecond values: count, last, min, max, mean, an EWMA
+ * and a `LogLinearHistogram<>` for percentiles.
+ *
+ * Precision:
+ *  - count, last, min, max are exact; the sum behind `mean()` is exact (128 bits), so the mean
+ *    is the exact mean rounded to double within a few ulp (relative error < 1e-15);
+ *  - `ewma()`: e = x1 for the first sample, then e += alpha * (x - e) in double;
+ *  - percentiles: the nearest-rank q-quantile x (smallest sample with at least q * count
+ *    samples <= x), reported as an upper bound: x <= reported <= x + (x >> 5), i.e. relative
+ *    error < 2^-5 = 3.125 %, exact for x < 64 ns; never above `max()`, so q = 1 gives the exact
+ *    maximum. Valid for samples in [0, 2^40) ns (18.3 min). Negative samples count as 0 in the
+ *    histogram (min/max/mean/last/EWMA use them as they are); a quantile that falls among
+ *    samples >= 2^40 reports `max()`.
+ *
+ * With no samples, every accessor returns 0. With one sample s, every statistic and every
+ * percentile is exactly s (the bucket's upper bound is clamped to max = s).
+ *
+ * Thread-safety: none; one writer (the supervisor thread). RT-safety: every member is
+ * allocation-free, lock-free and noexcept; `add()` is O(1) (a few ns), `merge`, `reset` and
+ * the percentile accessors are O(buckets) (~1k steps at worst).
+ *
+ * @code
+ * vigil::RunningStats cycle;
+ * cycle.add(sample.end_ns - sample.start_ns);         // per message, in the supervisor
+ * const vigil::StatsSummary s = cycle.summary();      // per report
+ * @endcode
+ */
+class RunningStats {
+ public:
+  /// The histogram type: 5 sub-bucket bits, values up to 2^40 - 1 ns.
+  using Histogram = LogLinearHistogram<5, 40>;
+  /// Default EWMA weight: 1/8, as TCP's smoothed round-trip time (RFC 6298).
+  static constexpr double kDefaultEwmaWeight = 0.125;
+
+  /// Counts sample `value` (a duration in ns). O(1), allocation-free, RT-safe.
+  constexpr void add(Nanos value) noexcept {
+    if (count_ == 0) [[unlikely]] {
+      first_ = value;
+      ewma_ = static_cast<double>(value);
+    } else {
+      ewma_ += ewma_weight_ * (static_cast<double>(value) - ewma_);
+    }
+    ++count_;
+    last_ = value;
+    min_ = value < min_ ? value : min_;
+    max_ = value > max_ ? value : max_;
+    sum_.add(value);
+    histogram_.add(value);
+  }
+
+  /**
+   * Merges `other` into this object as if other's samples had been added after this one's:
+   * count, min, max, mean and the histogram become exactly those of the combined stream,
+   * `last` becomes other's last, and the EWMA is continued through other's samples:
+   * e = e_other + (1 - alpha)^n_other * (e_this - first_other). The EWMA result is that of the
+   * combined stream (up to rounding) when both use the same weight; this object's weight is
+   * kept and used. O(buckets), allocation-free.
+   */
+  void merge(const RunningStats& other) noexcept {
+    if (other.count_ == 0) return;
+    if (count_ == 0) {
+      const double weight = ewma_weight_;
+      *this = other;
+      ewma_weight_ = weight;
+      return;
+    }
+    // The EWMA recursion is linear in its start value: other's stream began at first_other
+    // instead of at our EWMA, and that difference decays by (1 - alpha) per sample.
+    const double decay = std::pow(1.0 - ewma_weight_, static_cast<double>(other.count_));
+    ewma_ = other.ewma_ + decay * (ewma_ - static_cast<double>(other.first_));
+    count_ += other.count_;
+    last_ = other.last_;
+    min_ = other.min_ < min_ ? other.min_ : min_;
+    max_ = other.max_ > max_ ? other.max_ : max_;
+    sum_.add(other.sum_);
+    histogram_.merge(other.histogram_);
+  }
+
+  /// Forgets every sample; keeps the EWMA weight. O(buckets), allocation-free.
+  constexpr void reset() noexcept {
+    const double weight = ewma_weight_;
+    *this = RunningStats{};
+    ewma_weight_ = weight;
+  }
+
+  /// Sets the EWMA weight alpha of the samples to come (the current EWMA is kept): a larger
+  /// alpha follows changes faster. Returns false and changes nothing unless 0 < alpha <= 1.
+  [[nodiscard]] constexpr bool set_ewma_weight(double alpha) noexcept {
+    if (!(alpha > 0.0 && alpha <= 1.0)) return false;  // also rejects NaN
+    ewma_weight_ = alpha;
+    return true;
+  }
+
+  /// The EWMA weight alpha, in (0, 1].
+  [[nodiscard]] constexpr double ewma_weight() const noexcept { return ewma_weight_; }
+  /// Number of samples. O(1).
+  [[nodiscard]] constexpr std::uint64_t count() const noexcept { return count_; }
+  /// Most recent sample, 0 when empty. O(1).
+  [[nodiscard]] constexpr Nanos last() const noexcept { return last_; }
+  /// Smallest sample, 0 when empty. O(1).
+  [[nodiscard]] constexpr Nanos min() const noexcept { return count_ == 0 ? 0 : min_; }
+  /// Largest sample, 0 when empty. O(1).
+  [[nodiscard]] constexpr Nanos max() const noexcept { return count_ == 0 ? 0 : max_; }
+  /// Arithmetic mean (relative error < 1e-15), 0 when empty. O(1).
+  [[nodiscard]] constexpr double mean() const noexcept {
+    return count_ == 0 ? 0.0 : sum_.to_double() / static_cast<double>(count_);
+  }
+  /// Exponentially weighted moving average, 0 when empty. O(1).
+  [[nodiscard]] constexpr double ewma() const noexcept { return ewma_; }
+
+  /// The q-quantile (nearest rank) as an upper bound with relative error < 1/32, never above
+  /// `max()`; 0 when empty. q is clamped to [0, 1]: q = 0 is the minimum's bucket, q = 1 the
+  /// exact maximum. O(buckets).
+  [[nodiscard]] Nanos value_at_quantile(double q) const noexcept {
+    if (count_ == 0) return 0;
+    const Nanos v = histogram_.value_at_quantile(q);
+    return v < max_ ? v : max_;  // the true quantile is <= max: clamping only removes error
+  }
+
+  /// The histogram behind the percentiles, e.g. for exporters. O(1).
+  [[nodiscard]] constexpr const Histogram& histogram() const noexcept { return histogram_; }
+
+  /// Everything above as one value; all zeros when empty. O(buckets), allocation-free.
+  [[nodiscard]] StatsSummary summary() const noexcept {
+    if (count_ == 0) return {};
+    return StatsSummary{.count = count_,
+                        .last = last_,
+                        .min = min_,
+                        .max = max_,
+                        .mean = mean(),
+                        .ewma = ewma_,
+                        .p50 = value_at_quantile(0.5),
+                        .p90 = value_at_quantile(0.9),
+                        .p99 = value_at_quantile(0.99),
+                        .p999 = value_at_quantile(0.999)};
+  }
+
+ private:
+  // Scalars first: add() touches them and one histogram counter, nothing else.
+  std::uint64_t count_ = 0;
+  Nanos last_ = 0;
+  Nanos min_ = std::numeric_limits<Nanos>::max();  // sentinels make add() branch-free
+  Nanos max_ = std::numeric_limits<Nanos>::min();
+  Nanos first_ = 0;  // for merge(): where the EWMA of this stream started
+  double ewma_ = 0.0;
+  double ewma_weight_ = kDefaultEwmaWeight;
+  detail::WideSum sum_;
+  Histogram histogram_;
+};
+
+static_assert(std::is_trivially_copyable_v<RunningStats>);
+static_assert(sizeof(RunningStats) == 72 + sizeof(RunningStats::Histogram),
+              "RunningStats should be 9312 bytes: 72 bytes of scalars and the histogram");
+
+}  // namespace vigil

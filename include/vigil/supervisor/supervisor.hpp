@@ -1,0 +1,246 @@
+#pragma once
+/// @file
+/// `Supervisor<Variant, Handler>`: drains every registered port each cycle and visits each
+/// message into a handler. Generic: the component supervisor and the CAN supervisor are the same
+/// class with different variants and handlers.
+///
+/// Design: one non-RT thread (or `step()` called from a loop you own). It polls at its period and
+/// never notifies or wakes anything on the RT side; the RT side never waits for it. A cycle:
+/// (1) if the registry's generation changed, pick up new entries (handler.on_join); (2) for each
+/// entry, pop its messages in batches and visit them (handler.begin, handler.on, handler.end);
+/// (3) forget entries that left once drained (handler.on_leave); (4) measure itself
+/// (handler.on_cycle). A port is drained at most up to its capacity per cycle, so a producer that
+/// pushes without pause cannot hold the supervisor in one port.
+
+#include <algorithm>
+#include <atomic>
+#include <concepts>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "vigil/error.hpp"
+#include "vigil/expected.hpp"
+#include "vigil/platform/clock.hpp"
+#include "vigil/platform/thread.hpp"
+#include "vigil/supervisor/registry.hpp"
+#include "vigil/supervisor/running_stats.hpp"
+
+namespace vigil {
+
+/// What the supervisor learnt about one port in one cycle.
+struct PortDrain {
+  std::size_t messages = 0;   ///< messages popped this cycle
+  std::size_t occupancy = 0;  ///< messages waiting when the drain began
+  std::size_t capacity = 0;
+  std::uint64_t dropped = 0;  ///< the port's drop counter (cumulative)
+};
+
+/// The supervisor's measurement of itself, after each cycle.
+struct SupervisorCycle {
+  std::uint64_t cycle = 0;
+  Nanos time_ns = 0;         ///< when the cycle began (supervisor clock)
+  Nanos drain_ns = 0;        ///< time spent in this cycle
+  std::size_t messages = 0;  ///< messages visited this cycle
+  std::size_t ports = 0;     ///< ports drained
+  std::size_t max_occupancy = 0;
+};
+
+namespace detail {
+template <class H, class E, class M>
+concept HandlesMessage = requires(H& h, const E& e, const M& m) {
+  h.on(e, m);
+};
+
+template <class H, class E, class V>
+struct handles_all : std::false_type {};
+template <class H, class E, class... T>
+struct handles_all<H, E, std::variant<T...>>
+    : std::bool_constant<(HandlesMessage<H, E, T> && ...)> {};
+}  // namespace detail
+
+/// A handler: told about joins and leaves, visited with every message (one `on(entry, m)` per
+/// alternative of the variant, or a template catch-all), told about cycles.
+template <class H, class Variant>
+concept SupervisorHandler = detail::handles_all<H, RegistryEntry<Variant>, Variant>::value &&
+    requires(H& h, const RegistryEntry<Variant>& e, const PortDrain& d, const SupervisorCycle& c) {
+  h.on_join(e);
+  h.on_leave(e);
+  h.begin(e);
+  h.end(e, d);
+  h.on_cycle(c);
+};
+
+/// The supervisor's own statistics, readable from any thread.
+struct SupervisorStats {
+  std::uint64_t cycles = 0;
+  std::uint64_t messages = 0;
+  std::size_t ports = 0;
+  std::size_t max_occupancy = 0;  ///< highest port occupancy seen (high-water mark)
+  StatsSummary drain_ns;          ///< time per cycle
+  StatsSummary messages_per_cycle;
+};
+
+/// Options of a supervisor.
+struct SupervisorOptions {
+  /// Period of the supervisor's own thread. 10 ms: at 1 kHz a component queues 10 messages.
+  Nanos period_ns = 10 * kNanosPerMilli;
+  /// Messages popped from a port at a time.
+  std::size_t batch = 64;
+  std::string thread_name = "vigil-supervisor";
+  /// Clock used for the supervisor's own timing.
+  Clock clock = Clock::system();
+};
+
+template <class Variant, class Handler>
+requires SupervisorHandler<Handler, Variant>
+class Supervisor {
+ public:
+  using Entry = RegistryEntry<Variant>;
+
+  Supervisor(Registry<Variant>& registry, Handler& handler, SupervisorOptions options = {})
+      : registry_(registry), handler_(handler), options_(std::move(options)) {
+    buffer_.resize(std::max<std::size_t>(options_.batch, 1));
+  }
+  Supervisor(const Supervisor&) = delete;
+  Supervisor& operator=(const Supervisor&) = delete;
+  ~Supervisor() { stop(); }
+
+  /// Runs one cycle in the calling thread; returns the number of messages visited.
+  /// Not RT-safe (may allocate when components join). Not thread-safe against itself: call it
+  /// from one thread, and not while the supervisor's own thread runs.
+  std::size_t step() {
+    const Nanos t0 = options_.clock.now();
+    refresh();
+    std::size_t total = 0;
+    std::size_t max_occ = 0;
+    for (auto& tracked : tracked_) {
+      Entry& e = *tracked.entry;
+      // Read `closed` before draining: a member that left pushed nothing after this load, so an
+      // empty port after the drain means it is finished.
+      const bool closed = e.closed.load(std::memory_order_acquire);
+      PortDrain d;
+      d.capacity = e.port->capacity();
+      d.occupancy = e.port->read_available();
+      max_occ = std::max(max_occ, d.occupancy);
+      handler_.begin(e);
+      std::size_t budget = std::max(d.capacity, d.occupancy);
+      while (budget > 0) {
+        const std::size_t n = e.port->pop(buffer_.data(), std::min(budget, buffer_.size()));
+        if (n == 0) break;
+        for (std::size_t i = 0; i < n; ++i) {
+          std::visit([&](const auto& m) { handler_.on(e, m); }, buffer_[i]);
+        }
+        d.messages += n;
+        budget -= n;
+      }
+      d.dropped = e.port->dropped();
+      handler_.end(e, d);
+      total += d.messages;
+      tracked.finished = closed && e.port->read_available() == 0;
+    }
+    std::erase_if(tracked_, [&](const Tracked& t) {
+      if (t.finished) handler_.on_leave(*t.entry);
+      return t.finished;
+    });
+    const Nanos t1 = options_.clock.now();
+    SupervisorCycle c{cycle_ + 1, t0, t1 - t0, total, tracked_.size(), max_occ};
+    ++cycle_;
+    {
+      std::lock_guard lock(stats_mutex_);
+      stats_.cycles = cycle_;
+      stats_.messages += total;
+      stats_.ports = tracked_.size();
+      stats_.max_occupancy = std::max(stats_.max_occupancy, max_occ);
+      drain_.add(c.drain_ns);
+      per_cycle_.add(static_cast<Nanos>(total));
+    }
+    handler_.on_cycle(c);
+    return total;
+  }
+
+  /// Starts the supervisor's own thread (SCHED_OTHER). Not RT-safe.
+  expected<void, Error> start() {
+    if (thread_.joinable()) return {};
+    quit_.store(false, std::memory_order_relaxed);
+    auto t = platform::Thread::spawn({.name = options_.thread_name}, [this] { run(); });
+    if (!t) return unexpected(t.error());
+    thread_ = std::move(*t);
+    return {};
+  }
+
+  /// Stops and joins the thread after one last full drain. Idempotent.
+  void stop() {
+    if (!thread_.joinable()) return;
+    quit_.store(true, std::memory_order_release);
+    thread_.join();
+    step();
+  }
+
+  [[nodiscard]] bool running() const noexcept { return thread_.joinable(); }
+
+  /// A copy of the supervisor's statistics. Any thread; takes a short lock.
+  [[nodiscard]] SupervisorStats stats() const {
+    std::lock_guard lock(stats_mutex_);
+    SupervisorStats s = stats_;
+    s.drain_ns = drain_.summary();
+    s.messages_per_cycle = per_cycle_.summary();
+    return s;
+  }
+
+  [[nodiscard]] const SupervisorOptions& options() const noexcept { return options_; }
+
+ private:
+  struct Tracked {
+    std::shared_ptr<Entry> entry;
+    bool finished = false;
+  };
+
+  void refresh() {
+    const std::uint64_t gen = registry_.generation();
+    if (gen == generation_) return;
+    generation_ = gen;
+    registry_.collect(scratch_);
+    // Both lists are ordered by id: merge, keeping entries that left but are not drained yet.
+    for (auto& e : scratch_) {
+      const auto it =
+          std::lower_bound(tracked_.begin(), tracked_.end(), e->id,
+                           [](const Tracked& t, std::uint32_t id) { return t.entry->id < id; });
+      if (it == tracked_.end() || it->entry->id != e->id) {
+        handler_.on_join(*e);
+        tracked_.insert(it, Tracked{e, false});
+      }
+    }
+    scratch_.clear();
+  }
+
+  void run() {
+    Nanos next = platform::now_ns();
+    while (!quit_.load(std::memory_order_acquire)) {
+      step();
+      next += options_.period_ns;
+      const Nanos now = platform::now_ns();
+      if (next < now) next = now;  // never try to catch up: polling later is enough
+      platform::sleep_until(next);
+    }
+  }
+
+  Registry<Variant>& registry_;
+  Handler& handler_;
+  SupervisorOptions options_;
+  std::vector<Tracked> tracked_;
+  std::vector<std::shared_ptr<Entry>> scratch_;
+  std::vector<Variant> buffer_;
+  std::uint64_t generation_ = ~std::uint64_t{0};
+  std::uint64_t cycle_ = 0;
+  std::atomic<bool> quit_{false};
+  platform::Thread thread_;
+  mutable std::mutex stats_mutex_;
+  SupervisorStats stats_;
+  RunningStats drain_;
+  RunningStats per_cycle_;
+};
+
+}  // namespace vigil

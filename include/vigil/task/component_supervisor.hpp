@@ -1,0 +1,159 @@
+#pragma once
+/// @file
+/// `ComponentSupervisor`: the same supervision as Task<Derived>, as a member object, for code
+/// that cannot change its base class. Same implementation (CycleRecorder), same data.
+///
+/// ```cpp
+/// class LegacyDrive : public SomeVendorBase {
+///   vigil::ComponentSupervisor sup_{"legacy_drive"};
+///  public:
+///   void thread_start() { sup_.init({.activity = "drive", .period_ns = 1'000'000}); }
+///   void cycle() {
+///     vigil::UpdateGuard guard(sup_);   // pre on construction, post on destruction
+///     compute();
+///   }
+/// };
+/// ```
+
+#include <exception>
+#include <string>
+#include <typeinfo>
+
+#include "vigil/platform/thread.hpp"
+#include "vigil/task/supervision.hpp"
+
+namespace vigil {
+
+/// Identity of a manually instrumented component (what an activity would otherwise say).
+struct ManualInfo {
+  std::string activity = "manual";
+  /// Period of the component's loop, for overrun detection; 0 = not periodic.
+  Nanos period_ns = 0;
+  /// The policy the component asked for; the one it got is read from the thread in init().
+  SchedPolicy requested_policy = SchedPolicy::Other;
+};
+
+template <std::size_t N = kDefaultPortCapacity>
+class BasicComponentSupervisor {
+ public:
+  /// Registers the component's port. Not RT-safe.
+  explicit BasicComponentSupervisor(std::string name, SupervisionOptions options = {},
+                                    Registry<Message>& registry = default_registry())
+      : recorder_(std::move(name), options, registry) {}
+
+  /// Call once from the component's own thread before its loop: reads the thread's policy,
+  /// priority, CPU and tid, sends the identity and enters Running. Not RT-safe.
+  void init(const ManualInfo& info = {}, Clock clock = Clock::system()) {
+    clock_ = clock;
+    context_.clock = &clock_;
+    context_.period_ns = info.period_ns;
+    TaskInfo ti;
+    ti.activity.assign(info.activity);
+    ti.requested_policy = info.requested_policy;
+    ti.period_ns = info.period_ns;
+    ti.threaded = true;
+    ti.tid = platform::current_tid();
+    ti.tasks_on_thread = 1;
+    if (const auto s = platform::current_sched_info()) {
+      ti.policy = s->policy;
+      ti.priority = s->priority;
+      ti.cpu = s->pinned_cpu;
+    }
+    ti.realtime_refused =
+        info.requested_policy == SchedPolicy::Fifo && ti.policy != SchedPolicy::Fifo;
+    recorder_.send_info(ti);
+    recorder_.on_transition(state_, TaskState::Running, Hook::Start, false, {}, clock_.now());
+    state_ = TaskState::Running;
+  }
+
+  /// Before the component's update. `release_ns`: the scheduled release, if the loop has one
+  /// (0: the cycle starts when released). RT-safe.
+  void pre_update(Nanos release_ns = 0, std::uint32_t missed_before = 0) noexcept {
+    context_.release_ns = release_ns;
+    context_.missed_before = missed_before;
+    recorder_.pre(context_);
+  }
+  /// After the component's update. RT-safe.
+  void post_update() noexcept { recorder_.post(context_, state_); }
+
+  /// Reports an exception the component caught (or let through an UpdateGuard) and enters
+  /// Exception, as Task<Derived> does. RT-safe.
+  void report_exception(std::string_view type, std::string_view what) noexcept {
+    recorder_.on_exception(Hook::Update, type, what);
+    if (state_ != TaskState::Exception) {
+      recorder_.on_transition(state_, TaskState::Exception, Hook::Update, false, "exception",
+                              clock_.now());
+      state_ = TaskState::Exception;
+    }
+  }
+  /// Leaves Exception (back to Running). Not RT-safe.
+  void recover() {
+    if (state_ != TaskState::Exception) return;
+    recorder_.on_transition(state_, TaskState::Running, Hook::None, false, "recovered",
+                            clock_.now());
+    state_ = TaskState::Running;
+  }
+
+  /// Runs `f` as one supervised update: exceptions are caught and reported. RT-safe when f is.
+  template <class F>
+  bool run(F&& f, Nanos release_ns = 0) noexcept {
+    pre_update(release_ns);
+    bool ok = true;
+    try {
+      f();
+    } catch (const std::exception& e) {
+      recorder_.on_exception(Hook::Update, typeid(e).name(), e.what());
+      ok = false;
+    } catch (...) {
+      recorder_.on_exception(Hook::Update, "unknown", "");
+      ok = false;
+    }
+    if (!ok) state_ = TaskState::Exception;
+    post_update();
+    if (!ok) {
+      recorder_.on_transition(TaskState::Running, TaskState::Exception, Hook::Update, false,
+                              "exception", clock_.now());
+    }
+    return ok;
+  }
+
+  [[nodiscard]] TaskState state() const noexcept { return state_; }
+  [[nodiscard]] std::uint64_t cycles() const noexcept { return recorder_.cycles(); }
+  [[nodiscard]] Port<Message, N>* port() const noexcept { return recorder_.port(); }
+  [[nodiscard]] const std::string& name() const noexcept { return recorder_.name(); }
+
+ private:
+  detail::CycleRecorder<N> recorder_;
+  Clock clock_ = Clock::system();
+  CycleContext context_{0, 0, 0, nullptr, 0, 0};
+  TaskState state_ = TaskState::PreOperational;
+};
+
+/// The component supervisor with the default port capacity.
+using ComponentSupervisor = BasicComponentSupervisor<>;
+
+/// RAII: pre_update() on construction, post_update() on destruction. An exception that leaves
+/// the guarded scope is counted and reported (its type cannot be known here: use
+/// ComponentSupervisor::run() to report it exactly).
+template <class Supervisor>
+class [[nodiscard]] UpdateGuard {
+ public:
+  explicit UpdateGuard(Supervisor& s, Nanos release_ns = 0) noexcept
+      : s_(s), uncaught_(std::uncaught_exceptions()) {
+    s_.pre_update(release_ns);
+  }
+  ~UpdateGuard() {
+    if (std::uncaught_exceptions() > uncaught_) {
+      s_.report_exception("unknown", "exception propagated through UpdateGuard");
+    }
+    s_.post_update();
+  }
+  UpdateGuard(const UpdateGuard&) = delete;
+  UpdateGuard& operator=(const UpdateGuard&) = delete;
+
+ private:
+  Supervisor& s_;
+  int uncaught_;
+};
+
+}  // namespace vigil

@@ -1,0 +1,222 @@
+#pragma once
+/// @file
+/// `Task<Derived>`: the CRTP base a component author inherits. One line instruments a component:
+///
+/// ```cpp
+/// class Motor : public vigil::Task<Motor> {
+///  public:
+///   Motor() : Task("motor") {}
+///   void on_update() { /* the control law */ }   // required
+///   bool on_configure() { return true; }           // optional: on_start, on_stop, on_cleanup
+/// };
+/// ```
+///
+/// Task<Derived> overrides every framework hook of TaskCore as `final` and wraps the author's
+/// `on_*` functions with supervision: timing, counters, real-time-loss detectors, and exceptions
+/// caught at the boundary (reported with component, hook, type and what(); the task moves to
+/// Exception and its thread keeps running). What the author writes is checked at compile time,
+/// with messages that say what to change.
+
+#include <concepts>
+#include <exception>
+#include <string>
+#include <string_view>
+#include <type_traits>
+#include <typeinfo>
+#include <utility>
+
+#include "vigil/expected.hpp"
+#include "vigil/task/supervision.hpp"
+#include "vigil/task/task_core.hpp"
+
+namespace vigil {
+
+namespace detail {
+template <class T>
+struct is_expected_void : std::false_type {};
+template <class E>
+struct is_expected_void<vigil::expected<void, E>> : std::true_type {};
+
+/// What an optional hook may return: bool, or vigil::expected<void, E>.
+template <class R>
+concept HookResult = std::same_as<R, bool> || is_expected_void<std::remove_cvref_t<R>>::value;
+
+template <class E>
+std::string_view error_text(const E& e) noexcept {
+  if constexpr (std::is_convertible_v<const E&, std::string_view>) {
+    return std::string_view(e);
+  } else if constexpr (requires { std::string_view(e.message); }) {
+    return std::string_view(e.message);
+  } else {
+    return "error";
+  }
+}
+}  // namespace detail
+
+template <class Derived, class Traits = DefaultTaskTraits>
+class Task : public TaskCore {
+ public:
+  /// Creates the component and registers its port with `registry`. Not RT-safe (allocates).
+  explicit Task(std::string name, SupervisionOptions options = {},
+                Registry<Message>& registry = default_registry())
+      : TaskCore(name), recorder_(std::move(name), options, registry) {}
+
+  /// Supervision options (detectors, overhead sampling). Change them only while not running.
+  void set_supervision(SupervisionOptions options) noexcept { recorder_.set_options(options); }
+  [[nodiscard]] const SupervisionOptions& supervision() const noexcept {
+    return recorder_.options();
+  }
+  /// The component's port (for tests and tools).
+  [[nodiscard]] Port<Message, Traits::port_capacity>* port() const noexcept {
+    return recorder_.port();
+  }
+  /// Cycles run so far (from the component's thread, or once stopped).
+  [[nodiscard]] std::uint64_t cycles() const noexcept { return recorder_.cycles(); }
+
+ private:
+  friend Derived;
+
+  [[nodiscard]] Derived& derived() noexcept { return static_cast<Derived&>(*this); }
+
+  // The framework hooks. `final`: a component cannot override them, and check_author() rejects
+  // a member that would hide them.
+  bool configure_hook() final {
+    check_author();
+    recorder_.send_info(activity(), false);
+    if constexpr (requires(Derived & d) { d.on_configure(); }) {
+      return result_of(Hook::Configure, derived().on_configure());
+    }
+    return true;
+  }
+  bool start_hook() final {
+    recorder_.send_info(activity(), activity() != nullptr && activity()->threaded);
+    if constexpr (requires(Derived & d) { d.on_start(); }) {
+      return result_of(Hook::Start, derived().on_start());
+    }
+    return true;
+  }
+  void update_hook() noexcept final {
+    CycleContext& c = cycle();
+    recorder_.pre(c);
+    bool threw = false;
+    try {
+      derived().on_update();
+    } catch (const std::exception& e) {
+      recorder_.on_exception(Hook::Update, typeid(e).name(), e.what());
+      threw = true;
+    } catch (...) {
+      recorder_.on_exception(Hook::Update, "unknown", "");
+      threw = true;
+    }
+    recorder_.post(c, threw ? TaskState::Exception : TaskState::Running);
+    // After the sample: whoever sees Exception also sees every message of this cycle.
+    if (threw) transition(TaskState::Exception, Hook::Update, "exception");
+  }
+  bool stop_hook() final {
+    if constexpr (requires(Derived & d) { d.on_stop(); }) {
+      return result_of(Hook::Stop, derived().on_stop());
+    }
+    return true;
+  }
+  bool cleanup_hook() final {
+    if constexpr (requires(Derived & d) { d.on_cleanup(); }) {
+      return result_of(Hook::Cleanup, derived().on_cleanup());
+    }
+    return true;
+  }
+
+  void on_transition(TaskState from, TaskState to, Hook hook, bool refused,
+                     std::string_view reason) noexcept final {
+    const Clock* clock = cycle().clock;
+    recorder_.on_transition(from, to, hook, refused, reason,
+                            clock != nullptr ? clock->now() : platform::now_ns());
+  }
+  void on_exception(Hook hook, std::string_view type, std::string_view what) noexcept final {
+    recorder_.on_exception(hook, type, what);
+  }
+
+  template <class R>
+  bool result_of(Hook hook, R&& r) {
+    if constexpr (std::same_as<std::remove_cvref_t<R>, bool>) {
+      return r;
+    } else {
+      (void)hook;
+      if (r.has_value()) return true;
+      set_refusal_reason(detail::error_text(r.error()));
+      return false;
+    }
+  }
+
+  /// Compile-time checks of what the author wrote, with messages that say what to do. Kept in a
+  /// member so that private on_* functions (with `friend vigil::Task<Derived>`) are accepted.
+  static constexpr void check_author() {
+    static_assert(std::is_base_of_v<Task, Derived>,
+                  "vigil::Task<Derived>: Derived must inherit vigil::Task<Derived> (CRTP)");
+    static_assert(
+        requires(Derived & d) { d.on_update(); },
+        "vigil::Task<Derived>: define `void on_update()` in your component (public, or "
+        "private with `friend class vigil::Task<Derived>;`): it is the cycle's work");
+    if constexpr (requires(Derived & d) { d.on_update(); }) {
+      static_assert(std::is_void_v<decltype(std::declval<Derived&>().on_update())>,
+                    "vigil::Task<Derived>: on_update() must return void; report problems by "
+                    "throwing (the task moves to Exception) or through your own outputs");
+    }
+    if constexpr (requires(Derived & d) { d.on_configure(); }) {
+      static_assert(detail::HookResult<decltype(std::declval<Derived&>().on_configure())>,
+                    "vigil::Task<Derived>: on_configure() must return bool or "
+                    "vigil::expected<void, E> (false or an error refuses the transition)");
+    }
+    if constexpr (requires(Derived & d) { d.on_start(); }) {
+      static_assert(detail::HookResult<decltype(std::declval<Derived&>().on_start())>,
+                    "vigil::Task<Derived>: on_start() must return bool or "
+                    "vigil::expected<void, E> (false or an error refuses the transition)");
+    }
+    if constexpr (requires(Derived & d) { d.on_stop(); }) {
+      static_assert(detail::HookResult<decltype(std::declval<Derived&>().on_stop())>,
+                    "vigil::Task<Derived>: on_stop() must return bool or "
+                    "vigil::expected<void, E> (false or an error refuses the transition)");
+    }
+    if constexpr (requires(Derived & d) { d.on_cleanup(); }) {
+      static_assert(detail::HookResult<decltype(std::declval<Derived&>().on_cleanup())>,
+                    "vigil::Task<Derived>: on_cleanup() must return bool or "
+                    "vigil::expected<void, E> (false or an error refuses the transition)");
+    }
+    // A member named like a framework hook hides it (or would override it, which `final`
+    // forbids): &Derived::x then names Derived's member instead of Task's.
+    static_assert(
+        requires {
+          requires std::same_as<decltype(&Derived::configure_hook),
+                                decltype(&Task::configure_hook)>;
+        },
+        "vigil::Task<Derived>: your class declares `configure_hook`, a framework hook "
+        "name; rename it: write `on_configure()` for configuration work");
+    static_assert(
+        requires {
+          requires std::same_as<decltype(&Derived::start_hook), decltype(&Task::start_hook)>;
+        },
+        "vigil::Task<Derived>: your class declares `start_hook`, a framework hook "
+        "name; rename it: write `on_start()` for start-up work");
+    static_assert(
+        requires {
+          requires std::same_as<decltype(&Derived::update_hook), decltype(&Task::update_hook)>;
+        },
+        "vigil::Task<Derived>: your class declares `update_hook`, a framework hook "
+        "name; rename it: write `on_update()` for the cycle's work");
+    static_assert(
+        requires {
+          requires std::same_as<decltype(&Derived::stop_hook), decltype(&Task::stop_hook)>;
+        },
+        "vigil::Task<Derived>: your class declares `stop_hook`, a framework hook "
+        "name; rename it: write `on_stop()` for stopping work");
+    static_assert(
+        requires {
+          requires std::same_as<decltype(&Derived::cleanup_hook), decltype(&Task::cleanup_hook)>;
+        },
+        "vigil::Task<Derived>: your class declares `cleanup_hook`, a framework hook "
+        "name; rename it: write `on_cleanup()` for clean-up work");
+  }
+
+  detail::CycleRecorder<Traits::port_capacity> recorder_;
+};
+
+}  // namespace vigil

@@ -1,0 +1,201 @@
+#include "vigil/supervisor/component_aggregator.hpp"
+
+#include <cxxabi.h>
+
+#include <algorithm>
+#include <cstdlib>
+
+namespace vigil {
+
+struct ComponentAggregator::Slot {
+  mutable std::mutex mutex;
+  ComponentSnapshot data;  // summaries are filled only in copies handed to readers
+  RunningStats user, total, latency, period, overhead;
+  Nanos last_overhead = 0;
+  std::uint64_t exceptions_reported = 0;
+};
+
+namespace {
+
+std::string demangle(const char* mangled) {
+  int status = 0;
+  char* s = abi::__cxa_demangle(mangled, nullptr, nullptr, &status);
+  if (status != 0 || s == nullptr) return mangled;
+  std::string out(s);
+  std::free(s);
+  return out;
+}
+
+}  // namespace
+
+ComponentAggregator::ComponentAggregator(AggregatorOptions options)
+    : options_(options), ewma_weight_(options.ewma_weight) {}
+ComponentAggregator::~ComponentAggregator() = default;
+
+ComponentAggregator::Slot* ComponentAggregator::slot_for(const Entry& e) {
+  // Called by the supervisor thread, the only writer of slots_: no lock needed to read it.
+  auto it = std::lower_bound(slots_.begin(), slots_.end(), e.id,
+                             [](const auto& s, std::uint32_t id) { return s->data.id < id; });
+  return it != slots_.end() && (*it)->data.id == e.id ? it->get() : nullptr;
+}
+
+void ComponentAggregator::on_join(const Entry& e) {
+  auto slot = std::make_unique<Slot>();
+  slot->data.id = e.id;
+  slot->data.name = e.name;
+  slot->data.joined_at = options_.clock.now();
+  slot->data.port_capacity = e.port->capacity();
+  for (RunningStats* s :
+       {&slot->user, &slot->total, &slot->latency, &slot->period, &slot->overhead}) {
+    (void)s->set_ewma_weight(ewma_weight_.load(std::memory_order_relaxed));
+  }
+  std::unique_lock lock(list_mutex_);
+  auto it = std::lower_bound(slots_.begin(), slots_.end(), e.id,
+                             [](const auto& s, std::uint32_t id) { return s->data.id < id; });
+  slots_.insert(it, std::move(slot));
+}
+
+void ComponentAggregator::on_leave(const Entry& e) {
+  if (Slot* s = slot_for(e)) {
+    std::lock_guard lock(s->mutex);
+    s->data.alive = false;
+    s->data.left_at = options_.clock.now();
+  }
+}
+
+void ComponentAggregator::begin(const Entry& e) {
+  current_ = slot_for(e);
+  if (current_ != nullptr) current_->mutex.lock();
+}
+
+void ComponentAggregator::end(const Entry& /*e*/, const PortDrain& d) {
+  if (current_ == nullptr) return;
+  auto& data = current_->data;
+  data.port_high_water = std::max(data.port_high_water, d.occupancy);
+  data.counters.dropped = std::max(data.counters.dropped, d.dropped);
+  current_->mutex.unlock();
+  current_ = nullptr;
+}
+
+void ComponentAggregator::on(const Entry& /*e*/, const TaskInfo& m) {
+  if (current_ == nullptr) return;
+  current_->data.has_info = true;
+  current_->data.info = m;
+}
+
+void ComponentAggregator::on(const Entry& /*e*/, const CycleSample& m) {
+  if (current_ == nullptr) return;
+  Slot& s = *current_;
+  auto& d = s.data;
+  if (d.has_sample && m.cycle == d.last.cycle + 1) s.period.add(m.start_ns - d.last.start_ns);
+  if (m.overhead_ns > 0) {
+    s.last_overhead = m.overhead_ns;
+    s.overhead.add(m.overhead_ns);
+  }
+  const Nanos user = m.end_ns - m.start_ns;
+  s.user.add(user);
+  s.total.add(user + s.last_overhead);
+  s.latency.add(m.start_ns - m.release_ns);
+  d.has_sample = true;
+  d.last = m;
+  ++d.samples;
+  d.state = m.state;
+  d.counters.cycles = m.cycles;
+  d.counters.overruns = m.overruns;
+  d.counters.missed_cycles = m.missed_cycles;
+  d.counters.losses = m.losses;
+  d.counters.exceptions = std::max(m.exceptions, s.exceptions_reported);
+  d.counters.dropped = std::max(d.counters.dropped, m.dropped);
+  d.last_sample_at = options_.clock.now();
+}
+
+void ComponentAggregator::on(const Entry& /*e*/, const RealTimeLoss& m) {
+  // The cumulative counters of the samples are authoritative; a loss report matters for its
+  // timing only, and the next sample carries its count.
+  (void)m;
+}
+
+void ComponentAggregator::on(const Entry& /*e*/, const ExceptionReport& m) {
+  if (current_ == nullptr) return;
+  Slot& s = *current_;
+  s.data.has_exception = true;
+  s.data.last_exception = m;
+  s.data.last_exception_type = demangle(m.type.c_str());
+  s.exceptions_reported = std::max(s.exceptions_reported, m.count);
+  s.data.counters.exceptions = std::max(s.data.counters.exceptions, m.count);
+}
+
+void ComponentAggregator::on(const Entry& /*e*/, const StateChange& m) {
+  if (current_ == nullptr) return;
+  current_->data.has_state_change = true;
+  current_->data.last_change = m;
+  current_->data.state = m.to;
+}
+
+void ComponentAggregator::on_cycle(const SupervisorCycle& /*c*/) {
+  const Nanos now = options_.clock.now();
+  const bool expired = std::any_of(slots_.begin(), slots_.end(), [&](const auto& s) {
+    return !s->data.alive && now - s->data.left_at > options_.retain_left_ns;
+  });
+  if (!expired) return;
+  std::unique_lock lock(list_mutex_);
+  std::erase_if(slots_, [&](const auto& s) {
+    return !s->data.alive && now - s->data.left_at > options_.retain_left_ns;
+  });
+}
+
+namespace {
+ComponentSnapshot copy_of(const ComponentAggregator::Slot& s) {
+  std::lock_guard lock(s.mutex);
+  ComponentSnapshot out = s.data;
+  out.user_ns = s.user.summary();
+  out.total_ns = s.total.summary();
+  out.latency_ns = s.latency.summary();
+  out.period_ns = s.period.summary();
+  out.overhead_ns = s.overhead.summary();
+  return out;
+}
+}  // namespace
+
+std::vector<ComponentSnapshot> ComponentAggregator::snapshot() const {
+  std::shared_lock lock(list_mutex_);
+  std::vector<ComponentSnapshot> out;
+  out.reserve(slots_.size());
+  for (const auto& s : slots_) out.push_back(copy_of(*s));
+  return out;
+}
+
+std::optional<ComponentSnapshot> ComponentAggregator::find(std::string_view name) const {
+  std::shared_lock lock(list_mutex_);
+  const Slot* dead = nullptr;
+  for (const auto& s : slots_) {
+    if (s->data.name != name) continue;
+    if (s->data.alive) return copy_of(*s);
+    dead = s.get();
+  }
+  if (dead != nullptr) return copy_of(*dead);
+  return std::nullopt;
+}
+
+std::size_t ComponentAggregator::size() const {
+  std::shared_lock lock(list_mutex_);
+  return slots_.size();
+}
+
+void ComponentAggregator::set_ewma_weight(double w) {
+  std::shared_lock lock(list_mutex_);
+  for (const auto& s : slots_) {
+    std::lock_guard slot_lock(s->mutex);
+    for (RunningStats* r : {&s->user, &s->total, &s->latency, &s->period, &s->overhead}) {
+      (void)r->set_ewma_weight(w);
+    }
+  }
+  ewma_weight_.store(w, std::memory_order_relaxed);
+}
+
+Registry<Message>& default_registry() {
+  static Registry<Message> registry;
+  return registry;
+}
+
+}  // namespace vigil
