@@ -62,6 +62,15 @@ class Port final : public PortReader<Variant> {
     return false;
   }
 
+  /// Pushes `m` if there is room; when full, returns false WITHOUT counting a drop, for a
+  /// producer that keeps the message and retries later. RT-safe. Producer thread only.
+  [[nodiscard]] bool try_push_or_keep(const Variant& m) noexcept {
+#ifndef NDEBUG
+    ProducerGuard guard(producers_);
+#endif
+    return queue_.push(m);
+  }
+
   std::size_t pop(Variant* out, std::size_t max) noexcept override { return queue_.pop(out, max); }
   [[nodiscard]] std::size_t read_available() const noexcept override {
     return queue_.read_available();
@@ -82,8 +91,8 @@ class Port final : public PortReader<Variant> {
   };
   std::atomic<int> producers_{0};
 #endif
-  // boost's compile-time ring keeps one slot empty to tell full from empty: N + 1 slots hold N.
-  boost::lockfree::spsc_queue<Variant, boost::lockfree::capacity<N + 1>> queue_;
+  // boost's compile-time ring reserves its spare slot itself: capacity<N> holds N (tested).
+  boost::lockfree::spsc_queue<Variant, boost::lockfree::capacity<N>> queue_;
 };
 
 }  // namespace vigil

@@ -54,6 +54,28 @@ struct ThreadUsage {
 /// Call once from the real-time thread before its loop. Not RT-safe.
 bool arm_mode_switch_detection() noexcept;
 
+/// Process-wide counts of the SIGDEBUG notifications received by threads armed with
+/// `arm_mode_switch_detection()`, by the reason the Cobalt core gave. All zero on Linux.
+/// `thread_mode_switches()` counts, per thread, the reasons marked "mode switch" below.
+struct ModeSwitchReasons {
+  std::uint64_t signal = 0;    ///< mode switch: relaxed to handle a Linux signal
+  std::uint64_t syscall = 0;   ///< mode switch: issued a regular Linux system call
+  std::uint64_t fault = 0;     ///< mode switch: processor fault or exception (e.g. page fault)
+  std::uint64_t watchdog = 0;  ///< mode switch forced by the Cobalt watchdog (runaway thread)
+  /// Slept on a Cobalt mutex whose owner ran in secondary mode (priority inversion).
+  std::uint64_t priority_inversion = 0;
+  std::uint64_t no_mlock = 0;  ///< process memory was not locked (a configuration error)
+  /// Debug reports (resource-count imbalance, lock break, sleeping while holding a mutex) and
+  /// reasons this version of vigil does not know.
+  std::uint64_t other = 0;
+  /// SIGXCPU not sent by the Cobalt core: libcobalt's mode check (malloc/free called in primary
+  /// mode while armed), RLIMIT_CPU, kill(2). Counted and otherwise ignored.
+  std::uint64_t unmarked = 0;
+};
+
+/// Reads the per-reason counters. RT-safe: yes (relaxed atomic loads, no system call).
+[[nodiscard]] ModeSwitchReasons mode_switch_reasons() noexcept;
+
 }  // namespace vigil::platform
 
 namespace vigil::platform::detail {

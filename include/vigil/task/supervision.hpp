@@ -176,11 +176,14 @@ class CycleRecorder {
 
   void flush() noexcept {
     auto* port = membership_.port();
-    if ((pending_ & kInfo) != 0 && port->try_push(Message{info_})) pending_ &= ~kInfo;
-    if ((pending_ & kException) != 0 && port->try_push(Message{exception_})) {
+    // Kept messages are retried, not dropped: a failed attempt is not counted as a drop.
+    if ((pending_ & kInfo) != 0 && port->try_push_or_keep(Message{info_})) pending_ &= ~kInfo;
+    if ((pending_ & kException) != 0 && port->try_push_or_keep(Message{exception_})) {
       pending_ &= ~kException;
     }
-    if ((pending_ & kChange) != 0 && port->try_push(Message{change_})) pending_ &= ~kChange;
+    if ((pending_ & kChange) != 0 && port->try_push_or_keep(Message{change_})) {
+      pending_ &= ~kChange;
+    }
   }
 
   void arm() noexcept {

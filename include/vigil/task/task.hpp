@@ -41,6 +41,31 @@ struct is_expected_void<vigil::expected<void, E>> : std::true_type {};
 template <class R>
 concept HookResult = std::same_as<R, bool> || is_expected_void<std::remove_cvref_t<R>>::value;
 
+/// True when D declares (or inherits) a member named like an optional hook, whatever its kind,
+/// signature or access: the name is then ambiguous in HookNameScan<D>. A final class cannot be
+/// scanned (nothing may derive from it), so for it this is always false.
+struct HookNames {
+  int on_configure, on_start, on_stop, on_cleanup;
+};
+template <class D>
+struct HookNameScan : D, HookNames {};
+template <class D>
+concept declares_on_configure = !std::is_final_v<D> && !requires {
+  &HookNameScan<D>::on_configure;
+};
+template <class D>
+concept declares_on_start = !std::is_final_v<D> && !requires {
+  &HookNameScan<D>::on_start;
+};
+template <class D>
+concept declares_on_stop = !std::is_final_v<D> && !requires {
+  &HookNameScan<D>::on_stop;
+};
+template <class D>
+concept declares_on_cleanup = !std::is_final_v<D> && !requires {
+  &HookNameScan<D>::on_cleanup;
+};
+
 template <class E>
 std::string_view error_text(const E& e) noexcept {
   if constexpr (std::is_convertible_v<const E&, std::string_view>) {
@@ -96,11 +121,13 @@ class Task : public TaskCore {
     return true;
   }
   void update_hook() noexcept final {
+    check_author();
     CycleContext& c = cycle();
     recorder_.pre(c);
     bool threw = false;
     try {
-      derived().on_update();
+      // Guarded so that a missing or inaccessible on_update() is reported by check_author() alone.
+      if constexpr (requires(Derived & d) { d.on_update(); }) derived().on_update();
     } catch (const std::exception& e) {
       recorder_.on_exception(Hook::Update, typeid(e).name(), e.what());
       threw = true;
@@ -152,6 +179,10 @@ class Task : public TaskCore {
   static constexpr void check_author() {
     static_assert(std::is_base_of_v<Task, Derived>,
                   "vigil::Task<Derived>: Derived must inherit vigil::Task<Derived> (CRTP)");
+    static_assert(std::is_convertible_v<Derived*, Task*>,
+                  "vigil::Task<Derived>: inherit vigil::Task<Derived> publicly, e.g. "
+                  "`class Motor : public vigil::Task<Motor>` (a class's bases are private by "
+                  "default)");
     static_assert(
         requires(Derived & d) { d.on_update(); },
         "vigil::Task<Derived>: define `void on_update()` in your component (public, or "
@@ -165,22 +196,46 @@ class Task : public TaskCore {
       static_assert(detail::HookResult<decltype(std::declval<Derived&>().on_configure())>,
                     "vigil::Task<Derived>: on_configure() must return bool or "
                     "vigil::expected<void, E> (false or an error refuses the transition)");
+    } else {
+      static_assert(!detail::declares_on_configure<Derived>,
+                    "vigil::Task<Derived>: your class declares `on_configure` but Task cannot call "
+                    "it as `on_configure()`, so it would never run; make it take no arguments, and "
+                    "public or private with `friend class vigil::Task<Derived>;`");
     }
     if constexpr (requires(Derived & d) { d.on_start(); }) {
       static_assert(detail::HookResult<decltype(std::declval<Derived&>().on_start())>,
                     "vigil::Task<Derived>: on_start() must return bool or "
                     "vigil::expected<void, E> (false or an error refuses the transition)");
+    } else {
+      static_assert(!detail::declares_on_start<Derived>,
+                    "vigil::Task<Derived>: your class declares `on_start` but Task cannot call "
+                    "it as `on_start()`, so it would never run; make it take no arguments, and "
+                    "public or private with `friend class vigil::Task<Derived>;`");
     }
     if constexpr (requires(Derived & d) { d.on_stop(); }) {
       static_assert(detail::HookResult<decltype(std::declval<Derived&>().on_stop())>,
                     "vigil::Task<Derived>: on_stop() must return bool or "
                     "vigil::expected<void, E> (false or an error refuses the transition)");
+    } else {
+      static_assert(!detail::declares_on_stop<Derived>,
+                    "vigil::Task<Derived>: your class declares `on_stop` but Task cannot call "
+                    "it as `on_stop()`, so it would never run; make it take no arguments, and "
+                    "public or private with `friend class vigil::Task<Derived>;`");
     }
     if constexpr (requires(Derived & d) { d.on_cleanup(); }) {
       static_assert(detail::HookResult<decltype(std::declval<Derived&>().on_cleanup())>,
                     "vigil::Task<Derived>: on_cleanup() must return bool or "
                     "vigil::expected<void, E> (false or an error refuses the transition)");
+    } else {
+      static_assert(!detail::declares_on_cleanup<Derived>,
+                    "vigil::Task<Derived>: your class declares `on_cleanup` but Task cannot call "
+                    "it as `on_cleanup()`, so it would never run; make it take no arguments, and "
+                    "public or private with `friend class vigil::Task<Derived>;`");
     }
+    // Skipped for a non-public base, already reported: every &Derived::x would be inaccessible.
+    if constexpr (std::is_convertible_v<Derived*, Task*>) check_hook_names();
+  }
+  static constexpr void check_hook_names() {
     // A member named like a framework hook hides it (or would override it, which `final`
     // forbids): &Derived::x then names Derived's member instead of Task's.
     static_assert(

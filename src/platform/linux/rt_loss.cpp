@@ -18,4 +18,7 @@ ThreadUsage thread_usage() noexcept {
 
 bool arm_mode_switch_detection() noexcept { return false; }
 
+// There is no SIGDEBUG on Linux: every reason stays 0.
+ModeSwitchReasons mode_switch_reasons() noexcept { return {}; }
+
 }  // namespace vigil::platform

@@ -1,95 +1,13 @@
 // Linux thread statistics from /proc/self/task/<tid>/stat and status (proc_pid_stat(5)).
 #include "vigil/platform/thread_stats.hpp"
 
-#include <fmt/format.h>
-#include <sched.h>
-#include <unistd.h>
-
-#include <cerrno>
-#include <charconv>
-#include <cstring>
-#include <fstream>
-#include <sstream>
-#include <string_view>
+#include "platform/proc_thread_stats.hpp"
 
 namespace vigil::platform {
 
-namespace {
-
-expected<std::string, Error> slurp(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) {
-    const int err = errno != 0 ? errno : ESRCH;
-    return unexpected(Error{err, fmt::format("{}: {}", path, std::strerror(err))});
-  }
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-std::uint64_t field_u64(std::string_view s) {
-  std::uint64_t v = 0;
-  std::from_chars(s.data(), s.data() + s.size(), v);
-  return v;
-}
-
-}  // namespace
-
+// The parser is shared with the Cobalt implementation (src/platform/proc_thread_stats.hpp).
 expected<ThreadStats, Error> read_thread_stats(int tid) {
-  const std::string dir = fmt::format("/proc/self/task/{}/", tid);
-  auto stat = slurp(dir + "stat");
-  if (!stat) return unexpected(stat.error());
-  auto status = slurp(dir + "status");
-  if (!status) return unexpected(status.error());
-
-  ThreadStats st;
-  st.tid = tid;
-  // "pid (comm) state ppid ...": comm may hold spaces and parentheses, so split at the last ')'.
-  const std::string& s = *stat;
-  const auto open = s.find('(');
-  const auto close = s.rfind(')');
-  if (open == std::string::npos || close == std::string::npos || close < open) {
-    return unexpected(Error{EIO, fmt::format("{}stat: unexpected format", dir)});
-  }
-  st.name = s.substr(open + 1, close - open - 1);
-  // Fields after ')' start with field 3 (state); collect them by index.
-  std::string_view rest(s.data() + close + 2, s.size() - close - 2);
-  std::string_view fields[64];
-  int n = 3;
-  while (!rest.empty() && n < 64) {
-    const auto sp = rest.find(' ');
-    fields[n++] = rest.substr(0, sp);
-    if (sp == std::string_view::npos) break;
-    rest.remove_prefix(sp + 1);
-  }
-  if (n <= 41) return unexpected(Error{EIO, fmt::format("{}stat: only {} fields", dir, n - 1)});
-  const long tick = sysconf(_SC_CLK_TCK);
-  const Nanos ns_per_tick = kNanosPerSecond / (tick > 0 ? tick : 100);
-  st.minor_faults = field_u64(fields[10]);
-  st.major_faults = field_u64(fields[12]);
-  st.user_time_ns = static_cast<Nanos>(field_u64(fields[14])) * ns_per_tick;
-  st.system_time_ns = static_cast<Nanos>(field_u64(fields[15])) * ns_per_tick;
-  st.last_cpu = static_cast<int>(field_u64(fields[39]));
-  st.priority = static_cast<int>(field_u64(fields[40]));
-  const auto policy = static_cast<int>(field_u64(fields[41]));
-  st.policy = policy == SCHED_FIFO ? SchedPolicy::Fifo : SchedPolicy::Other;
-  st.policy_known = policy == SCHED_FIFO || policy == SCHED_OTHER;
-
-  std::istringstream lines(*status);
-  std::string line;
-  while (std::getline(lines, line)) {
-    constexpr std::string_view kVol = "voluntary_ctxt_switches:";
-    constexpr std::string_view kInvol = "nonvoluntary_ctxt_switches:";
-    std::string_view l(line);
-    if (l.starts_with(kVol)) {
-      l.remove_prefix(kVol.size());
-      st.voluntary_switches = field_u64(l.substr(l.find_first_not_of(" \t")));
-    } else if (l.starts_with(kInvol)) {
-      l.remove_prefix(kInvol.size());
-      st.involuntary_switches = field_u64(l.substr(l.find_first_not_of(" \t")));
-    }
-  }
-  return st;
+  return detail::read_proc_thread_stats(tid);
 }
 
 }  // namespace vigil::platform

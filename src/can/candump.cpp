@@ -1,0 +1,519 @@
+// candump log format (can-utils lib.c parse_canframe / snprintf_canframe, candump.c, log2asc.c):
+// reader, frame parser and writer.
+#include "vigil/can/candump.hpp"
+
+#include <fmt/format.h>
+
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <istream>
+#include <ostream>
+#include <utility>
+
+#include "text_log.hpp"
+
+namespace vigil::can {
+
+namespace {
+
+using detail::hex_value;
+using detail::is_blank;
+using detail::is_digit;
+using detail::Problem;
+
+constexpr std::uint32_t kErrFlag = 0x20000000U;  // CAN_ERR_FLAG as written in 8-digit ids
+constexpr std::uint8_t kFdFlagBrs = 0x1;         // CANFD_BRS
+constexpr std::uint8_t kFdFlagEsi = 0x2;         // CANFD_ESI
+constexpr std::uint8_t kFdFlagFdf = 0x4;         // CANFD_FDF (marks CAN FD; implied by "##")
+constexpr std::size_t kMaxInterfaces = 256;      // bus indices are 8 bits
+
+bool fail(Problem& p, std::size_t offset, std::string message) {
+  p.offset = offset;
+  p.message = std::move(message);
+  return false;
+}
+
+std::string quote(char c) {
+  const auto u = static_cast<unsigned char>(c);
+  if (u >= 0x20 && u < 0x7F) return fmt::format("'{}'", c);
+  return fmt::format("byte 0x{:02X}", u);
+}
+
+// Parses the frame field `s` (which starts at offset `base` of its line) into `f`.
+bool parse_frame(std::string_view s, std::size_t base, Frame& f, Problem& p) {
+  f = Frame{};
+  const std::size_t n = s.size();
+  std::size_t pos = 0;
+  std::uint32_t raw = 0;
+  while (pos < n && s[pos] != '#') {
+    const std::uint8_t v = hex_value(s[pos]);
+    if (v > 0xF) {
+      return fail(p, base + pos, fmt::format("invalid character {} in identifier", quote(s[pos])));
+    }
+    if (pos < 8) raw = (raw << 4) | v;
+    ++pos;
+  }
+  if (pos == n) return fail(p, base + n, "missing '#' after the identifier");
+  switch (pos) {
+    case 3:
+      if (raw > kMaxStandardId) {
+        return fail(p, base, fmt::format("standard identifier {:03X} exceeds 7FF", raw));
+      }
+      f.id = raw;
+      break;
+    case 8:
+      if (raw > (kErrFlag | kMaxExtendedId)) {
+        return fail(p, base, fmt::format("identifier {:08X} has bits above the 29-bit id", raw));
+      }
+      if ((raw & kErrFlag) != 0) {
+        f.error = true;
+        f.id = raw & kMaxExtendedId;
+      } else {
+        f.extended = true;
+        f.id = raw;
+      }
+      break;
+    case 5:
+      return fail(p, base, "CAN XL frames (5-digit priority field) are not supported");
+    default:
+      return fail(p, base,
+                  fmt::format("identifier has {} hex digits; expected 3 (standard) or 8 (extended)",
+                              pos));
+  }
+  ++pos;  // '#'
+
+  // Remote frame: R, optional length digit 0..8, and after 8 an optional raw DLC "_9".."_F".
+  if (pos < n && (s[pos] == 'R' || s[pos] == 'r')) {
+    if (f.error) return fail(p, base + pos, "an error frame cannot be a remote frame");
+    f.rtr = true;
+    ++pos;
+    if (pos < n && s[pos] != '_') {
+      if (s[pos] < '0' || s[pos] > '8') {
+        return fail(p, base + pos,
+                    fmt::format("remote frame length must be one digit 0-8, found {}", quote(s[pos])));
+      }
+      f.length = static_cast<std::uint8_t>(s[pos] - '0');
+      ++pos;
+    }
+    if (pos < n && s[pos] == '_') {
+      if (f.length != 8) return fail(p, base + pos, "a raw DLC ('_') must follow the length 8");
+      ++pos;
+      const std::uint8_t dlc = pos < n ? hex_value(s[pos]) : 0xFF;
+      if (dlc < 9 || dlc > 15) return fail(p, base + pos, "raw DLC after '_' must be one of 9-F");
+      f.length = dlc;
+      ++pos;
+    }
+    if (pos != n) {
+      return fail(p, base + pos,
+                  fmt::format("unexpected {} after the remote frame", quote(s[pos])));
+    }
+    return true;
+  }
+
+  std::size_t max_bytes = kMaxClassicDataLength;
+  if (pos < n && s[pos] == '#') {
+    if (f.error) return fail(p, base + pos, "an error frame cannot be a CAN FD frame");
+    ++pos;
+    const std::uint8_t flags = pos < n ? hex_value(s[pos]) : 0xFF;
+    if (flags > 0xF) return fail(p, base + pos, "CAN FD flags after '##' must be one hex digit");
+    if ((flags & ~(kFdFlagBrs | kFdFlagEsi | kFdFlagFdf)) != 0) {
+      return fail(p, base + pos, fmt::format("unknown CAN FD flag bits in {:X}", flags));
+    }
+    f.fd = true;
+    f.brs = (flags & kFdFlagBrs) != 0;
+    f.esi = (flags & kFdFlagEsi) != 0;
+    max_bytes = kMaxFdDataLength;
+    ++pos;
+  }
+
+  const std::size_t data_start = pos;
+  std::size_t count = 0;
+  while (true) {
+    if (pos < n && s[pos] == '.') ++pos;  // optional separator, one at a time
+    if (pos >= n || s[pos] == '_') break;
+    const std::uint8_t hi = hex_value(s[pos]);
+    if (hi > 0xF) {
+      return fail(p, base + pos, fmt::format("invalid character {} in data", quote(s[pos])));
+    }
+    if (pos + 1 >= n) return fail(p, base + pos, "odd number of hex digits in data");
+    const std::uint8_t lo = hex_value(s[pos + 1]);
+    if (lo > 0xF) {
+      return fail(p, base + pos + 1,
+                  fmt::format("invalid character {} in data", quote(s[pos + 1])));
+    }
+    if (count == max_bytes) {
+      if (f.fd) return fail(p, base + pos, "more than 64 data bytes");
+      return fail(p, base + pos,
+                  f.error ? "more than 8 data bytes in an error frame"
+                          : "more than 8 data bytes in a Classical CAN frame (CAN FD is "
+                            "written with '##')");
+    }
+    f.data[count++] = static_cast<std::uint8_t>((hi << 4) | lo);
+    pos += 2;
+  }
+  f.length = static_cast<std::uint8_t>(count);
+  if (f.fd && !is_fd_length(count)) {
+    return fail(p, base + data_start,
+                fmt::format("{} data bytes is not a CAN FD length (0-8, 12, 16, 20, 24, 32, 48, 64)",
+                            count));
+  }
+  if (pos < n) {  // '_' raw DLC of a Classical CAN frame with 8 data bytes
+    if (f.fd) return fail(p, base + pos, "a CAN FD frame has no raw DLC ('_')");
+    if (count != kMaxClassicDataLength) {
+      return fail(p, base + pos, "a raw DLC ('_') needs 8 data bytes before it");
+    }
+    ++pos;
+    const std::uint8_t dlc = pos < n ? hex_value(s[pos]) : 0xFF;
+    if (dlc < 9 || dlc > 15) return fail(p, base + pos, "raw DLC after '_' must be one of 9-F");
+    f.length = dlc;
+    ++pos;
+    if (pos != n) {
+      return fail(p, base + pos, fmt::format("unexpected {} after the raw DLC", quote(s[pos])));
+    }
+  }
+  return true;
+}
+
+enum class LineKind : std::uint8_t { Frame, Comment, Malformed };
+
+struct ParsedLine {
+  Frame frame;
+  std::string_view iface;
+  std::size_t iface_offset = 0;
+  std::optional<Direction> direction;
+};
+
+std::size_t skip_blanks(std::string_view s, std::size_t pos) {
+  while (pos < s.size() && is_blank(s[pos])) ++pos;
+  return pos;
+}
+
+std::size_t token_end(std::string_view s, std::size_t pos) {
+  while (pos < s.size() && !is_blank(s[pos])) ++pos;
+  return pos;
+}
+
+LineKind malformed(Problem& p, std::size_t offset, std::string message) {
+  fail(p, offset, std::move(message));
+  return LineKind::Malformed;
+}
+
+// "(sec.frac) iface frame [R|T]"; lines not starting with '(' are comments (candump, log2asc).
+LineKind parse_line(std::string_view line, ParsedLine& out, Problem& p) {
+  if (line.empty() || line[0] != '(') return LineKind::Comment;
+  const std::size_t n = line.size();
+  std::size_t pos = 1;
+
+  // Timestamp: exact integer arithmetic, 1..9 fraction digits.
+  std::int64_t sec = 0;
+  const std::size_t sec_start = pos;
+  while (pos < n && is_digit(line[pos])) {
+    if (!detail::mul_add(sec, 10, line[pos] - '0', sec)) {
+      return malformed(p, sec_start, "timestamp out of range");
+    }
+    ++pos;
+  }
+  if (pos == sec_start) return malformed(p, pos, "timestamp: expected digits after '('");
+  if (pos >= n || line[pos] != '.') return malformed(p, pos, "timestamp: expected '.' after the seconds");
+  ++pos;
+  const std::size_t frac_start = pos;
+  std::int64_t frac = 0;
+  while (pos < n && is_digit(line[pos])) {
+    if (pos - frac_start == 9) {
+      return malformed(p, pos, "timestamp has more than 9 fraction digits (the resolution is 1 ns)");
+    }
+    frac = frac * 10 + (line[pos] - '0');
+    ++pos;
+  }
+  if (pos == frac_start) return malformed(p, pos, "timestamp: expected digits after '.'");
+  if (pos >= n || line[pos] != ')') return malformed(p, pos, "timestamp: expected ')'");
+  ++pos;
+  frac *= detail::kPow10[9 - (pos - 1 - frac_start)];
+  std::int64_t ts = 0;
+  if (!detail::mul_add(sec, kNanosPerSecond, frac, ts)) {
+    return malformed(p, sec_start, "timestamp out of range");
+  }
+
+  if (pos >= n) return malformed(p, pos, "missing interface name and frame after the timestamp");
+  if (!is_blank(line[pos])) return malformed(p, pos, "expected a space after the timestamp");
+  pos = skip_blanks(line, pos);
+  if (pos >= n) return malformed(p, pos, "missing interface name and frame after the timestamp");
+  const std::size_t iface_start = pos;
+  pos = token_end(line, pos);
+  const std::string_view iface = line.substr(iface_start, pos - iface_start);
+  pos = skip_blanks(line, pos);
+  if (pos >= n) {
+    if (iface.find('#') != std::string_view::npos) {
+      return malformed(p, iface_start, "missing interface name before the frame");
+    }
+    return malformed(p, pos, "missing frame after the interface name");
+  }
+  const std::size_t frame_start = pos;
+  pos = token_end(line, pos);
+  if (!parse_frame(line.substr(frame_start, pos - frame_start), frame_start, out.frame, p)) {
+    return LineKind::Malformed;
+  }
+  out.frame.timestamp = ts;
+
+  // Optional direction (candump -x): " R" or " T", nothing after it but blanks.
+  out.direction.reset();
+  pos = skip_blanks(line, pos);
+  if (pos < n) {
+    const std::size_t dir_end = token_end(line, pos);
+    if (dir_end - pos != 1 || (line[pos] != 'R' && line[pos] != 'T')) {
+      return malformed(p, pos, "unexpected text after the frame (only a direction R or T may follow)");
+    }
+    out.direction = line[pos] == 'T' ? Direction::Tx : Direction::Rx;
+    if (skip_blanks(line, dir_end) != n) {
+      return malformed(p, skip_blanks(line, dir_end), "unexpected text after the direction");
+    }
+  }
+  out.iface = iface;
+  out.iface_offset = iface_start;
+  return LineKind::Frame;
+}
+
+constexpr char kHexUpper[] = "0123456789ABCDEF";
+
+void put_hex(fmt::memory_buffer& b, std::uint32_t v, int digits) {
+  for (int i = digits - 1; i >= 0; --i) b.push_back(kHexUpper[(v >> (4 * i)) & 0xF]);
+}
+
+// The exact bytes of one `candump -l` line (snprintf_canframe + sprint_timestamp).
+void format_line(fmt::memory_buffer& b, const Frame& f, std::string_view iface,
+                 std::optional<Direction> direction, CandumpWriteOptions options) {
+  const Nanos ts = f.timestamp < 0 ? 0 : f.timestamp;
+  const auto sec = static_cast<unsigned long long>(ts / kNanosPerSecond);
+  const auto ns = static_cast<unsigned long long>(ts % kNanosPerSecond);
+  if (options.digits == TimestampDigits::Nano) {
+    fmt::format_to(std::back_inserter(b), "({:010}.{:09}) ", sec, ns);
+  } else {
+    fmt::format_to(std::back_inserter(b), "({:010}.{:06}) ", sec, ns / 1000);
+  }
+  b.append(iface.data(), iface.data() + iface.size());
+  b.push_back(' ');
+
+  if (f.error) {
+    put_hex(b, (f.id & kMaxExtendedId) | kErrFlag, 8);
+  } else if (f.extended) {
+    put_hex(b, f.id & kMaxExtendedId, 8);
+  } else {
+    put_hex(b, f.id & kMaxStandardId, 3);
+  }
+  b.push_back('#');
+  const bool fd = f.fd && !f.error;
+  if (!fd && f.rtr && !f.error) {
+    b.push_back('R');
+    const std::uint8_t len = std::min(f.length, kMaxDlc);
+    if (len > 0 && len <= 8) {
+      b.push_back(kHexUpper[len]);
+    } else if (len > 8) {
+      b.push_back('8');
+      b.push_back('_');
+      b.push_back(kHexUpper[len]);
+    }
+  } else {
+    std::size_t len = 0;
+    if (fd) {
+      b.push_back('#');
+      b.push_back(kHexUpper[kFdFlagFdf | (f.brs ? kFdFlagBrs : 0) | (f.esi ? kFdFlagEsi : 0)]);
+      len = std::min<std::size_t>(f.length, kMaxFdDataLength);
+    } else {
+      len = std::min<std::size_t>(f.length, kMaxClassicDataLength);
+    }
+    for (std::size_t i = 0; i < len; ++i) put_hex(b, f.data[i], 2);
+    if (!fd && f.length > kMaxClassicDataLength) {
+      b.push_back('_');
+      b.push_back(kHexUpper[std::min(f.length, kMaxDlc)]);
+    }
+  }
+  if (direction) {
+    b.push_back(' ');
+    b.push_back(*direction == Direction::Tx ? 'T' : 'R');
+  }
+  b.push_back('\n');
+}
+
+}  // namespace
+
+// --- reader ------------------------------------------------------------------------------------
+
+struct CandumpReader::Impl {
+  Impl(std::unique_ptr<std::istream> own, std::istream& in, std::string source,
+       ReaderOptions options)
+      : owned(std::move(own)),
+        lines(in.rdbuf(), options.max_line_bytes),
+        core(std::move(source), std::move(options)) {}
+
+  // Bus index of `name`, adding it on first appearance; false when the table is full.
+  bool bus_of(std::string_view name, std::uint8_t& bus) {
+    if (last_bus < interfaces.size() && interfaces[last_bus] == name) {
+      bus = static_cast<std::uint8_t>(last_bus);
+      return true;
+    }
+    for (std::size_t i = 0; i < interfaces.size(); ++i) {
+      if (interfaces[i] == name) {
+        last_bus = i;
+        bus = static_cast<std::uint8_t>(i);
+        return true;
+      }
+    }
+    if (interfaces.size() == kMaxInterfaces) return false;
+    interfaces.emplace_back(name);
+    last_bus = interfaces.size() - 1;
+    bus = static_cast<std::uint8_t>(last_bus);
+    return true;
+  }
+
+  std::unique_ptr<std::istream> owned;  // set by open(); `lines` reads its buffer
+  detail::LineReader lines;
+  detail::ReaderCore core;
+  std::vector<std::string> interfaces;
+  std::size_t last_bus = 0;
+  ParsedLine parsed;
+  Problem problem;
+};
+
+CandumpReader::CandumpReader(std::istream& in, std::string source_name, ReaderOptions options)
+    : impl_(std::make_unique<Impl>(nullptr, in, std::move(source_name), std::move(options))) {}
+
+CandumpReader::CandumpReader(std::unique_ptr<Impl> impl) noexcept : impl_(std::move(impl)) {}
+CandumpReader::CandumpReader(CandumpReader&&) noexcept = default;
+CandumpReader& CandumpReader::operator=(CandumpReader&&) noexcept = default;
+CandumpReader::~CandumpReader() = default;
+
+expected<CandumpReader, Error> CandumpReader::open(const std::filesystem::path& path,
+                                                   ReaderOptions options) {
+  auto in = detail::open_input(path.string());
+  if (!in) return unexpected(in.error());
+  std::istream& stream = **in;
+  return CandumpReader(
+      std::make_unique<Impl>(std::move(*in), stream, path.string(), std::move(options)));
+}
+
+expected<std::optional<LogEntry>, Error> CandumpReader::next() {
+  Impl& d = *impl_;
+  if (d.core.failure()) return unexpected(*d.core.failure());
+  for (;;) {
+    std::string_view line;
+    const auto status = d.lines.next(line);
+    if (status == detail::LineReader::Status::End) return std::optional<LogEntry>{};
+    if (status == detail::LineReader::Status::TooLong) {
+      if (!d.core.report(d.lines.line_number(), 0,
+                         fmt::format("line longer than {} bytes", d.lines.max_line_bytes()))) {
+        return unexpected(*d.core.failure());
+      }
+      continue;
+    }
+    switch (parse_line(line, d.parsed, d.problem)) {
+      case LineKind::Comment:
+        continue;
+      case LineKind::Frame: {
+        std::uint8_t bus = 0;
+        if (!d.bus_of(d.parsed.iface, bus)) {
+          d.problem.offset = d.parsed.iface_offset;
+          d.problem.message = fmt::format("more than {} interfaces", kMaxInterfaces);
+          break;
+        }
+        d.parsed.frame.bus = bus;
+        return std::optional<LogEntry>(LogEntry{d.parsed.frame, d.parsed.direction});
+      }
+      case LineKind::Malformed:
+        break;
+    }
+    if (!d.core.report(d.lines.line_number(), d.problem.offset, std::move(d.problem.message))) {
+      return unexpected(*d.core.failure());
+    }
+  }
+}
+
+const std::vector<std::string>& CandumpReader::interfaces() const noexcept {
+  return impl_->interfaces;
+}
+std::uint64_t CandumpReader::malformed_count() const noexcept {
+  return impl_->core.malformed_count();
+}
+const std::vector<ParseError>& CandumpReader::errors() const noexcept {
+  return impl_->core.errors();
+}
+std::uint64_t CandumpReader::line_number() const noexcept { return impl_->lines.line_number(); }
+const std::string& CandumpReader::source_name() const noexcept { return impl_->core.source(); }
+
+expected<CanLog, Error> read_candump_file(const std::filesystem::path& path,
+                                          ReaderOptions options) {
+  auto reader = CandumpReader::open(path, std::move(options));
+  if (!reader) return unexpected(reader.error());
+  CanLog log;
+  for (;;) {
+    auto entry = reader->next();
+    if (!entry) return unexpected(entry.error());
+    if (!*entry) break;
+    log.entries.push_back(**entry);
+  }
+  log.interfaces = reader->interfaces();
+  log.malformed = reader->malformed_count();
+  log.errors = reader->errors();
+  return log;
+}
+
+expected<Frame, Error> parse_candump_frame(std::string_view text) {
+  Frame f;
+  Problem p;
+  if (!parse_frame(text, 0, f, p)) {
+    return unexpected(Error{EINVAL, fmt::format("column {}: {}", p.offset + 1, p.message)});
+  }
+  return f;
+}
+
+// --- writer ------------------------------------------------------------------------------------
+
+void write_candump_line(std::string& out, const Frame& frame, std::string_view iface,
+                        std::optional<Direction> direction, CandumpWriteOptions options) {
+  fmt::memory_buffer b;
+  format_line(b, frame, iface, direction, options);
+  out.append(b.data(), b.size());
+}
+
+void write_candump_line(std::ostream& out, const Frame& frame, std::string_view iface,
+                        std::optional<Direction> direction, CandumpWriteOptions options) {
+  fmt::memory_buffer b;
+  format_line(b, frame, iface, direction, options);
+  out.write(b.data(), static_cast<std::streamsize>(b.size()));
+}
+
+expected<void, Error> write_candump_file(const std::filesystem::path& path,
+                                         std::span<const LogEntry> entries,
+                                         std::span<const std::string> interfaces,
+                                         CandumpWriteOptions options) {
+  errno = 0;
+  std::ofstream out(path, std::ios::out | std::ios::binary | std::ios::trunc);
+  if (!out.is_open()) {
+    const int err = errno != 0 ? errno : EIO;
+    return unexpected(
+        Error{err, fmt::format("{}: cannot create: {}", path.string(), std::strerror(err))});
+  }
+  fmt::memory_buffer b;
+  std::string fallback;
+  for (const LogEntry& e : entries) {
+    std::string_view name;
+    if (e.frame.bus < interfaces.size()) {
+      name = interfaces[e.frame.bus];
+    } else {
+      fallback = fmt::format("can{}", e.frame.bus);
+      name = fallback;
+    }
+    b.clear();
+    format_line(b, e.frame, name, e.direction, options);
+    out.write(b.data(), static_cast<std::streamsize>(b.size()));
+  }
+  out.flush();
+  if (!out) {
+    const int err = errno != 0 ? errno : EIO;
+    return unexpected(
+        Error{err, fmt::format("{}: write failed: {}", path.string(), std::strerror(err))});
+  }
+  return {};
+}
+
+}  // namespace vigil::can

@@ -1,0 +1,69 @@
+// Cobalt clock: libcobalt's CLOCK_MONOTONIC (vDSO, no system call) and Cobalt's clock_nanosleep.
+//
+// Every call names the Cobalt implementation explicitly with __RT() (= __cobalt_<name>), so this
+// file resolves to Cobalt whether or not the executable is linked with libcobalt's --wrap list.
+// With a Dovetail kernel (3.2+) Cobalt's CLOCK_MONOTONIC is Linux's; with an I-pipe kernel it is
+// Cobalt's own timebase, so vigil never mixes it with glibc's clock (XENOMAI.md §3.1).
+#include "vigil/platform/clock.hpp"
+
+#include "platform/cobalt/build_check.hpp"
+
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <ctime>
+
+// Xenomai headers last: they define macros that C++ headers must not see.
+#include <cobalt/wrappers.h>
+#include <time.h>  // through -I<prefix>/include/cobalt: declares __cobalt_clock_*
+
+namespace vigil::platform {
+
+namespace {
+
+timespec to_timespec(Nanos ns) noexcept {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(ns / kNanosPerSecond);
+  ts.tv_nsec = static_cast<long>(ns % kNanosPerSecond);
+  return ts;
+}
+
+// A thread that is not a Cobalt thread (std::thread, a library's thread) gets EPERM from Cobalt's
+// clock_nanosleep. It sleeps with Linux instead, in relative steps so that the Cobalt timebase of
+// the deadline never meets Linux's absolute clock (they differ with I-pipe kernels).
+int sleep_until_linux(Nanos deadline_ns) noexcept {
+  for (;;) {
+    const Nanos left = deadline_ns - now_ns();
+    if (left <= 0) return 0;
+    const timespec rel = to_timespec(left);
+    // The raw system call: the glibc symbol may be --wrap'ed back to Cobalt in this executable.
+    if (::syscall(SYS_clock_nanosleep, CLOCK_MONOTONIC, 0, &rel, nullptr) != 0 && errno != EINTR) {
+      return errno;
+    }
+  }
+}
+
+}  // namespace
+
+Nanos now_ns() noexcept {
+  timespec ts{};
+  __RT(clock_gettime)(CLOCK_MONOTONIC, &ts);
+  return static_cast<Nanos>(ts.tv_sec) * kNanosPerSecond + ts.tv_nsec;
+}
+
+int sleep_until(Nanos deadline_ns) noexcept {
+  if (deadline_ns < 0) return EINVAL;
+  const timespec ts = to_timespec(deadline_ns);
+  int rc = 0;
+  // Cobalt's clock_nanosleep returns the error number itself, like POSIX's; an absolute deadline
+  // survives EINTR (a SIGDEBUG handler may run here), so the loop never sleeps too long. The call
+  // brings a relaxed thread back to primary mode.
+  do {
+    rc = __RT(clock_nanosleep)(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
+  } while (rc == EINTR);
+  if (rc == EPERM) return sleep_until_linux(deadline_ns);
+  return rc;
+}
+
+}  // namespace vigil::platform

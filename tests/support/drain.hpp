@@ -1,0 +1,31 @@
+#pragma once
+// Pops everything a port holds, for tests that check what a component sent.
+#include <vector>
+
+#include "vigil/bus/messages.hpp"
+#include "vigil/bus/port.hpp"
+
+namespace vigil::test {
+
+template <class PortT>
+std::vector<Message> drain(PortT& port) {
+  std::vector<Message> out;
+  Message buf[64];
+  for (;;) {
+    const auto n = port.pop(buf, 64);
+    if (n == 0) break;
+    out.insert(out.end(), buf, buf + n);
+  }
+  return out;
+}
+
+template <class T>
+std::vector<T> only(const std::vector<Message>& ms) {
+  std::vector<T> out;
+  for (const auto& m : ms) {
+    if (const auto* p = std::get_if<T>(&m)) out.push_back(*p);
+  }
+  return out;
+}
+
+}  // namespace vigil::test
