@@ -87,6 +87,18 @@ void ComponentAggregator::on(const Entry& /*e*/, const CycleSample& m) {
   if (current_ == nullptr) return;
   Slot& s = *current_;
   auto& d = s.data;
+  if (m.totals_only) {
+    d.state = m.state;
+    d.counters.cycles = std::max(d.counters.cycles, m.cycles);
+    d.counters.overruns = std::max(d.counters.overruns, m.overruns);
+    d.counters.missed_cycles = std::max(d.counters.missed_cycles, m.missed_cycles);
+    for (std::size_t i = 0; i < m.losses.size(); ++i) {
+      d.counters.losses[i] = std::max(d.counters.losses[i], m.losses[i]);
+    }
+    d.counters.exceptions = std::max(d.counters.exceptions, m.exceptions);
+    d.counters.dropped = std::max(d.counters.dropped, m.dropped);
+    return;
+  }
   if (d.has_sample && m.cycle == d.last.cycle + 1) s.period.add(m.start_ns - d.last.start_ns);
   if (m.overhead_ns > 0) {
     s.last_overhead = m.overhead_ns;

@@ -28,4 +28,13 @@ std::vector<T> only(const std::vector<Message>& ms) {
   return out;
 }
 
+/// The cycle samples among `ms`, without the totals-only repeats sent on stop and leave.
+inline std::vector<CycleSample> cycles_of(const std::vector<Message>& ms) {
+  std::vector<CycleSample> out;
+  for (const auto& s : only<CycleSample>(ms)) {
+    if (!s.totals_only) out.push_back(s);
+  }
+  return out;
+}
+
 }  // namespace vigil::test

@@ -12,13 +12,12 @@
 namespace vigil::test {
 
 struct ProbeScript {
-  bool refuse_configure = false, refuse_start = false, refuse_stop = false,
-       refuse_cleanup = false;
+  bool refuse_configure = false, refuse_start = false, refuse_stop = false, refuse_cleanup = false;
   bool throw_configure = false, throw_start = false, throw_stop = false, throw_cleanup = false;
-  std::uint64_t throw_update_at = 0;      // cycle number (1-based) that throws
-  std::uint64_t allocate_every = 0;       // allocate on every Nth cycle
-  std::uint64_t sleep_every = 0;          // sleep 1 ms on every Nth cycle
-  std::uint64_t touch_pages_every = 0;    // touch fresh pages on every Nth cycle
+  std::uint64_t throw_update_at = 0;    // cycle number (1-based) that throws
+  std::uint64_t allocate_every = 0;     // allocate on every Nth cycle
+  std::uint64_t sleep_every = 0;        // sleep 1 ms on every Nth cycle
+  std::uint64_t touch_pages_every = 0;  // touch fresh pages on every Nth cycle
 };
 
 template <class Traits = DefaultTaskTraits>

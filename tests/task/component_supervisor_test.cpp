@@ -37,8 +37,8 @@ TEST_CASE("ComponentSupervisor produces the same samples as Task<Derived>",
     UpdateGuard guard(sup, releases[static_cast<std::size_t>(i)]);
     fc.advance(300);
   }
-  const auto a = only<CycleSample>(drain(*task.port()));
-  const auto b = only<CycleSample>(drain(*sup.port()));
+  const auto a = vigil::test::cycles_of(drain(*task.port()));
+  const auto b = vigil::test::cycles_of(drain(*sup.port()));
   REQUIRE(a.size() == 10);
   REQUIRE(b.size() == 10);
   for (std::size_t i = 0; i < a.size(); ++i) {
@@ -53,11 +53,12 @@ TEST_CASE("ComponentSupervisor produces the same samples as Task<Derived>",
   }
 }
 
-TEST_CASE("ComponentSupervisor reads its thread's identity in init", "[task][component_supervisor]") {
+TEST_CASE("ComponentSupervisor reads its thread's identity in init",
+          "[task][component_supervisor]") {
   Registry<Message> reg;
   ComponentSupervisor sup("legacy", {}, reg);
-  sup.init({.activity = "vendor-loop", .period_ns = 2'000'000,
-            .requested_policy = SchedPolicy::Fifo});
+  sup.init(
+      {.activity = "vendor-loop", .period_ns = 2'000'000, .requested_policy = SchedPolicy::Fifo});
   const auto ms = drain(*sup.port());
   const auto info = only<TaskInfo>(ms);
   REQUIRE(info.size() == 1);
@@ -83,7 +84,7 @@ TEST_CASE("ComponentSupervisor::run catches and reports exceptions exactly",
   const auto ex = only<ExceptionReport>(ms);
   REQUIRE(ex.size() == 1);
   CHECK(ex[0].message == std::string_view("bad setpoint"));
-  CHECK(only<CycleSample>(ms).back().exceptions == 1);
+  CHECK(vigil::test::cycles_of(ms).back().exceptions == 1);
   sup.recover();
   CHECK(sup.state() == TaskState::Running);
 }
@@ -100,6 +101,6 @@ TEST_CASE("An exception leaving an UpdateGuard is counted", "[task][component_su
   }
   const auto ms = drain(*sup.port());
   REQUIRE(only<ExceptionReport>(ms).size() == 1);
-  REQUIRE(only<CycleSample>(ms).size() == 1);
-  CHECK(only<CycleSample>(ms)[0].exceptions == 1);
+  REQUIRE(vigil::test::cycles_of(ms).size() == 1);
+  CHECK(vigil::test::cycles_of(ms)[0].exceptions == 1);
 }

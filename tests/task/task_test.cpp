@@ -44,7 +44,7 @@ TEST_CASE("Every cycle sends a sample with exact cumulative counters", "[task][t
     fc.set(act.next_release() + 10);
     REQUIRE(act.step());
   }
-  const auto samples = only<CycleSample>(drain(*p.port()));
+  const auto samples = vigil::test::cycles_of(drain(*p.port()));
   REQUIRE(samples.size() == 5);
   for (std::size_t i = 0; i < samples.size(); ++i) {
     CHECK(samples[i].cycle == i + 1);
@@ -73,7 +73,7 @@ TEST_CASE("An exception in on_update is reported with hook, type and what()", "[
   CHECK(ex[0].count == 1);
   CHECK(ex[0].type == std::string_view(typeid(std::out_of_range).name()));
   CHECK(ex[0].message == std::string_view("update failed at cycle 3"));
-  const auto samples = only<CycleSample>(ms);
+  const auto samples = vigil::test::cycles_of(ms);
   REQUIRE(samples.size() == 3);
   CHECK(samples[2].state == TaskState::Exception);
   CHECK(samples[2].exceptions == 1);

@@ -92,6 +92,9 @@ struct CycleSample {
   Nanos overhead_ns = 0;
   std::uint32_t missed_before = 0;  ///< releases skipped just before this cycle
   bool overrun = false;             ///< this cycle ended after its next release
+  /// Not a new cycle: the latest cycle's counters again (sent when the component stops or
+  /// leaves, so that totals are exact even if the latest samples were dropped).
+  bool totals_only = false;
   TaskState state = TaskState::Running;
   // Cumulative since the component joined; exact even when earlier samples were dropped.
   std::uint64_t cycles = 0;

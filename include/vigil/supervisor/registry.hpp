@@ -30,6 +30,11 @@ struct RegistryEntry {
   std::string name;
   std::shared_ptr<PortReader<Variant>> port;
   std::atomic<bool> closed{false};  ///< set when the member left; drain, then forget
+  /// Messages the member left behind when it could no longer push (e.g. its final totals when
+  /// the port was full). Written before `closed` is set; visited after the port is drained.
+  std::vector<Variant> last_words;
+  /// Set by the supervisor once it has drained and forgotten the entry.
+  std::atomic<bool> finished{false};
 };
 
 template <class Variant>
@@ -63,8 +68,9 @@ class Membership {
   [[nodiscard]] std::uint32_t id() const noexcept { return entry_ ? entry_->id : 0; }
   [[nodiscard]] bool joined() const noexcept { return entry_ != nullptr; }
 
-  /// Leaves the registry (idempotent). Messages already pushed are still drained. Not RT-safe.
-  void leave();
+  /// Leaves the registry (idempotent). Messages already pushed are still drained, then
+  /// `last_words` are visited. Not RT-safe.
+  void leave(std::vector<Variant> last_words = {});
 
  private:
   friend class Registry<Variant>;
@@ -132,13 +138,16 @@ class Registry {
   }
 
   /// Called by Membership::leave.
-  void remove(const std::shared_ptr<Entry>& entry) {
-    entry->closed.store(true, std::memory_order_release);
+  void remove(const std::shared_ptr<Entry>& entry, std::vector<Variant> last_words) {
     std::lock_guard lock(mutex_);
+    entry->last_words = std::move(last_words);
     std::erase(entries_, entry);
     if (departed_.size() == kMaxDeparted) departed_.erase(departed_.begin());
     departed_.push_back(entry);
     generation_.fetch_add(1, std::memory_order_release);
+    // Last, under the lock: a supervisor that sees `closed` finds the entry among the departed
+    // at its next collect() at the latest.
+    entry->closed.store(true, std::memory_order_release);
   }
 
  private:
@@ -150,8 +159,8 @@ class Registry {
 };
 
 template <class Variant, std::size_t N>
-void Membership<Variant, N>::leave() {
-  if (registry_ != nullptr && entry_) registry_->remove(entry_);
+void Membership<Variant, N>::leave(std::vector<Variant> last_words) {
+  if (registry_ != nullptr && entry_) registry_->remove(entry_, std::move(last_words));
   registry_ = nullptr;
   entry_.reset();
   port_ = nullptr;

@@ -136,13 +136,22 @@ class Supervisor {
         d.messages += n;
         budget -= n;
       }
+      tracked.finished = closed && e.port->read_available() == 0;
+      if (tracked.finished) {
+        for (const Variant& m : e.last_words) {
+          std::visit([&](const auto& x) { handler_.on(e, x); }, m);
+        }
+        d.messages += e.last_words.size();
+      }
       d.dropped = e.port->dropped();
       handler_.end(e, d);
       total += d.messages;
-      tracked.finished = closed && e.port->read_available() == 0;
     }
     std::erase_if(tracked_, [&](const Tracked& t) {
-      if (t.finished) handler_.on_leave(*t.entry);
+      if (t.finished) {
+        handler_.on_leave(*t.entry);
+        t.entry->finished.store(true, std::memory_order_relaxed);
+      }
       return t.finished;
     });
     const Nanos t1 = options_.clock.now();
@@ -205,6 +214,7 @@ class Supervisor {
     registry_.collect(scratch_);
     // Both lists are ordered by id: merge, keeping entries that left but are not drained yet.
     for (auto& e : scratch_) {
+      if (e->finished.load(std::memory_order_relaxed)) continue;  // drained and forgotten
       const auto it =
           std::lower_bound(tracked_.begin(), tracked_.end(), e->id,
                            [](const Tracked& t, std::uint32_t id) { return t.entry->id < id; });

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "vigil/bus/messages.hpp"
 #include "vigil/bus/port.hpp"
@@ -54,6 +55,19 @@ class CycleRecorder {
       : name_(std::move(name)), options_(options), membership_(registry.join<N>(name_)) {
     set_options(options);
   }
+
+  /// Leaves the registry with the final totals and anything still kept as "last words", so the
+  /// supervisor's counts are exact even if the port was full at the end. Not RT-safe.
+  ~CycleRecorder() {
+    std::vector<Message> words;
+    if ((pending_ & kInfo) != 0) words.emplace_back(info_);
+    if ((pending_ & kException) != 0) words.emplace_back(exception_);
+    if ((pending_ & kChange) != 0) words.emplace_back(change_);
+    words.emplace_back(totals());
+    membership_.leave(std::move(words));
+  }
+  CycleRecorder(const CycleRecorder&) = delete;
+  CycleRecorder& operator=(const CycleRecorder&) = delete;
 
   /// Changes options; call before the component runs (not while it runs). Not RT-safe.
   void set_options(SupervisionOptions options) noexcept {
@@ -106,6 +120,8 @@ class CycleRecorder {
     change_.reason.assign(reason);
     state_ = refused ? from : to;
     pending_ |= kChange;
+    // Leaving Running: send the totals again, in case the latest samples were dropped.
+    if (!refused && from == TaskState::Running && cycles_ > 0) pending_ |= kTotals;
     flush();
   }
 
@@ -142,7 +158,7 @@ class CycleRecorder {
     missed_ += c.missed_before;
     if (pending_ != 0) flush();
     auto* port = membership_.port();
-    CycleSample s;
+    CycleSample& s = last_;
     s.cycle = cycles_;
     s.release_ns = release;
     s.start_ns = c.start_ns;
@@ -173,6 +189,20 @@ class CycleRecorder {
   static constexpr std::uint8_t kInfo = 1;
   static constexpr std::uint8_t kChange = 2;
   static constexpr std::uint8_t kException = 4;
+  static constexpr std::uint8_t kTotals = 8;
+
+  [[nodiscard]] CycleSample totals() const noexcept {
+    CycleSample t = last_;
+    t.totals_only = true;
+    t.state = state_;
+    t.cycles = cycles_;
+    t.overruns = overruns_;
+    t.missed_cycles = missed_;
+    t.losses = losses_;
+    t.exceptions = exceptions_;
+    t.dropped = membership_.port() != nullptr ? membership_.port()->dropped() : 0;
+    return t;
+  }
 
   void flush() noexcept {
     auto* port = membership_.port();
@@ -183,6 +213,9 @@ class CycleRecorder {
     }
     if ((pending_ & kChange) != 0 && port->try_push_or_keep(Message{change_})) {
       pending_ &= ~kChange;
+    }
+    if ((pending_ & kTotals) != 0 && port->try_push_or_keep(Message{totals()})) {
+      pending_ &= ~kTotals;
     }
   }
 
@@ -245,6 +278,7 @@ class CycleRecorder {
   TaskState state_ = TaskState::PreOperational;
   std::uint8_t pending_ = 0;
   TaskInfo info_;
+  CycleSample last_;
   ExceptionReport exception_;
   StateChange change_;
 };

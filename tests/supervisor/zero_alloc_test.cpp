@@ -1,0 +1,128 @@
+// Linked with vigil::alloc_guard: every malloc-family call of the process is counted per thread.
+#include <atomic>
+#include <catch2/catch.hpp>
+#include <stdexcept>
+#include <thread>
+
+#include "support/fake_clock.hpp"
+#include "support/probe.hpp"
+#include "vigil/exec/manual_activity.hpp"
+#include "vigil/exec/periodic_activity.hpp"
+#include "vigil/platform/rt_loss.hpp"
+#include "vigil/supervisor/component_aggregator.hpp"
+#include "vigil/task/component_supervisor.hpp"
+
+using namespace vigil;
+
+#if defined(VIGIL_ALLOC_GUARD_DISABLED)
+TEST_CASE("Allocation counting is unavailable under sanitizers", "[supervisor][alloc]") {
+  WARN("skipped: sanitizers interpose malloc themselves");
+  CHECK_FALSE(platform::allocation_counting_available());
+}
+#else
+TEST_CASE("1,000,000 supervised cycles allocate nothing on the component's thread",
+          "[supervisor][alloc]") {
+  REQUIRE(platform::allocation_counting_available());
+  Registry<Message> reg;
+  ComponentAggregator agg;
+  ComponentSupervisorLoop sup(reg, agg, {.period_ns = kNanosPerMilli});
+  REQUIRE(sup.start().has_value());
+  std::uint64_t allocations = ~std::uint64_t{0};
+  std::uint64_t loss_count = ~std::uint64_t{0};
+  std::uint64_t cycles = 0;
+  std::thread component([&] {
+    vigil::test::Probe p("clean", {.detectors = Detectors::Allocation}, reg);
+    ManualActivity act(p, {.name = "m", .period_ns = kNanosPerMilli});
+    p.configure();
+    act.start();
+    act.step();  // the first cycle may touch lazily initialised state
+    const auto before = platform::thread_allocations();
+    for (int i = 0; i < 1'000'000; ++i) act.step();
+    allocations = platform::thread_allocations() - before;
+    loss_count = 0;
+    cycles = p.cycles();
+    act.stop();
+  });
+  component.join();
+  sup.stop();
+  CHECK(allocations == 0);
+  CHECK(cycles == 1'000'001);
+  const auto s = agg.find("clean");
+  REQUIRE(s.has_value());
+  CHECK(s->counters.cycles == 1'000'001);
+  CHECK(s->counters.losses[static_cast<int>(LossCause::Allocation)] == loss_count);
+}
+
+TEST_CASE("A periodic thread's cycles allocate nothing", "[supervisor][alloc]") {
+  Registry<Message> reg;
+  vigil::test::Probe p("periodic", {.detectors = Detectors::Allocation}, reg);
+  std::atomic<std::uint64_t> at10{0}, at300{0};
+  p.work = [&] {
+    if (p.updates == 10) at10 = platform::thread_allocations();
+    if (p.updates == 300) at300 = platform::thread_allocations();
+  };
+  PeriodicActivity act(p, {.name = "p", .period_ns = 200 * kNanosPerMicro});
+  REQUIRE(p.configure());
+  REQUIRE(act.start().has_value());
+  const auto deadline = platform::now_ns() + 10 * kNanosPerSecond;
+  while (p.cycles() < 300 && platform::now_ns() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  act.stop();
+  REQUIRE(p.updates >= 300);
+  CHECK(at300.load() - at10.load() == 0);
+}
+
+TEST_CASE("Counters stay exact under loss: overruns, exceptions and RT losses",
+          "[supervisor][alloc]") {
+  // Port of capacity 8, supervisor paused for 100,000 cycles, then resumed.
+  // Throwing allocates too (the exception object, its message): measure how much, once.
+  const auto a0 = platform::thread_allocations();
+  try {
+    throw std::runtime_error("injected");
+  } catch (const std::exception&) {
+  }
+  const auto per_throw = platform::thread_allocations() - a0;
+  Registry<Message> reg;
+  vigil::test::FakeClock fc;
+  BasicComponentSupervisor<8> sup("lossy", {.detectors = Detectors::Allocation}, reg);
+  sup.init({.activity = "loop", .period_ns = 1000}, fc.clock());
+  std::uint64_t overruns = 0, exceptions = 0, allocations = 0;
+  Nanos release = fc.now();
+  for (std::uint64_t i = 1; i <= 100'000; ++i) {
+    fc.set(release);
+    sup.run(
+        [&] {
+          fc.advance(i % 7 == 0 ? 1500 : 100);
+          if (i % 13 == 0) {
+            auto* q = new int(3);
+            asm volatile("" : : "g"(q) : "memory");
+            delete q;
+          }
+          if (i % 10 == 0) throw std::runtime_error("injected");
+        },
+        release);
+    overruns += i % 7 == 0;
+    exceptions += i % 10 == 0;
+    allocations += i % 13 == 0;
+    release += 2000;
+  }
+  ComponentAggregator agg;
+  ComponentSupervisorLoop loop(reg, agg);
+  loop.step();
+  fc.set(release);
+  sup.run([] {}, release);  // one more cycle carries the final totals
+  loop.step();
+  const auto s = agg.find("lossy");
+  REQUIRE(s.has_value());
+  CHECK(s->counters.cycles == 100'001);
+  CHECK(s->counters.overruns == overruns);
+  CHECK(s->counters.exceptions == exceptions);
+  CHECK(s->counters.losses[static_cast<int>(LossCause::Allocation)] ==
+        allocations + per_throw * exceptions);
+  CHECK(s->counters.dropped > 100'000);  // samples and loss reports
+  CHECK(s->counters.dropped == sup.port()->dropped());
+  CHECK(s->has_exception);
+  CHECK(s->last_exception.message == std::string_view("injected"));
+}
+#endif
