@@ -22,6 +22,8 @@ endfunction()
 if(VIGIL_SANITIZE)
   add_compile_options(-fsanitize=${VIGIL_SANITIZE} -fno-omit-frame-pointer -g)
   add_link_options(-fsanitize=${VIGIL_SANITIZE})
+  # Lets tests skip what sanitizers make impossible (their malloc and mlockall interceptors).
+  add_compile_definitions(VIGIL_SANITIZER_BUILD=1)
   if(VIGIL_SANITIZE MATCHES "undefined")
     add_compile_options(-fno-sanitize-recover=undefined)
   endif()

@@ -56,6 +56,11 @@ bool LineReader::fill() {
   return true;
 }
 
+void LineReader::strip_bom(std::string_view& line) const noexcept {
+  // Some Windows tools start text files with a UTF-8 byte order mark; it is not part of line 1.
+  if (line_number_ == 1 && line.starts_with("\xEF\xBB\xBF")) line.remove_prefix(3);
+}
+
 LineReader::Status LineReader::skip_long_line() {
   // Drop buffered bytes until the end of the current line; memory stays one buffer.
   for (;;) {
@@ -81,6 +86,7 @@ LineReader::Status LineReader::next(std::string_view& line) {
       if (len > 0 && start[len - 1] == '\r') --len;
       if (len > max_line_) return Status::TooLong;
       line = std::string_view(start, len);
+      strip_bom(line);
       return Status::Line;
     }
     if (pending > max_line_ + 1) {  // no newline in more than a line's worth (+ its '\r')
@@ -97,6 +103,7 @@ LineReader::Status LineReader::next(std::string_view& line) {
       if (last[len - 1] == '\r') --len;
       if (len > max_line_) return Status::TooLong;
       line = std::string_view(last, len);
+      strip_bom(line);
       return Status::Line;
     }
   }

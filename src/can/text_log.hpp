@@ -54,8 +54,9 @@ class LineReader {
 
   LineReader(std::streambuf* source, std::size_t max_line_bytes);
 
-  /// Next line without its '\n' and one trailing '\r'. A line longer than the maximum is
-  /// skipped up to its end and reported as TooLong (it still counts as a line).
+  /// Next line without its '\n' and one trailing '\r' (and, on line 1, without a UTF-8 byte
+  /// order mark). A line longer than the maximum is skipped up to its end and reported as
+  /// TooLong (it still counts as a line).
   Status next(std::string_view& line);
 
   [[nodiscard]] std::uint64_t line_number() const noexcept { return line_number_; }
@@ -64,6 +65,7 @@ class LineReader {
  private:
   bool fill();  // reads more input after end_; false at end of input
   Status skip_long_line();
+  void strip_bom(std::string_view& line) const noexcept;
 
   std::streambuf* source_;
   std::size_t max_line_;

@@ -84,9 +84,9 @@ const char* col_name(Col c) {
 
 struct Layout {
   std::array<Col, kColKinds> cols{};
-  std::size_t count = 0;                    // columns, Data included (always last)
-  std::array<int, kColKinds> index{};       // position of each column kind, -1 if absent
-  bool v1 = false;                          // "N)" numbers and v1 type words
+  std::size_t count = 0;               // columns, Data included (always last)
+  std::array<int, kColKinds> index{};  // position of each column kind, -1 if absent
+  bool v1 = false;                     // "N)" numbers and v1 type words
 
   [[nodiscard]] int at(Col c) const { return index[static_cast<std::size_t>(c)]; }
   [[nodiscard]] bool has(Col c) const { return at(c) >= 0; }
@@ -137,16 +137,36 @@ bool parse_columns(std::string_view s, std::size_t base, Layout& out, Problem& p
     }
     Col c{};
     switch (s[pos]) {
-      case 'N': c = Col::Number; break;
-      case 'O': c = Col::Offset; break;
-      case 'T': c = Col::Type; break;
-      case 'B': c = Col::Bus; break;
-      case 'I': c = Col::Id; break;
-      case 'd': c = Col::Dir; break;
-      case 'R': c = Col::Reserved; break;
-      case 'l': c = Col::Length; break;
-      case 'L': c = Col::Dlc; break;
-      case 'D': c = Col::Data; break;
+      case 'N':
+        c = Col::Number;
+        break;
+      case 'O':
+        c = Col::Offset;
+        break;
+      case 'T':
+        c = Col::Type;
+        break;
+      case 'B':
+        c = Col::Bus;
+        break;
+      case 'I':
+        c = Col::Id;
+        break;
+      case 'd':
+        c = Col::Dir;
+        break;
+      case 'R':
+        c = Col::Reserved;
+        break;
+      case 'l':
+        c = Col::Length;
+        break;
+      case 'L':
+        c = Col::Dlc;
+        break;
+      case 'D':
+        c = Col::Data;
+        break;
       default:
         p = {base + pos, fmt::format("$COLUMNS: unknown column '{}'", s[pos])};
         return false;
@@ -509,7 +529,8 @@ Outcome TrcReader::Impl::error_record(std::string_view line) {
   f = Frame{};
   f.error = true;
   f.bus = bus;
-  if (!timestamp(offset, f.timestamp)) return malformed(offset_of(line, o), "timestamp out of range");
+  if (!timestamp(offset, f.timestamp))
+    return malformed(offset_of(line, o), "timestamp out of range");
   std::size_t n = 0;
   for (std::size_t i = data_from; i < t.count; ++i) {
     if (!is_hex_byte(t.tok[i])) {
@@ -550,6 +571,7 @@ Outcome TrcReader::Impl::record(std::string_view line) {
   entry.direction = type.direction;
   Nanos offset = 0;
   std::uint32_t size_value = 0;  // the L or l column
+  std::size_t size_at = 0;       // where it is in the line
   std::string why;
   for (std::size_t i = 0; i < layout.fixed(); ++i) {
     const Col c = layout.cols[i];
@@ -604,10 +626,9 @@ Outcome TrcReader::Impl::record(std::string_view line) {
           id = (id << 4) | v;
         }
         f.extended = tok.size() > 4;
-        if (type.kind != Kind::ErrorFrame &&
-            id > (f.extended ? kMaxExtendedId : kMaxStandardId)) {
-          return malformed(at, fmt::format("identifier {} exceeds {}", tok,
-                                           f.extended ? "1FFFFFFF" : "7FF"));
+        if (type.kind != Kind::ErrorFrame && id > (f.extended ? kMaxExtendedId : kMaxStandardId)) {
+          return malformed(
+              at, fmt::format("identifier {} exceeds {}", tok, f.extended ? "1FFFFFFF" : "7FF"));
         }
         f.id = id;
         break;
@@ -621,11 +642,13 @@ Outcome TrcReader::Impl::record(std::string_view line) {
       case Col::Reserved:
         break;
       case Col::Length:
+        size_at = at;
         if (!parse_uint(tok, 64, size_value)) {
           return malformed(at, fmt::format("data length '{}' is not a number 0-64", tok));
         }
         break;
       case Col::Dlc:
+        size_at = at;
         if (!parse_uint(tok, kMaxDlc, size_value)) {
           return malformed(at, fmt::format("DLC '{}' is not a number 0-15", tok));
         }
@@ -658,8 +681,8 @@ Outcome TrcReader::Impl::record(std::string_view line) {
   switch (kind) {
     case Kind::Data:
       if (!by_dlc && size_value > kMaxClassicDataLength) {
-        return malformed(data_at, fmt::format("data length {} exceeds 8 for a Classical CAN frame",
-                                              size_value));
+        return malformed(
+            size_at, fmt::format("data length {} exceeds 8 for a Classical CAN frame", size_value));
       }
       f.length = static_cast<std::uint8_t>(size_value);
       expect = f.data_size();
@@ -673,7 +696,7 @@ Outcome TrcReader::Impl::record(std::string_view line) {
       } else if (is_fd_length(size_value)) {
         f.length = static_cast<std::uint8_t>(size_value);
       } else {
-        return malformed(data_at, fmt::format("data length {} is not a CAN FD length (0-8, 12, 16, "
+        return malformed(size_at, fmt::format("data length {} is not a CAN FD length (0-8, 12, 16, "
                                               "20, 24, 32, 48, 64)",
                                               size_value));
       }
@@ -681,8 +704,8 @@ Outcome TrcReader::Impl::record(std::string_view line) {
       break;
     case Kind::Remote: {
       if (!by_dlc && size_value > kMaxClassicDataLength) {
-        return malformed(data_at, fmt::format("data length {} exceeds 8 for a remote frame",
-                                              size_value));
+        return malformed(size_at,
+                         fmt::format("data length {} exceeds 8 for a remote frame", size_value));
       }
       f.rtr = true;
       f.length = static_cast<std::uint8_t>(size_value);
@@ -791,8 +814,7 @@ expected<std::optional<LogEntry>, Error> TrcReader::next() {
         d.core.fail(d.lines.line_number(), d.problem.offset, std::move(d.problem.message));
         return unexpected(*d.core.failure());
       case Outcome::Malformed:
-        if (!d.core.report(d.lines.line_number(), d.problem.offset,
-                           std::move(d.problem.message))) {
+        if (!d.core.report(d.lines.line_number(), d.problem.offset, std::move(d.problem.message))) {
           return unexpected(*d.core.failure());
         }
         continue;

@@ -73,9 +73,10 @@ struct FileCloser {
 };
 
 vigil::unexpected<ConfigErrors> file_error(const std::string& name, int err) {
-  return vigil::unexpected<ConfigErrors>(ConfigErrors{
-      {name, 0, 0, "",
-       fmt::format("cannot read file: {}", std::error_code(err, std::generic_category()).message())}});
+  return vigil::unexpected<ConfigErrors>(
+      ConfigErrors{{name, 0, 0, "",
+                    fmt::format("cannot read file: {}",
+                                std::error_code(err, std::generic_category()).message())}});
 }
 
 }  // namespace
@@ -87,7 +88,8 @@ expected<Node, ConfigErrors> load_string(std::string_view text, std::string name
     documents = YAML::LoadAll(owned);
   } catch (const YAML::Exception& e) {
     const auto [line, column] = detail::locate(owned, e.mark);
-    return vigil::unexpected<ConfigErrors>(ConfigErrors{{std::move(name), line, column, "", e.msg}});
+    return vigil::unexpected<ConfigErrors>(
+        ConfigErrors{{std::move(name), line, column, "", e.msg}});
   }
   ConfigErrors errors;
   if (documents.size() > 1) {

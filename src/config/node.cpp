@@ -207,8 +207,8 @@ std::vector<std::pair<std::string, Node>> Node::entries() const {
       continue;
     }
     const auto [line, column] = value_location(doc_->text, k, pair.second);
-    out.emplace_back(k.Scalar(), Node(doc_, pair.second, join(path_, k.Scalar()), line, column,
-                                      State::Present));
+    out.emplace_back(
+        k.Scalar(), Node(doc_, pair.second, join(path_, k.Scalar()), line, column, State::Present));
   }
   return out;
 }
@@ -225,8 +225,8 @@ std::vector<Node> Node::elements() const {
   for (const auto& item : yaml_) {
     auto [line, column] = detail::locate(doc_->text, item.Mark());
     if (line == 0) std::tie(line, column) = std::pair(line_, column_);
-    out.push_back(Node(doc_, item, fmt::format("{}[{}]", path_, index++), line, column,
-                       State::Present));
+    out.push_back(
+        Node(doc_, item, fmt::format("{}[{}]", path_, index++), line, column, State::Present));
   }
   return out;
 }
@@ -285,11 +285,7 @@ ConfigErrors Node::errors() const {
   return out;
 }
 
-void Node::reject_unknown_keys(std::initializer_list<std::string_view> allowed) const {
-  reject_unknown_keys(std::span<const std::string_view>(allowed.begin(), allowed.size()));
-}
-
-void Node::reject_unknown_keys(std::span<const std::string_view> allowed) const {
+void Node::reject_unknown_keys_(std::span<const std::string_view> allowed) const {
   if (state_ != State::Present || yaml_.IsNull()) return;
   if (!yaml_.IsMap()) {
     fail_value_("expected a mapping");
@@ -342,8 +338,8 @@ bool Node::convert_signed_(std::int64_t& out, std::int64_t min, std::int64_t max
     return false;
   }
   // |INT64_MIN| = INT64_MAX + 1: compare magnitudes as unsigned.
-  const std::uint64_t limit = v->negative ? static_cast<std::uint64_t>(-(min + 1)) + 1
-                                          : static_cast<std::uint64_t>(max);
+  const std::uint64_t limit =
+      v->negative ? static_cast<std::uint64_t>(-(min + 1)) + 1 : static_cast<std::uint64_t>(max);
   if (v->overflow || v->magnitude > limit) {
     fail_value_(fmt::format("expected an integer between {} and {}", min, max));
     return false;
@@ -384,7 +380,8 @@ bool Node::convert_floating_(double& out, bool to_float) const {
   }
   if (ec == std::errc::result_out_of_range || !std::isfinite(v) ||
       (to_float && std::abs(v) > static_cast<double>(std::numeric_limits<float>::max()))) {
-    fail_value_(to_float ? "expected a finite number within float range" : "expected a finite number");
+    fail_value_(to_float ? "expected a finite number within float range"
+                         : "expected a finite number");
     return false;
   }
   out = v;
@@ -406,8 +403,8 @@ bool Node::convert_time_(Nanos& out, bool period, TimeUnit bare_unit) const {
                        : "expected a duration such as '2.5ms'");
     return false;
   }
-  const expected<Nanos, std::string> v = period ? parse_period(yaml_.Scalar(), bare_unit)
-                                                : parse_duration(yaml_.Scalar(), bare_unit);
+  const expected<Nanos, std::string> v =
+      period ? parse_period(yaml_.Scalar(), bare_unit) : parse_duration(yaml_.Scalar(), bare_unit);
   if (!v.has_value()) {
     fail_(v.error());
     return false;

@@ -27,12 +27,11 @@ struct Unit {
   int exp10;  // the unit is 10^exp10 nanoseconds (durations) or hertz (rates)
 };
 
-constexpr std::array kDurationUnits{Unit{"ns", 0}, Unit{"us", 3}, Unit{"\u00b5s", 3},
-                                    Unit{"\u03bcs", 3}, Unit{"ms", 6},  Unit{"s", 9}};
+constexpr std::array kDurationUnits{Unit{"ns", 0},      Unit{"us", 3}, Unit{"\u00b5s", 3},
+                                    Unit{"\u03bcs", 3}, Unit{"ms", 6}, Unit{"s", 9}};
 constexpr std::array kRateUnits{Unit{"Hz", 0}, Unit{"kHz", 3}, Unit{"MHz", 6}};
 
-constexpr std::array<std::string_view, 7> kAllUnitNames{"ns", "us", "ms", "s",
-                                                        "Hz", "kHz", "MHz"};
+constexpr std::array<std::string_view, 7> kAllUnitNames{"ns", "us", "ms", "s", "Hz", "kHz", "MHz"};
 constexpr std::string_view kDurationUnitList = "ns, us, ms or s";
 constexpr std::string_view kPeriodUnitList = "ns, us, ms, s, Hz, kHz or MHz";
 constexpr std::string_view kRateUnitList = "Hz, kHz or MHz";
@@ -62,7 +61,7 @@ std::optional<Quantity> split(std::string_view text) {
     q.value.negative = text[i] == '-';
     ++i;
   }
-  int digits = 0;        // significant digits kept in the mantissa
+  int digits = 0;  // significant digits kept in the mantissa
   bool any_digit = false;
   bool fraction = false;
   for (; i < text.size(); ++i) {
@@ -193,8 +192,7 @@ expected<Nanos, std::string> duration_from(std::string_view text, const Decimal&
 expected<Nanos, std::string> period_from_rate(std::string_view text, const Decimal& value,
                                               int unit_exp10) {
   if (value.negative || value.mantissa == 0) {
-    return vigil::unexpected<std::string>(
-        fmt::format("'{}' is not a positive rate", text));
+    return vigil::unexpected<std::string>(fmt::format("'{}' is not a positive rate", text));
   }
   // period [ns] = 10^9 / (mantissa × 10^(exp10 + unit)) = 10^q / mantissa, rounded to nearest.
   const long q = 9L - value.exp10 - unit_exp10;
@@ -235,7 +233,7 @@ expected<Nanos, std::string> parse(std::string_view raw, Accept accept, TimeUnit
   if (!q) {
     const std::string_view example = accept == Accept::Duration ? "a duration such as '2.5ms'"
                                      : accept == Accept::Rate   ? "a rate such as '100Hz'"
-                                                                : "a period such as '1ms' or '1kHz'";
+                                                              : "a period such as '1ms' or '1kHz'";
     if (text.empty()) return vigil::unexpected<std::string>(fmt::format("expected {}", example));
     return vigil::unexpected<std::string>(fmt::format("expected {}, got '{}'", example, text));
   }
@@ -243,9 +241,9 @@ expected<Nanos, std::string> parse(std::string_view raw, Accept accept, TimeUnit
     if (accept != Accept::Rate && bare_unit != TimeUnit::None) {
       return duration_from(text, q->value, bare_exp10(bare_unit));
     }
-    return vigil::unexpected<std::string>(fmt::format(
-        "'{}' has no unit; use {} (e.g. '{}{}')", text, list, text,
-        accept == Accept::Rate ? "Hz" : "ms"));
+    return vigil::unexpected<std::string>(fmt::format("'{}' has no unit; use {} (e.g. '{}{}')",
+                                                      text, list, text,
+                                                      accept == Accept::Rate ? "Hz" : "ms"));
   }
   if (accept != Accept::Rate) {
     if (std::optional<Unit> u = find_unit(q->unit, kDurationUnits)) {

@@ -1,6 +1,7 @@
 #include "vigil/platform/thread_stats.hpp"
 
 #include <sched.h>
+#include <time.h>
 
 #include <atomic>
 #include <catch2/catch.hpp>
@@ -77,9 +78,15 @@ TEST_CASE("read_thread_stats fails with ENOENT or ESRCH for a thread that does n
 TEST_CASE("read_thread_stats counts CPU time", "[platform][thread_stats]") {
   Worker w([](int s) {
     if (s == 2) {
-      const auto end = now_ns() + 60 * vigil::kNanosPerMilli;
+      // Burn 60 ms of this thread's CPU time (not wall time: the machine may be busy).
+      auto cpu_now = [] {
+        timespec ts{};
+        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+        return ts.tv_sec * vigil::kNanosPerSecond + ts.tv_nsec;
+      };
+      const auto end = cpu_now() + 60 * vigil::kNanosPerMilli;
       volatile std::uint64_t x = 0;
-      while (now_ns() < end) x = x + 1;
+      while (cpu_now() < end) x = x + 1;
     }
   });
   REQUIRE(w.thread.has_value());
@@ -90,5 +97,5 @@ TEST_CASE("read_thread_stats counts CPU time", "[platform][thread_stats]") {
   w.run(3);
   w.thread->join();
   const auto cpu = (b.user_time_ns + b.system_time_ns) - (a.user_time_ns + a.system_time_ns);
-  CHECK(cpu >= 20 * vigil::kNanosPerMilli);  // tick resolution is 10 ms
+  CHECK(cpu >= 40 * vigil::kNanosPerMilli);  // 60 ms burnt, tick resolution 10 ms
 }

@@ -89,7 +89,8 @@ inline constexpr std::uint8_t kMaxDlc = 15;                  ///< a DLC is 4 bit
  *
  * @code
  * auto a = vigil::can::Frame::classic(0x123, {0x11, 0x22});
- * auto b = vigil::can::Frame::fd(0x18FEF121, bytes, vigil::can::IdFormat::Extended, {.brs = true});
+ * auto b = vigil::can::Frame::fd_frame(0x18FEF121, bytes, vigil::can::IdFormat::Extended,
+ *                                      {.brs = true});
  * vigil::can::Frame c{.timestamp = t, .id = 0x7DF, .length = 8, .rtr = true};
  * @endcode
  */
@@ -126,8 +127,9 @@ struct Frame {
     return classic(id, std::span<const std::uint8_t>(bytes.begin(), bytes.size()), format);
   }
 
-  /// A CAN FD data frame. More than 64 bytes are cut to 64; a length that no DLC gives (e.g. 9)
-  /// is padded with zero bytes to the next one (12), as a CAN FD controller does. RT-safe: yes.
+  /// A CAN FD data frame (named `fd_frame` because `fd` is the flag). More than 64 bytes are cut
+  /// to 64; a length that no DLC gives (e.g. 9) is padded with zero bytes to the next one (12),
+  /// as a CAN FD controller does. RT-safe: yes.
   [[nodiscard]] static constexpr Frame fd_frame(std::uint32_t id,
                                                 std::span<const std::uint8_t> bytes,
                                                 IdFormat format = IdFormat::Standard,

@@ -22,6 +22,7 @@ struct LogEntry {
   Frame frame;                         ///< the frame; `frame.bus` indexes the log's interfaces
   std::optional<Direction> direction;  ///< Rx/Tx when the line says so, else empty
 
+  /// Equal frames (see Frame's operator==) and equal directions. RT-safe: yes.
   friend bool operator==(const LogEntry&, const LogEntry&) = default;
 };
 
@@ -33,7 +34,7 @@ struct ParseError {
   std::string message;       ///< what is wrong, e.g. "odd number of hex digits in data"
 
   /// "source:line:column: message" (without ":column" when it is 0), the form compilers use
-  /// so that editors can jump to it. Allocates.
+  /// so that editors can jump to it. Allocates; not RT-safe.
   [[nodiscard]] std::string to_string() const;
 };
 

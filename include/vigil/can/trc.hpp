@@ -55,36 +55,44 @@ enum class TrcVersion : std::uint8_t { V1_0, V1_1, V1_2, V1_3, V2_0, V2_1 };
 class TrcReader {
  public:
   /// Reads from `in`, which must outlive the reader (see CandumpReader for how the stream is
-  /// consumed). `source_name` names the stream in error messages.
+  /// consumed). `source_name` names the stream in error messages. Allocates the 64 KiB buffer.
+  /// Not RT-safe.
   explicit TrcReader(std::istream& in, std::string source_name = "<stream>",
                      ReaderOptions options = {});
 
   /// Opens `path` for reading. Fails with the errno of the open and a message naming the file.
+  /// Not RT-safe.
   [[nodiscard]] static expected<TrcReader, Error> open(const std::filesystem::path& path,
                                                        ReaderOptions options = {});
 
+  /// Move-only: the moved-from reader may only be destroyed or assigned to.
   TrcReader(TrcReader&&) noexcept;
+  /// Move assignment; see the move constructor.
   TrcReader& operator=(TrcReader&&) noexcept;
+  /// Closes the file opened by `open` (a stream passed in is left alone).
   ~TrcReader();
 
   /// The next frame, or an empty optional at the end of the file. Fails (EINVAL) on a malformed
   /// line when the options say Stop, and on an unusable header; after a failure every call
-  /// returns the same error. Does not allocate except to report an error.
+  /// returns the same error. Does not allocate except to report an error. Exceptions thrown by
+  /// `ReaderOptions::on_error` propagate. Not RT-safe (it reads the stream).
   [[nodiscard]] expected<std::optional<LogEntry>, Error> next();
 
   /// The file version, known once the header has been read (1.0 before and without one).
+  /// O(1), noexcept.
   [[nodiscard]] TrcVersion version() const noexcept;
-  /// `$STARTTIME` in ns since the Unix epoch, when the header has one.
+  /// `$STARTTIME` in ns since the Unix epoch, when the header has one. O(1), noexcept.
   [[nodiscard]] std::optional<Nanos> start_time() const noexcept;
-  /// Number of malformed lines met so far.
+  /// Number of malformed lines met so far. O(1), noexcept.
   [[nodiscard]] std::uint64_t malformed_count() const noexcept;
   /// Number of well-formed records that are not frames (status, error counters, events).
+  /// O(1), noexcept.
   [[nodiscard]] std::uint64_t skipped_count() const noexcept;
-  /// The first `ReaderOptions::max_kept_errors` malformed lines.
+  /// The first `ReaderOptions::max_kept_errors` malformed lines. O(1), noexcept.
   [[nodiscard]] const std::vector<ParseError>& errors() const noexcept;
-  /// 1-based number of the last line read (0 before the first `next()`).
+  /// 1-based number of the last line read (0 before the first `next()`). O(1), noexcept.
   [[nodiscard]] std::uint64_t line_number() const noexcept;
-  /// The name used in error messages (the path for `open`).
+  /// The name used in error messages (the path for `open`). O(1), noexcept.
   [[nodiscard]] const std::string& source_name() const noexcept;
 
  private:
@@ -94,7 +102,7 @@ class TrcReader {
 };
 
 /// Reads a whole trace file into memory. Fails when the file cannot be opened, when its header
-/// is unusable or, with `OnMalformed::Stop`, at the first malformed line.
+/// is unusable or, with `OnMalformed::Stop`, at the first malformed line. Not RT-safe.
 [[nodiscard]] expected<CanLog, Error> read_trc_file(const std::filesystem::path& path,
                                                     ReaderOptions options = {});
 

@@ -24,16 +24,17 @@ namespace vigil::config {
 /// (`monitor.components.motor.overrun.warn_fraction`, `filters[2].id`), empty for file-level
 /// problems such as a syntax error.
 struct ConfigError {
-  std::string file;
-  int line = 0;
-  int column = 0;
-  std::string field;
-  std::string message;
+  std::string file;     ///< The file name as given to the loader (or a string's name).
+  int line = 0;         ///< 1-based line; 0 when unknown.
+  int column = 0;       ///< 1-based column in characters; 0 when unknown.
+  std::string field;    ///< Dotted path of the value at fault; empty for file-level problems.
+  std::string message;  ///< What is wrong, quoting the value as written where there is one.
 
   /// `file:line:col: field: message`; the line and column are left out when 0, the field when
   /// empty (`cfg.yaml: cannot read file: No such file or directory`). Not RT-safe (allocates).
   [[nodiscard]] std::string to_string() const;
 
+  /// Field-by-field equality (tests compare whole errors).
   friend bool operator==(const ConfigError&, const ConfigError&) = default;
 };
 

@@ -106,8 +106,9 @@ const C&, const T& > ;
 /// `duration_in_range`, whose message shows units.
 template <class T>
 struct InRange {
-  T min;
-  T max;
+  T min;  ///< Smallest accepted value.
+  T max;  ///< Largest accepted value.
+  /// nullopt when `min <= value <= max`, else the requirement. Not RT-safe (allocates).
   template <class V>
   requires std::totally_ordered_with<V, T> std::optional<std::string>
   operator()(const V& value) const {
@@ -126,6 +127,7 @@ template <class T>
 
 /// Check: value > 0 ("must be positive").
 struct Positive {
+  /// nullopt when `value > 0`, else the requirement.
   template <class V>
   requires std::is_arithmetic_v<V> std::optional<std::string>
   operator()(const V& value) const {
@@ -139,6 +141,7 @@ struct Positive {
 
 /// Check: value >= 0 ("must be zero or more").
 struct NonNegative {
+  /// nullopt when `value >= 0`, else the requirement.
   template <class V>
   requires std::is_arithmetic_v<V> std::optional<std::string>
   operator()(const V& value) const {
@@ -152,6 +155,7 @@ struct NonNegative {
 
 /// Check: a string or sequence is not empty ("must not be empty").
 struct NonEmpty {
+  /// nullopt when `value` is not empty, else the requirement.
   template <class V>
   requires requires(const V& v) { v.empty(); }
   std::optional<std::string> operator()(const V& value) const {
@@ -165,8 +169,9 @@ struct NonEmpty {
 
 /// Check: a duration in nanoseconds within `[min, max]` ("must be between 1ms and 1s").
 struct DurationInRange {
-  Nanos min;
-  Nanos max;
+  Nanos min;  ///< Shortest accepted duration, in nanoseconds.
+  Nanos max;  ///< Longest accepted duration, in nanoseconds.
+  /// nullopt when `min <= value <= max`, else the requirement with units.
   std::optional<std::string> operator()(Nanos value) const {
     if (value >= min && value <= max) return std::nullopt;
     return "must be between " + format_duration(min) + " and " + format_duration(max);
@@ -181,8 +186,8 @@ struct DurationInRange {
 /// The spelling of one enumerator in a configuration file: `{"FIFO", SchedPolicy::Fifo}`.
 template <class E>
 struct EnumName {
-  std::string_view name;
-  E value;
+  std::string_view name;  ///< The spelling accepted in the file (case-sensitive).
+  E value;                ///< The enumerator it stands for.
 };
 
 namespace detail {
@@ -297,7 +302,7 @@ class Node {
     T value{};
     if (!present_or_report_()) return value;
     if (!convert_(value)) return T{};
-    (check_(value, checks) && ...);
+    static_cast<void>((check_(value, checks) && ...));  // stops at the first failing check
     return value;
   }
 
@@ -430,9 +435,18 @@ class Node {
   /// Reports every key of this mapping that is not in `allowed`, each at its own location, with
   /// a hint: "unknown key; did you mean 'warn_fraction'?" or "unknown key; expected one of: a,
   /// b". Does nothing on a null, missing or unreachable node; reports a scalar or a sequence.
-  void reject_unknown_keys(std::initializer_list<std::string_view> allowed) const;
-  /// As above, with the allowed keys in a span.
-  void reject_unknown_keys(std::span<const std::string_view> allowed) const;
+  void reject_unknown_keys(std::initializer_list<std::string_view> allowed) const {
+    reject_unknown_keys_(std::span<const std::string_view>(allowed.begin(), allowed.size()));
+  }
+  /// As above, with the allowed keys in any range of strings (a `constexpr std::array`, or a
+  /// `std::vector<std::string>` of names known only at run time).
+  template <std::ranges::input_range R>
+  requires std::convertible_to<std::ranges::range_reference_t<const R>, std::string_view>
+  void reject_unknown_keys(const R& allowed) const {
+    std::vector<std::string_view> keys;
+    for (auto&& k : allowed) keys.emplace_back(k);
+    reject_unknown_keys_(keys);
+  }
 
   /// Records an error at this node, for checks the accessors cannot express
   /// (`n["warn"].error("must be below error (0.9)")`). The field is `path()`.
@@ -473,6 +487,7 @@ class Node {
   [[nodiscard]] bool convert_time_(Nanos& out, bool period, TimeUnit bare_unit) const;
   [[nodiscard]] std::optional<std::size_t> match_name_(
       std::span<const std::string_view> names) const;
+  void reject_unknown_keys_(std::span<const std::string_view> allowed) const;
 
   template <class T>
   [[nodiscard]] bool convert_(T& out) const {
@@ -531,7 +546,7 @@ class Node {
     if (!present_or_report_()) return 0;
     Nanos v = 0;
     if (!convert_time_(v, period, bare_unit)) return 0;
-    (check_(v, checks) && ...);
+    static_cast<void>((check_(v, checks) && ...));
     return v;
   }
 

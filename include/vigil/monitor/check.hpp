@@ -10,7 +10,8 @@
 ///   std::string_view name() const { return "latency"; }
 ///   void run(const vigil::CheckInput& in, vigil::Report& out) {
 ///     const double limit = in.thresholds.custom_value("latency_p99_us", 200) * 1e3;
-///     if (in.component.latency_ns.p99 > limit) out.merge(vigil::StatusLevel::Warn, "late wake-ups");
+///     if (in.component.latency_ns.p99 > limit) out.merge(vigil::StatusLevel::Warn, "late
+///     wake-ups");
 ///   }
 /// };
 /// monitor.add_check<LatencyCheck>();                      // the registration line
@@ -93,22 +94,12 @@ class CheckList {
   /// Appends a check of type `C` built from `args`. Returns it (owned by the list).
   template <Check C, class... A>
   C& add(A&&... args) {
-    if constexpr (std::is_base_of_v<CheckBase, C>) {
-      auto p = std::make_unique<C>(std::forward<A>(args)...);
-      C& ref = *p;
-      checks_.push_back(std::move(p));
-      return ref;
-    } else {
-      auto p = std::make_unique<detail::CheckAdapter<C>>(std::forward<A>(args)...);
-      C& ref = p->get();
-      checks_.push_back(std::move(p));
-      return ref;
-    }
+    return emplace_<C>(std::forward<A>(args)...);
   }
-  /// Appends `check` (moved in).
+  /// Appends `check` (moved in). Returns it (owned by the list).
   template <Check C>
   C& add(C check) {
-    return add<C>(std::move(check));
+    return emplace_<C>(std::move(check));
   }
   /// Appends an already built runtime check. Null is ignored.
   void add(std::unique_ptr<CheckBase> check) {
@@ -127,6 +118,21 @@ class CheckList {
   [[nodiscard]] std::vector<std::string> names() const;
 
  private:
+  template <class C, class... A>
+  C& emplace_(A&&... args) {
+    if constexpr (std::is_base_of_v<CheckBase, C>) {
+      auto p = std::make_unique<C>(std::forward<A>(args)...);
+      C& ref = *p;
+      checks_.push_back(std::move(p));
+      return ref;
+    } else {
+      auto p = std::make_unique<detail::CheckAdapter<C>>(std::forward<A>(args)...);
+      C& ref = p->get();
+      checks_.push_back(std::move(p));
+      return ref;
+    }
+  }
+
   std::vector<std::unique_ptr<CheckBase>> checks_;
 };
 

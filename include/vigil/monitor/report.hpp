@@ -147,8 +147,8 @@ struct Report {
 
 /// The reports of one monitor cycle.
 struct ReportSet {
-  std::uint64_t cycle = 0;  ///< monitor cycles so far (0 before the first)
-  Nanos time_ns = 0;        ///< monitor clock at the start of the cycle
+  std::uint64_t cycle = 0;         ///< monitor cycles so far (0 before the first)
+  Nanos time_ns = 0;               ///< monitor clock at the start of the cycle
   std::vector<Report> components;  ///< by registry id, then the supervisor, then the monitor
 
   /// The report named `name`, or null.

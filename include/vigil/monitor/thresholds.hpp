@@ -147,7 +147,15 @@ struct ThresholdSet {
 /// Unknown keys, wrong types and out-of-range values are errors located at file:line:col with
 /// the dotted field (`components.motor.overrun.near_fraction`); every error of the document is
 /// returned. Not RT-safe.
-[[nodiscard]] expected<ThresholdSet, config::ConfigErrors> load_thresholds(const config::Node& root);
+[[nodiscard]] expected<ThresholdSet, config::ConfigErrors> load_thresholds(
+    const config::Node& root);
+
+/// Reads one block of thresholds (the keys of `defaults:`, for a block embedded in another
+/// document): each key present replaces the value of `base`, the others keep it. Errors are
+/// recorded in `block`'s document (its `finish()` or `errors()` returns them); the returned
+/// value is meaningful only when there is none. A missing or empty block returns `base`.
+/// Not RT-safe.
+[[nodiscard]] Thresholds read_thresholds(const config::Node& block, const Thresholds& base = {});
 
 /// Reads and loads the YAML file at `path` (errors name the file as written). Not RT-safe.
 [[nodiscard]] expected<ThresholdSet, config::ConfigErrors> load_thresholds_file(

@@ -1,6 +1,7 @@
 #pragma once
 /// @file
-/// Waiting on and waking a 32-bit word (Linux futex; Cobalt: the same through libcobalt).
+/// Waiting on and waking a 32-bit word (Linux: a futex; Cobalt: per-thread Cobalt semaphores,
+/// see docs/design/platform.md).
 /// Used by TriggeredActivity so that a trigger makes a system call only when it must wake.
 
 #include <atomic>

@@ -6,17 +6,17 @@
 /// the transition and the task stays where it was; a hook that throws moves the task to
 /// Exception (the exception is caught and reported, never propagated).
 ///
-/// | command     | allowed from              | hook called      | hook true (or no hook) | hook
-/// false     | hook throws |
-/// |-------------|---------------------------|------------------|------------------------|----------------|-------------|
-/// | configure() | PreOperational, Stopped   | configure_hook() | Stopped                |
-/// PreOperational | Exception   | | start()     | Stopped                   | start_hook()     |
-/// Running                | Stopped        | Exception   | | update()    | Running | update_hook()
-/// | Running                | (void hook)    | Exception   | | stop()      | Running | stop_hook()
-/// | Stopped                | Running        | Exception   | | cleanup()   | Stopped |
-/// cleanup_hook()   | PreOperational         | Stopped        | Exception   | | recover()   |
-/// Exception                 | (none)           | PreOperational         |                | | |
-/// (fatal)     | any                       | (none)           | FatalError             | | |
+// clang-format off
+/// | command     | allowed from            | hook             | hook true      | hook false     | throws    |
+/// |-------------|-------------------------|------------------|----------------|----------------|-----------|
+/// | configure() | PreOperational, Stopped | configure_hook() | Stopped        | PreOperational | Exception |
+/// | start()     | Stopped                 | start_hook()     | Running        | Stopped        | Exception |
+/// | update()    | Running                 | update_hook()    | Running        | (void hook)    | Exception |
+/// | stop()      | Running                 | stop_hook()      | Stopped        | Running        | Exception |
+/// | cleanup()   | Stopped                 | cleanup_hook()   | PreOperational | Stopped        | Exception |
+/// | recover()   | Exception               | (none)           | PreOperational |                |           |
+/// | fatal()     | any                     | (none)           | FatalError     |                |           |
+// clang-format on
 ///
 /// A command called in any other state does nothing and returns false. FatalError is final:
 /// only destroying the task leaves it. Every transition, refused or not, is reported to the

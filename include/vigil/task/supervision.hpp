@@ -3,6 +3,7 @@
 /// Supervision options, and `CycleRecorder`, the one implementation of per-cycle supervision
 /// behind both front ends: `Task<Derived>` and `ComponentSupervisor`.
 
+#include <atomic>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -174,11 +175,15 @@ class CycleRecorder {
     s.exceptions = exceptions_;
     s.dropped = port->dropped();
     (void)port->try_push(Message{s});
+    published_cycles_.store(cycles_, std::memory_order_relaxed);
     overhead_ = 0;
     if (measure_) overhead_ = (c.start_ns - pre_begin_) + (clock_->now() - end);
   }
 
-  [[nodiscard]] std::uint64_t cycles() const noexcept { return cycles_; }
+  /// Cycles run so far. Any thread (relaxed atomic).
+  [[nodiscard]] std::uint64_t cycles() const noexcept {
+    return published_cycles_.load(std::memory_order_relaxed);
+  }
   [[nodiscard]] std::uint64_t overruns() const noexcept { return overruns_; }
   [[nodiscard]] std::uint64_t exceptions() const noexcept { return exceptions_; }
   [[nodiscard]] std::uint64_t losses(LossCause c) const noexcept {
@@ -268,6 +273,7 @@ class CycleRecorder {
   Nanos pre_begin_ = 0;
   Nanos overhead_ = 0;
   std::uint64_t cycles_ = 0;
+  std::atomic<std::uint64_t> published_cycles_{0};  // single writer: a plain store on x86
   std::uint64_t overruns_ = 0;
   std::uint64_t missed_ = 0;
   std::uint64_t exceptions_ = 0;

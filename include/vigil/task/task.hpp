@@ -95,7 +95,7 @@ class Task : public TaskCore {
   [[nodiscard]] Port<Message, Traits::port_capacity>* port() const noexcept {
     return recorder_.port();
   }
-  /// Cycles run so far (from the component's thread, or once stopped).
+  /// Cycles run so far. Any thread.
   [[nodiscard]] std::uint64_t cycles() const noexcept { return recorder_.cycles(); }
 
  private:
@@ -179,7 +179,7 @@ class Task : public TaskCore {
   static constexpr void check_author() {
     static_assert(std::is_base_of_v<Task, Derived>,
                   "vigil::Task<Derived>: Derived must inherit vigil::Task<Derived> (CRTP)");
-    static_assert(std::is_convertible_v<Derived*, Task*>,
+    static_assert(!std::is_base_of_v<Task, Derived> || std::is_convertible_v<Derived*, Task*>,
                   "vigil::Task<Derived>: inherit vigil::Task<Derived> publicly, e.g. "
                   "`class Motor : public vigil::Task<Motor>` (a class's bases are private by "
                   "default)");

@@ -1,43 +1,45 @@
 // Cobalt wait/wake on a 32-bit word, without relaxing a primary-mode thread.
 //
-// Cobalt has no futex, and a Linux futex call would relax the caller (a mode switch on every
-// trigger). Design: the word's address hashes to one of kBuckets buckets; each bucket has a Cobalt
-// counting semaphore (sem_init_np with SEM_RAWCLOCK: absolute timeouts on Cobalt's
-// CLOCK_MONOTONIC, the clock of now_ns()) and a count of registered waiters.
-//   - wait_on registers, re-checks the word, then sleeps on the semaphore;
-//   - wake_one posts one token per registered waiter that has none yet, and skips everything
-//     (no system call) when nobody is registered.
-// Registration and the word check are separated from the waker's store by sequentially consistent
-// operations on both sides (a waiter's fetch_add, a waker's fence), so either the waker sees the
-// waiter registered, or the waiter sees the new value: no lost wake-up. Waiters for different words
-// that share a bucket all get a token, which for them is a spurious wake-up (allowed by the
-// contract); tokens left by waiters that returned early are consumed by the next wait on that
-// bucket, once each, so the spurious returns are bounded by the number of waiters.
-//
-// sem_wait is a "primary" Cobalt call (a relaxed caller returns to primary mode); sem_post is a
-// "current" one, usable from any thread and with no system call when no thread sleeps on it.
-// A thread that is not a Cobalt thread (std::thread, ...) gets EPERM from sem_wait; such threads
-// wait on a Linux futex instead (counted apart so that wake_one calls futex only for them, and
-// then relaxes a primary-mode waker once). A bucket's semaphore is created on first use; until it
-// exists, that first call also takes the futex path.
+// Cobalt has no futex, and a Linux futex call would relax the caller: a mode switch on every
+// trigger. Design (addressed wake-ups, so that no waiter can take another's):
+//   - A Cobalt thread that waits gets a record from a fixed pool the first time (released by a
+//     pthread key destructor when it exits, then reused): the address it waits on, and its own
+//     Cobalt semaphore (sem_init_np, SEM_RAWCLOCK: absolute timeouts on Cobalt's CLOCK_MONOTONIC,
+//     the clock of now_ns()). Only that thread ever waits on that semaphore.
+//   - wait_on publishes the address in its record, re-checks the word, then sleeps on its
+//     semaphore. wake_one scans the records in use and posts the semaphore of each one that waits
+//     on the word, only if it holds no token yet (so at most one stale token per record: a
+//     bounded number of spurious wake-ups, which the contract allows).
+//   - The waiter's publication and the waker's store to the word are ordered by sequentially
+//     consistent operations on both sides (the waiter's seq_cst store and load, the waker's fence
+//     and loads): either the waker sees the waiter registered, or the waiter sees the new value.
+//     No lost wake-up.
+// sem_wait is a "primary" Cobalt call (a relaxed caller returns to primary mode); sem_post and
+// sem_getvalue are usable from any thread, Cobalt or not: sem_post makes a "current"-mode Cobalt
+// system call only when the thread sleeps, sem_getvalue none.
+// Threads that are not Cobalt threads (std::thread, ...) cannot sleep on a Cobalt semaphore
+// (EPERM); they, and Cobalt threads when the pool is exhausted, wait on a Linux futex. A waker
+// calls futex only while such a waiter exists (and then relaxes once if it runs in primary mode).
+// Cost of wake_one: one fence, one load per record ever used (the threads that waited), and a
+// system call only when a thread sleeps on the word. Not a lock anywhere.
 #include "vigil/platform/wait.hpp"
 
 #include "platform/cobalt/build_check.hpp"
 
 #include <linux/futex.h>
+#include <pthread.h>
 #include <semaphore.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 
-#include <algorithm>
 #include <atomic>
 #include <cerrno>
-#include <climits>
 #include <cstddef>
 #include <cstdint>
 #include <ctime>
 
 // Xenomai headers last: they define macros C++ headers must not see.
+#include <cobalt/sys/cobalt.h>
 #include <cobalt/uapi/sem.h>
 #include <cobalt/wrappers.h>
 
@@ -48,26 +50,77 @@ namespace {
 static_assert(sizeof(std::atomic<std::uint32_t>) == sizeof(std::uint32_t));
 static_assert(std::atomic<std::uint32_t>::is_always_lock_free);
 
-constexpr std::size_t kBuckets = 32;  // power of two
-enum BucketState : int { kUninit = 0, kInitialising = 1, kReady = 2 };
+// More Cobalt threads than this waiting at the same time still work, through the futex path.
+constexpr std::uint32_t kRecords = 64;
 
-struct alignas(64) Bucket {  // one cache line each: buckets are touched by unrelated threads
-  std::atomic<int> state{kUninit};
-  std::atomic<std::uint32_t> cobalt_waiters{0};
-  std::atomic<std::uint32_t> linux_waiters{0};
+struct alignas(64) Record {  // one cache line each: records are written by unrelated threads
+  std::atomic<bool> in_use{false};
+  std::atomic<bool> sem_ready{false};  // the semaphore outlives its threads; created once
+  std::atomic<const void*> waiting_on{nullptr};
   sem_t sem{};
 };
-constinit Bucket g_buckets[kBuckets];
+constinit Record g_records[kRecords];
+// Records [0, g_records_used) have been handed out at least once; wake_one scans only those.
+constinit std::atomic<std::uint32_t> g_records_used{0};
+// Threads sleeping (or about to) on a Linux futex; wake_one calls futex only when this is > 0.
+constinit std::atomic<std::uint32_t> g_futex_waiters{0};
 
-// A thread that got EPERM from Cobalt once is not a Cobalt thread; it skips the semaphore.
-thread_local bool tls_not_cobalt = false;
+enum class Kind : std::uint8_t { Unknown, Cobalt, Linux };
+thread_local Kind tls_kind = Kind::Unknown;
+thread_local Record* tls_record = nullptr;
 
-Bucket& bucket_for(const void* address) noexcept {
-  // Fibonacci hashing of the address without its low (alignment) bits.
-  const auto a = reinterpret_cast<std::uintptr_t>(address) >> 2;
-  return g_buckets[(a * 0x9E3779B97F4A7C15ull) >> (64 - 5)];
+void release_record(void* record) {
+  auto* r = static_cast<Record*>(record);
+  r->waiting_on.store(nullptr, std::memory_order_relaxed);
+  r->in_use.store(false, std::memory_order_release);
 }
-static_assert(kBuckets == 1u << 5, "the hash above takes 5 bits");
+
+pthread_key_t record_key() noexcept {
+  // A pthread key destructor (not a thread_local with a destructor, whose registration may
+  // allocate) gives the record back when the thread exits. Keys below 32 need no allocation.
+  static const pthread_key_t key = [] {
+    pthread_key_t k{};
+    pthread_key_create(&k, &release_record);
+    return k;
+  }();
+  return key;
+}
+
+Record* claim_record() noexcept {
+  for (std::uint32_t i = 0; i < kRecords; ++i) {
+    Record& r = g_records[i];
+    bool expected = false;
+    if (!r.in_use.compare_exchange_strong(expected, true, std::memory_order_acq_rel)) continue;
+    if (!r.sem_ready.load(std::memory_order_acquire)) {
+      // No SEM_FIFO: not needed, one thread per semaphore. A "current"-mode Cobalt call.
+      if (sem_init_np(&r.sem, SEM_RAWCLOCK, 0) != 0) {
+        r.in_use.store(false, std::memory_order_release);
+        return nullptr;
+      }
+      r.sem_ready.store(true, std::memory_order_release);
+    } else {
+      // A token left for the previous owner would only be a spurious wake-up; drop it anyway.
+      while (__RT(sem_trywait)(&r.sem) == 0) {
+      }
+    }
+    std::uint32_t used = g_records_used.load(std::memory_order_relaxed);
+    while (used < i + 1 && !g_records_used.compare_exchange_weak(used, i + 1)) {
+    }
+    pthread_setspecific(record_key(), &r);
+    return &r;
+  }
+  return nullptr;
+}
+
+Kind this_thread_kind() noexcept {
+  if (tls_kind == Kind::Unknown) {
+    // A "current"-mode Cobalt system call: no mode switch; -ESRCH for a thread Cobalt does not
+    // know.
+    if (cobalt_thread_pid(pthread_self()) > 0) tls_record = claim_record();
+    tls_kind = tls_record != nullptr ? Kind::Cobalt : Kind::Linux;
+  }
+  return tls_kind;
+}
 
 auto* word_address(const std::atomic<std::uint32_t>& word) noexcept {
   return reinterpret_cast<std::uint32_t*>(const_cast<std::atomic<std::uint32_t>*>(&word));
@@ -80,48 +133,25 @@ timespec to_timespec(Nanos ns) noexcept {
   return ts;
 }
 
-// True when the bucket's semaphore exists. The first caller creates it (a "current"-mode Cobalt
-// system call, no mode switch); a caller that finds it being created does not spin (a
-// higher-priority spinner could starve the creator on its CPU) but takes the futex path once.
-bool ensure_ready(Bucket& b) noexcept {
-  int s = b.state.load(std::memory_order_acquire);
-  if (s == kReady) return true;
-  if (s == kUninit &&
-      b.state.compare_exchange_strong(s, kInitialising, std::memory_order_acq_rel)) {
-    // No SEM_FIFO: sleepers queue by priority. SEM_RAWCLOCK: timeouts on CLOCK_MONOTONIC.
-    const bool ok = sem_init_np(&b.sem, SEM_RAWCLOCK, 0) == 0;
-    // On failure (process not bound to Cobalt yet, core out of memory) a later call retries.
-    b.state.store(ok ? kReady : kUninit, std::memory_order_release);
-    return ok;
-  }
-  return false;
-}
-
-// Returns false when the caller turned out not to be a Cobalt thread.
-bool wait_cobalt(Bucket& b, const std::atomic<std::uint32_t>& word, std::uint32_t expected,
+void wait_cobalt(Record& r, const std::atomic<std::uint32_t>& word, std::uint32_t expected,
                  Nanos deadline_ns) noexcept {
-  b.cobalt_waiters.fetch_add(1, std::memory_order_seq_cst);
-  if (word.load(std::memory_order_seq_cst) != expected) {
-    b.cobalt_waiters.fetch_sub(1, std::memory_order_relaxed);
-    return true;
+  r.waiting_on.store(&word, std::memory_order_seq_cst);
+  if (word.load(std::memory_order_seq_cst) == expected) {
+    // -1/errno convention here (unlike pthread_*). ETIMEDOUT, EINTR (a SIGDEBUG handler ran)
+    // and EINVAL all return to the caller, which re-checks its condition as after any wake-up.
+    if (deadline_ns > 0) {
+      const timespec ts = to_timespec(deadline_ns);
+      __RT(sem_timedwait)(&r.sem, &ts);
+    } else {
+      __RT(sem_wait)(&r.sem);
+    }
   }
-  int rc = 0;
-  if (deadline_ns > 0) {
-    const timespec ts = to_timespec(deadline_ns);
-    rc = __RT(sem_timedwait)(&b.sem, &ts);
-  } else {
-    rc = __RT(sem_wait)(&b.sem);
-  }
-  // -1/errno convention here (unlike pthread_*). ETIMEDOUT, EINTR (a SIGDEBUG handler ran) and
-  // EINVAL all return to the caller, which re-checks its condition as after any wake-up.
-  const bool not_cobalt = rc != 0 && errno == EPERM;
-  b.cobalt_waiters.fetch_sub(1, std::memory_order_relaxed);
-  return !not_cobalt;
+  r.waiting_on.store(nullptr, std::memory_order_relaxed);
 }
 
-void wait_linux(Bucket& b, const std::atomic<std::uint32_t>& word, std::uint32_t expected,
+void wait_linux(const std::atomic<std::uint32_t>& word, std::uint32_t expected,
                 Nanos deadline_ns) noexcept {
-  b.linux_waiters.fetch_add(1, std::memory_order_seq_cst);
+  g_futex_waiters.fetch_add(1, std::memory_order_seq_cst);
   timespec rel{};
   timespec* timeout = nullptr;
   bool expired = false;
@@ -137,37 +167,33 @@ void wait_linux(Bucket& b, const std::atomic<std::uint32_t>& word, std::uint32_t
   if (!expired) {
     ::syscall(SYS_futex, word_address(word), FUTEX_WAIT_PRIVATE, expected, timeout, nullptr, 0);
   }
-  b.linux_waiters.fetch_sub(1, std::memory_order_relaxed);
+  g_futex_waiters.fetch_sub(1, std::memory_order_relaxed);
 }
 
 }  // namespace
 
 void wait_on(const std::atomic<std::uint32_t>& word, std::uint32_t expected,
              Nanos deadline_ns) noexcept {
-  Bucket& b = bucket_for(&word);
-  if (!tls_not_cobalt && ensure_ready(b)) {
-    if (wait_cobalt(b, word, expected, deadline_ns)) return;
-    tls_not_cobalt = true;
+  if (this_thread_kind() == Kind::Cobalt) {
+    wait_cobalt(*tls_record, word, expected, deadline_ns);
+  } else {
+    wait_linux(word, expected, deadline_ns);
   }
-  wait_linux(b, word, expected, deadline_ns);
 }
 
 void wake_one(const std::atomic<std::uint32_t>& word) noexcept {
-  Bucket& b = bucket_for(&word);
   // Pairs with the waiters' seq_cst registration (see the design note at the top).
   std::atomic_thread_fence(std::memory_order_seq_cst);
-  const auto cobalt_waiters = b.cobalt_waiters.load(std::memory_order_seq_cst);
-  if (cobalt_waiters > 0) {
-    // A registered Cobalt waiter implies a ready semaphore (it registers after ensure_ready).
-    // sem_getvalue reports the tokens not yet taken (0 while threads sleep on it): post the
-    // missing ones only, so tokens never pile up beyond the number of waiters.
+  const std::uint32_t used = g_records_used.load(std::memory_order_seq_cst);
+  for (std::uint32_t i = 0; i < used; ++i) {
+    Record& r = g_records[i];
+    if (r.waiting_on.load(std::memory_order_seq_cst) != &word) continue;
+    // 0 when the owner sleeps or no token is pending (Cobalt reports no negative values
+    // without SEM_REPORT): post only then, so that at most one token waits in a record.
     int tokens = 0;
-    __RT(sem_getvalue)(&b.sem, &tokens);
-    for (auto i = static_cast<std::uint32_t>(std::max(tokens, 0)); i < cobalt_waiters; ++i) {
-      __RT(sem_post)(&b.sem);
-    }
+    if (__RT(sem_getvalue)(&r.sem, &tokens) == 0 && tokens <= 0) __RT(sem_post)(&r.sem);
   }
-  if (b.linux_waiters.load(std::memory_order_seq_cst) > 0) {
+  if (g_futex_waiters.load(std::memory_order_seq_cst) > 0) {
     ::syscall(SYS_futex, word_address(word), FUTEX_WAKE_PRIVATE, 1, nullptr, nullptr, 0);
   }
 }

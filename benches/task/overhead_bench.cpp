@@ -1,0 +1,217 @@
+// Per-cycle cost of supervision next to its floor, measured in the same repetition.
+//
+// Subjects: Task<Derived> with an empty on_update() stepped by a ManualActivity, for each
+// real-time-loss detector setting; the ComponentSupervisor + UpdateGuard path; and, for scale,
+// the same activity driving an unsupervised TaskCore. The floor (bench_support.hpp): two reads
+// of vigil's clock around the same empty call and one push of the same Message into the queue
+// type behind every Port, with the same capacity.
+//
+// Method. The measuring thread is pinned (VIGIL_BENCH_CPU, default 1); one consumer thread,
+// pinned to another CPU, pops the floor's queue and the subject's port once every 10 ms (the
+// supervisor's default period), and never spins. Each benchmark iteration waits for the next
+// poll, then runs a batch of 200 floor cycles and a batch of 200 subject cycles (the order
+// alternates), timing each batch with two clock reads; 200 < 256 so no push fails. The
+// iteration time reported is the subject's mean cycle time; counters carry the floor's, and
+// the ratio subject / floor of the repetition. The "port full" variants do not wait: the
+// queues stay full and every push fails (dropped and counted), the other case users meet.
+#include <algorithm>
+#include <array>
+#include <string>
+#include <vector>
+
+#include "support/bench_support.hpp"
+#include "vigil/exec/manual_activity.hpp"
+#include "vigil/platform/rt_loss.hpp"
+#include "vigil/task/component_supervisor.hpp"
+#include "vigil/task/task.hpp"
+
+namespace vigil::bench {
+namespace {
+
+constexpr int kBatch = 200;         // cycles per batch: below the port's 256, so nothing drops
+constexpr int kBatchesPerRep = 50;  // one per consumer poll: ~0.5 s per repetition
+constexpr int kFullBatchesPerRep = 200;
+constexpr Nanos kPeriod = kNanosPerMilli;
+
+class EmptyTask : public Task<EmptyTask> {
+ public:
+  EmptyTask(Registry<Message>& registry, SupervisionOptions options)
+      : Task("bench_task", options, registry) {}
+  void on_update() { empty_update(); }
+};
+
+// TaskCore without supervision: what the activity costs by itself.
+class BareTask : public TaskCore {
+ public:
+  BareTask() : TaskCore("bare_task") {}
+
+ protected:
+  void update_hook() override { empty_update(); }
+};
+
+struct TaskSubject {
+  TaskSubject(Detectors d, Nanos period)
+      : task(registry, SupervisionOptions{.detectors = d}),
+        activity(task, ManualConfig{.name = "bench", .period_ns = period}) {
+    (void)task.configure();
+    (void)activity.start();
+  }
+  ~TaskSubject() { (void)activity.stop(); }
+  [[gnu::noinline]] void cycle() noexcept { (void)activity.step(); }
+  Poller::Drain drain() {
+    return [p = task.port()](Message* out, std::size_t n) { return p->pop(out, n); };
+  }
+  std::uint64_t dropped() const { return task.port()->dropped(); }
+
+  Registry<Message> registry;
+  EmptyTask task;
+  ManualActivity activity;
+};
+
+struct BareSubject {
+  BareSubject() : activity(task, ManualConfig{.name = "bench", .period_ns = kPeriod}) {
+    (void)task.configure();
+    (void)activity.start();
+  }
+  ~BareSubject() { (void)activity.stop(); }
+  [[gnu::noinline]] void cycle() noexcept { (void)activity.step(); }
+  Poller::Drain drain() {
+    return [](Message*, std::size_t) { return std::size_t{0}; };
+  }
+  std::uint64_t dropped() const { return 0; }
+
+  BareTask task;
+  ManualActivity activity;
+};
+
+struct GuardSubject {
+  GuardSubject() : sup("bench_guard", {}, registry) {
+    sup.init(ManualInfo{.activity = "bench", .period_ns = kPeriod});
+  }
+  [[gnu::noinline]] void cycle() noexcept {
+    UpdateGuard guard(sup);
+    empty_update();
+  }
+  Poller::Drain drain() {
+    return [p = sup.port()](Message* out, std::size_t n) { return p->pop(out, n); };
+  }
+  std::uint64_t dropped() const { return sup.port()->dropped(); }
+
+  Registry<Message> registry;
+  ComponentSupervisor sup;
+};
+
+template <class S>
+Nanos run_batch(S& s) {
+  const Nanos t0 = platform::now_ns();
+  for (int i = 0; i < kBatch; ++i) s.cycle();
+  return platform::now_ns() - t0;
+}
+
+template <class S>
+void fill_port(S& s) {
+  for (int i = 0; i < static_cast<int>(kDefaultPortCapacity) + 8; ++i) s.cycle();
+}
+
+template <class Subject, class... Args>
+void paired(benchmark::State& state, bool full, double goal_ratio_max, Args... args) {
+  Floor floor;
+  Subject subject(args...);
+  Poller poller({floor.drain(), subject.drain()});
+
+  // Warm-up: touch both rings and every code path, outside the measurement.
+  for (int i = 0; i < 3; ++i) {
+    poller.wait_next_poll();
+    (void)run_batch(floor);
+    (void)run_batch(subject);
+  }
+
+  std::vector<double> floor_ns;
+  std::vector<double> subject_ns;
+  std::vector<double> ratios;
+  std::uint64_t drops = 0;
+  auto time_subject = [&] {
+    const std::uint64_t d0 = subject.dropped();
+    const Nanos t = run_batch(subject);
+    drops += subject.dropped() - d0;
+    return t;
+  };
+  bool subject_first = false;
+  for (auto _ : state) {
+    if (full) {
+      fill_port(floor);  // untimed: from here on every push fails
+      fill_port(subject);
+    } else {
+      poller.wait_next_poll();  // both queues are empty: every push succeeds
+    }
+    Nanos tf = 0;
+    Nanos ts = 0;
+    if (subject_first) {
+      ts = time_subject();
+      tf = run_batch(floor);
+    } else {
+      tf = run_batch(floor);
+      ts = time_subject();
+    }
+    subject_first = !subject_first;
+    floor_ns.push_back(static_cast<double>(tf) / kBatch);
+    subject_ns.push_back(static_cast<double>(ts) / kBatch);
+    ratios.push_back(static_cast<double>(ts) / static_cast<double>(tf));
+    state.SetIterationTime(static_cast<double>(ts) * 1e-9 / kBatch);
+  }
+  const auto cycles = static_cast<double>(subject_ns.size()) * kBatch;
+  // Medians over the batches of this repetition: a batch the scheduler interrupted (the
+  // machine is shared) moves a mean, not a median.
+  report_vs(state, "ns/cycle", median(subject_ns), median(floor_ns), median(ratios));
+  if (goal_ratio_max > 0) state.counters["goal_ratio_max"] = goal_ratio_max;
+  // Of the timed cycles: 0 in the normal variants, about 1 in the port-full ones.
+  state.counters["dropped_per_cycle"] = static_cast<double>(drops) / cycles;
+}
+
+void register_all() {
+  struct Setting {
+    const char* name;
+    Detectors detectors;
+    double goal;
+  };
+  const std::array<Setting, 5> settings{{
+      {"none", Detectors::None, 1.5},
+      {"allocation", Detectors::Allocation, 1.7},
+      {"blocking", Detectors::Blocking, 0},
+      {"page_faults", Detectors::PageFaults, 0},
+      {"all", Detectors::All, 0},
+  }};
+  auto add = [](const std::string& name, int batches, auto fn) {
+    benchmark::RegisterBenchmark(name.c_str(), fn)
+        ->Iterations(batches)
+        ->UseManualTime()
+        ->Unit(benchmark::kNanosecond);
+  };
+  for (const auto& s : settings) {
+    add(std::string("task/overhead/detectors:") + s.name, kBatchesPerRep,
+        [s](benchmark::State& st) {
+          paired<TaskSubject>(st, false, s.goal, s.detectors, kPeriod);
+        });
+  }
+  add("task/overhead/detectors:none/not_periodic", kBatchesPerRep,
+      [](benchmark::State& st) { paired<TaskSubject>(st, false, 1.5, Detectors::None, Nanos{0}); });
+  add("task/overhead/update_guard", kBatchesPerRep,
+      [](benchmark::State& st) { paired<GuardSubject>(st, false, 1.5); });
+  add("task/overhead/unsupervised_activity", kBatchesPerRep,
+      [](benchmark::State& st) { paired<BareSubject>(st, false, 0); });
+  add("task/overhead/detectors:none/port_full", kFullBatchesPerRep,
+      [](benchmark::State& st) { paired<TaskSubject>(st, true, 0, Detectors::None, kPeriod); });
+  add("task/overhead/update_guard/port_full", kFullBatchesPerRep,
+      [](benchmark::State& st) { paired<GuardSubject>(st, true, 0); });
+}
+
+}  // namespace
+}  // namespace vigil::bench
+
+int main(int argc, char** argv) {
+  benchmark::AddCustomContext("vigil.alloc_guard", vigil::platform::allocation_counting_available()
+                                                       ? "linked"
+                                                       : "not linked");
+  vigil::bench::register_all();
+  return vigil::bench::run_main(argc, argv);
+}

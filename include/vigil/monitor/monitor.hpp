@@ -1,0 +1,153 @@
+#pragma once
+/// @file
+/// `Monitor`: runs the checks on every supervised component each cycle and publishes one
+/// `Report` per component, plus one for the supervisor ("vigil.supervisor") and one for itself
+/// ("vigil.monitor").
+///
+/// Design: a non-RT thread of its own (`start()`/`stop()`, SCHED_OTHER), or `step()` called from
+/// a loop you own. A cycle: (1) polls the threshold file if one is watched; (2) copies the
+/// aggregator's snapshots; (3) per component, computes the recent window from the counters it
+/// kept at earlier cycles, the silence since the latest cycle, the tasks sharing its thread and
+/// the thread's OS counters, and runs the checks; (4) publishes the ReportSet under a mutex held
+/// only for the swap, then calls the subscribers. The monitor never touches the RT side: it reads
+/// the aggregator (which the supervisor fills) and configuration, nothing else.
+///
+/// Thread safety: every member is thread-safe; `step()` calls are serialised with each other and
+/// with the thread's cycles. Nothing here is RT-safe.
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "vigil/config/error.hpp"
+#include "vigil/error.hpp"
+#include "vigil/expected.hpp"
+#include "vigil/monitor/check.hpp"
+#include "vigil/monitor/report.hpp"
+#include "vigil/monitor/thresholds.hpp"
+#include "vigil/platform/clock.hpp"
+#include "vigil/supervisor/component_aggregator.hpp"
+
+namespace vigil {
+
+/// Options of a monitor.
+struct MonitorOptions {
+  /// Period of the monitor's own thread. 1 s: the pace of a monitoring GUI (ROS diagnostics
+  /// publishes at 1 Hz).
+  Nanos period_ns = kNanosPerSecond;
+  std::string thread_name = "vigil-monitor";
+  /// The monitor's clock (cycle times, silences, windows). It must be the aggregator's clock
+  /// (AggregatorOptions::clock): silences compare it with the aggregator's arrival stamps.
+  Clock clock = Clock::system();
+  /// Run the built-in checks (checks::add_builtin_checks) before the custom ones.
+  bool builtin_checks = true;
+  /// Read each component thread's OS counters (platform::read_thread_stats, ~6 us per thread).
+  bool read_thread_stats = true;
+  /// Poll the watched threshold file at every cycle and reload it when it changed.
+  bool poll_thresholds = true;
+  /// Add the "vigil.monitor" report (the monitor's own cycles, and threshold reload errors).
+  bool self_report = true;
+  std::string supervisor_name = "vigil.supervisor";
+  std::string monitor_name = "vigil.monitor";
+};
+
+class Monitor {
+ public:
+  /// A subscriber, called after each cycle on the monitor's thread (or step()'s caller).
+  using Callback = std::function<void(const ReportSet&)>;
+
+  /// Monitors the components of `aggregator`, which must outlive the monitor. Not RT-safe.
+  explicit Monitor(const ComponentAggregator& aggregator, MonitorOptions options = {});
+  /// Stops the thread if it runs.
+  ~Monitor();
+  Monitor(const Monitor&) = delete;
+  Monitor& operator=(const Monitor&) = delete;
+
+  /// Also reports `supervisor` (which must outlive the monitor, or be detached with nullptr):
+  /// its cycles, drain time, messages and ports, Stale when it stopped cycling and Warn when its
+  /// drain time nears its period.
+  void set_supervisor(const ComponentSupervisorLoop* supervisor);
+
+  // --- checks ---
+
+  /// Appends a custom check of type `C` built from `args`; it runs after the built-in ones on
+  /// every component. Returns the check (owned by the monitor; do not touch it while the
+  /// monitor runs). Example: `monitor.add_check<LatencyCheck>();`.
+  template <Check C, class... A>
+  C& add_check(A&&... args) {
+    auto lock = lock_checks_();
+    return checks_().template add<C>(std::forward<A>(args)...);
+  }
+  /// Appends `check`. Example: `monitor.add_check(LatencyCheck{200});`.
+  template <Check C>
+  C& add_check(C check) {
+    auto lock = lock_checks_();
+    return checks_().add(std::move(check));
+  }
+  /// Removes the checks named `name` (built-in ones included); returns how many.
+  std::size_t remove_check(std::string_view name);
+  /// Names of the checks, in the order they run.
+  [[nodiscard]] std::vector<std::string> check_names() const;
+
+  // --- thresholds ---
+
+  /// Replaces the thresholds (taken as they are: validate them by loading YAML). Takes effect at
+  /// the next cycle.
+  void set_thresholds(ThresholdSet thresholds);
+  /// The thresholds in use (never null; the built-in defaults until set or loaded).
+  [[nodiscard]] std::shared_ptr<const ThresholdSet> thresholds() const;
+  /// Loads thresholds from the YAML file at `path` and watches it: each cycle polls it (unless
+  /// MonitorOptions::poll_thresholds is false) and reloads it when it changed. Fails with every
+  /// error of the file, keeping the thresholds in use.
+  expected<void, config::ConfigErrors> watch_thresholds(const std::filesystem::path& path);
+  /// Re-reads the watched file now. On success returns the new generation; on failure keeps the
+  /// previous thresholds, records the errors (threshold_errors(), the "vigil.monitor" report) and
+  /// returns them. Fails with one error when no file is watched.
+  expected<std::uint64_t, config::ConfigErrors> reload_thresholds();
+  /// Errors of the last failed reload; empty when the last attempt succeeded.
+  [[nodiscard]] config::ConfigErrors threshold_errors() const;
+  /// 1 after watch_thresholds(), incremented by each successful reload; 0 when no file is watched.
+  [[nodiscard]] std::uint64_t thresholds_generation() const;
+
+  // --- running ---
+
+  /// Runs one cycle in the calling thread and returns its reports. Serialised with the thread's
+  /// cycles (safe to call while the monitor runs).
+  ReportSet step();
+  /// Starts the monitor's thread (SCHED_OTHER), which runs a cycle every period. Fails when the
+  /// thread cannot be created. Idempotent.
+  expected<void, Error> start();
+  /// Stops and joins the thread (wakes it at once). Idempotent.
+  void stop();
+  [[nodiscard]] bool running() const noexcept;
+
+  // --- readers ---
+
+  /// A copy of the latest cycle's reports (empty before the first cycle). Any thread.
+  [[nodiscard]] ReportSet latest() const;
+  /// A copy of the latest cycle's component reports. Any thread.
+  [[nodiscard]] std::vector<Report> reports() const;
+  /// Adds a subscriber called after every cycle with its reports; returns its id. It must not
+  /// call step(), stop() or the destructor (they wait for the cycle that calls it).
+  std::uint64_t subscribe(Callback callback);
+  /// Removes a subscriber; unknown ids are ignored.
+  void unsubscribe(std::uint64_t id);
+
+  [[nodiscard]] const MonitorOptions& options() const noexcept;
+
+  struct Impl;
+
+ private:
+  [[nodiscard]] std::unique_lock<std::mutex> lock_checks_() const;
+  [[nodiscard]] CheckList& checks_() noexcept;
+
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace vigil

@@ -1,0 +1,181 @@
+#include "vigil/export/json_report.hpp"
+
+#include <string>
+
+#include "vigil/version.hpp"
+
+namespace vigil {
+
+void write_json(JsonWriter& w, const StatsSummary& s) {
+  w.begin_object();
+  w.field("count", s.count);
+  w.field("last", s.last);
+  w.field("min", s.min);
+  w.field("mean", s.mean);
+  w.field("ewma", s.ewma);
+  w.field("max", s.max);
+  w.field("p50", s.p50);
+  w.field("p90", s.p90);
+  w.field("p99", s.p99);
+  w.field("p999", s.p999);
+  w.end_object();
+}
+
+namespace {
+
+void write_losses(JsonWriter& w, const std::array<std::uint64_t, kLossCauses>& losses) {
+  w.begin_object();
+  for (int i = 0; i < kLossCauses; ++i) {
+    w.field(platform::to_string(static_cast<LossCause>(i)), losses[static_cast<std::size_t>(i)]);
+  }
+  w.end_object();
+}
+
+void write_thread(JsonWriter& w, const platform::ThreadStats& t) {
+  w.begin_object();
+  w.field("tid", t.tid);
+  w.field("name", t.name);
+  w.key("policy");
+  if (t.policy_known) {
+    w.value(platform::to_string(t.policy));
+  } else {
+    w.null();
+  }
+  w.field("priority", t.priority);
+  w.field("last_cpu", t.last_cpu);
+  w.field("voluntary_switches", t.voluntary_switches);
+  w.field("involuntary_switches", t.involuntary_switches);
+  w.field("minor_faults", t.minor_faults);
+  w.field("major_faults", t.major_faults);
+  w.field("user_time_ns", t.user_time_ns);
+  w.field("system_time_ns", t.system_time_ns);
+  w.field("primary_time_ns", t.primary_time_ns);
+  w.field("mode_switches", t.mode_switches);
+  w.end_object();
+}
+
+}  // namespace
+
+void write_json(JsonWriter& w, const Report& r) {
+  w.begin_object();
+  w.field("name", r.name);
+  w.field("kind", to_string(r.kind));
+  w.field("id", r.id);
+  w.field("status", to_string(r.status.level()));
+  w.key("messages").begin_array();
+  for (const auto& m : r.status.messages()) w.value(m.text);
+  w.end_array();
+  w.key("findings").begin_array();
+  for (const auto& m : r.status.messages()) {
+    w.begin_object().field("level", to_string(m.level)).field("text", m.text).end_object();
+  }
+  w.end_array();
+  w.field("alive", r.alive);
+  w.field("configured", r.configured);
+  w.field("state", to_string(r.state));
+  w.field("activity", r.activity);
+  w.field("policy", platform::to_string(r.policy));
+  w.field("requested_policy", platform::to_string(r.requested_policy));
+  w.field("realtime_refused", r.realtime_refused);
+  w.field("priority", r.priority);
+  w.field("cpu", r.cpu);
+  w.field("tid", r.tid);
+  w.field("tasks_on_thread", r.tasks_on_thread);
+  w.field("period_ns", r.period_ns);
+
+  w.key("counters").begin_object();
+  w.field("cycles", r.counters.cycles);
+  w.field("samples", r.samples);
+  w.field("overruns", r.counters.overruns);
+  w.field("missed_cycles", r.counters.missed_cycles);
+  w.field("rt_losses", r.counters.total_losses());
+  w.key("rt_losses_by_cause");
+  write_losses(w, r.counters.losses);
+  w.field("exceptions", r.counters.exceptions);
+  w.field("dropped", r.counters.dropped);
+  w.end_object();
+
+  w.key("window").begin_object();
+  w.field("first", r.window.first);
+  w.field("duration_ns", r.window.duration_ns);
+  w.field("cycles", r.window.cycles);
+  w.field("overruns", r.window.overruns);
+  w.field("missed_cycles", r.window.missed_cycles);
+  w.field("rt_losses", r.window.total_losses());
+  w.key("rt_losses_by_cause");
+  write_losses(w, r.window.losses);
+  w.field("exceptions", r.window.exceptions);
+  w.field("dropped", r.window.dropped);
+  w.end_object();
+
+  w.key("timing").begin_object();
+  w.key("user_ns");
+  write_json(w, r.user_ns);
+  w.key("total_ns");
+  write_json(w, r.total_ns);
+  w.key("latency_ns");
+  write_json(w, r.latency_ns);
+  w.key("period_ns");
+  write_json(w, r.measured_period_ns);
+  w.key("overhead_ns");
+  write_json(w, r.overhead_ns);
+  w.field("overhead_share", r.overhead_share);
+  w.key("silence_ns");
+  if (r.silence_ns >= 0) {
+    w.value(r.silence_ns);
+  } else {
+    w.null();
+  }
+  w.end_object();
+
+  w.key("port").begin_object();
+  w.field("capacity", r.port_capacity);
+  w.field("high_water", r.port_high_water);
+  w.end_object();
+
+  w.key("exception");
+  if (r.has_exception) {
+    w.begin_object();
+    w.field("count", r.exception.count);
+    w.field("type", r.exception.type);
+    w.field("message", r.exception.message);
+    w.field("hook", to_string(r.exception.hook));
+    w.field("cycle", r.exception.cycle);
+    w.end_object();
+  } else {
+    w.null();
+  }
+
+  w.key("thread");
+  if (r.thread) {
+    write_thread(w, *r.thread);
+  } else {
+    w.null();
+  }
+
+  w.key("values").begin_array();
+  for (const auto& kv : r.values) {
+    w.begin_object().field("key", kv.key).field("value", kv.value).end_object();
+  }
+  w.end_array();
+  w.end_object();
+}
+
+std::string to_json(const ReportSet& reports, const JsonOptions& options) {
+  JsonWriter w(options.indent);
+  w.begin_object();
+  w.field("schema", kJsonSchemaVersion);
+  w.field("generator", std::string("vigil ") + kVersion);
+  w.field("cycle", reports.cycle);
+  w.field("time_ns", reports.time_ns);
+  w.field("status", to_string(reports.worst()));
+  w.key("components").begin_array();
+  for (const Report& r : reports.components) write_json(w, r);
+  w.end_array();
+  w.end_object();
+  std::string out = w.take();
+  if (options.indent > 0) out += '\n';
+  return out;
+}
+
+}  // namespace vigil

@@ -1,0 +1,245 @@
+#include "vigil/export/text_report.hpp"
+
+#include <fmt/format.h>
+
+// isatty() is the one OS call here; it belongs in the platform layer once that has a terminal
+// query (the other exporters need none).
+#include <unistd.h>
+
+#include <cstdlib>
+#include <cstring>
+
+namespace vigil {
+
+namespace {
+
+const char* color_of(StatusLevel l) noexcept {
+  switch (l) {
+    case StatusLevel::Ok:
+      return "\x1b[32m";  // green
+    case StatusLevel::Warn:
+      return "\x1b[33m";  // yellow
+    case StatusLevel::Error:
+      return "\x1b[1;31m";  // bold red
+    case StatusLevel::Stale:
+      return "\x1b[35m";  // magenta
+  }
+  return "";
+}
+constexpr const char* kReset = "\x1b[0m";
+
+// Text from components (names, exception texts) made safe for one line of a terminal: control
+// characters, ESC included, are shown escaped (\n, \x1b) instead of moving the cursor.
+std::string printable(std::string_view s) {
+  std::string out;
+  out.reserve(s.size());
+  for (const char ch : s) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c == '\n') {
+      out += "\\n";
+    } else if (c == '\t') {
+      out += "\\t";
+    } else if (c < 0x20 || c == 0x7F) {
+      out += fmt::format("\\x{:02x}", c);
+    } else {
+      out += ch;
+    }
+  }
+  return out;
+}
+
+// The status word padded to `width`, coloured without counting the escapes in the width.
+std::string status_word(StatusLevel l, bool color, std::size_t width) {
+  const std::string_view word = to_string(l);
+  std::string out;
+  if (color) out += color_of(l);
+  out += word;
+  if (color) out += kReset;
+  if (word.size() < width) out.append(width - word.size(), ' ');
+  return out;
+}
+
+std::string state_of(const Report& r) {
+  if (!r.alive) return "left";
+  return to_string(r.state);
+}
+
+std::string nanos_or_dash(const StatsSummary& s, double v) {
+  return s.count == 0 ? std::string("-") : format_nanos(v);
+}
+
+std::string stats_line(const StatsSummary& s) {
+  if (s.count == 0) return "-";
+  return fmt::format(
+      "mean {}, ewma {}, min {}, max {}, p50 {}, p99 {}, p99.9 {} ({} samples)",
+      format_nanos(s.mean), format_nanos(s.ewma), format_nanos(static_cast<double>(s.min)),
+      format_nanos(static_cast<double>(s.max)), format_nanos(static_cast<double>(s.p50)),
+      format_nanos(static_cast<double>(s.p99)), format_nanos(static_cast<double>(s.p999)), s.count);
+}
+
+std::string losses_line(const std::array<std::uint64_t, kLossCauses>& losses) {
+  std::string out;
+  for (int i = 0; i < kLossCauses; ++i) {
+    if (!out.empty()) out += ", ";
+    out += fmt::format("{} {}", platform::to_string(static_cast<LossCause>(i)),
+                       losses[static_cast<std::size_t>(i)]);
+  }
+  return out;
+}
+
+constexpr std::size_t kNameWidth = 24;
+
+}  // namespace
+
+bool use_color(ColorMode mode, std::FILE* out) {
+  switch (mode) {
+    case ColorMode::Always:
+      return true;
+    case ColorMode::Never:
+      return false;
+    case ColorMode::Auto:
+      break;
+  }
+  if (out == nullptr || ::isatty(::fileno(out)) == 0) return false;
+  // https://no-color.org: any non-empty NO_COLOR disables colours.
+  const char* no_color = std::getenv("NO_COLOR");  // NOLINT(concurrency-mt-unsafe): read-only
+  if (no_color != nullptr && no_color[0] != '\0') return false;
+  const char* term = std::getenv("TERM");  // NOLINT(concurrency-mt-unsafe): read-only
+  return term == nullptr || std::strcmp(term, "dumb") != 0;
+}
+
+std::string format_summary_header() {
+  return fmt::format("{:<7} {:<{}} {:<14} {:>10}  {:<19} {:>9} {:>8} {:>7}  {}", "STATUS", "NAME",
+                     kNameWidth, "STATE", "CYCLES", "USER MEAN/P99", "LAT P99", "OVERRUNS",
+                     "LOSSES", "MESSAGES");
+}
+
+std::string format_summary_line(const Report& r, bool color) {
+  const std::string user =
+      r.user_ns.count == 0
+          ? std::string("-")
+          : format_nanos(r.user_ns.mean) + "/" + format_nanos(static_cast<double>(r.user_ns.p99));
+  const std::string latency = nanos_or_dash(r.latency_ns, static_cast<double>(r.latency_ns.p99));
+  std::string line = status_word(r.status.level(), color, 7);
+  line += fmt::format(" {:<{}} {:<14} {:>10}  {:<19} {:>9} {:>8} {:>7}", printable(r.name),
+                      kNameWidth, state_of(r), r.counters.cycles, user, latency,
+                      r.counters.overruns, r.counters.total_losses());
+  const std::string messages = r.status.summary();
+  if (!messages.empty()) {
+    line += "  ";
+    line += printable(messages);
+  }
+  return line;
+}
+
+std::string format_summary(const ReportSet& reports, bool color) {
+  std::string out = format_summary_header();
+  out += '\n';
+  for (const Report& r : reports.components) {
+    out += format_summary_line(r, color);
+    out += '\n';
+  }
+  return out;
+}
+
+std::string format_detail(const Report& r, bool color) {
+  std::string out =
+      fmt::format("{}: {}\n", printable(r.name), status_word(r.status.level(), color, 0));
+  const auto line = [&](std::string_view key, const std::string& value) {
+    out += fmt::format("  {}: {}\n", printable(key), printable(value));
+  };
+  const bool component = r.kind == ReportKind::Component;
+  for (const auto& m : r.status.messages()) {
+    line("message", fmt::format("[{}] {}", to_string(m.level), m.text));
+  }
+  line("kind", component ? fmt::format("component (id {})", r.id) : to_string(r.kind));
+  line("state", state_of(r) + (r.configured ? "" : " (not configured)"));
+  if (r.configured) {
+    std::string where =
+        fmt::format("{}, {}", r.activity.empty() ? "-" : r.activity, platform::to_string(r.policy));
+    if (r.policy == SchedPolicy::Fifo) where += fmt::format(" {}", r.priority);
+    if (r.requested_policy != r.policy) {
+      where += fmt::format(" (asked {})", platform::to_string(r.requested_policy));
+    }
+    where += r.cpu >= 0 ? fmt::format(", cpu {}", r.cpu) : std::string(", any cpu");
+    if (r.tid != 0) {
+      where += fmt::format(", tid {}, {} task{} on the thread", r.tid, r.tasks_on_thread,
+                           r.tasks_on_thread == 1 ? "" : "s");
+    }
+    line("activity", where);
+    line("period", r.period_ns > 0 ? format_nanos(static_cast<double>(r.period_ns))
+                                   : std::string("none (not periodic)"));
+  }
+  if (!component) {
+    // The supervisor and the monitor: their cycles and the time each took.
+    line("cycles", std::to_string(r.counters.cycles));
+    line("cycle time", stats_line(r.total_ns));
+  } else {
+    line("cycles", fmt::format("{} ({} samples)", r.counters.cycles, r.samples));
+    line("overruns",
+         fmt::format("{} ({} cycles missed)", r.counters.overruns, r.counters.missed_cycles));
+    line("window",
+         fmt::format("{}{}: {} cycles, {} overruns, {} missed, {} rt losses, {} exceptions, "
+                     "{} dropped",
+                     r.window.first ? "since start" : "last ",
+                     r.window.first ? "" : format_nanos(static_cast<double>(r.window.duration_ns)),
+                     r.window.cycles, r.window.overruns, r.window.missed_cycles,
+                     r.window.total_losses(), r.window.exceptions, r.window.dropped));
+    line("user time", stats_line(r.user_ns));
+    line("total time", stats_line(r.total_ns));
+    line("wake-up latency", stats_line(r.latency_ns));
+    line("measured period", stats_line(r.measured_period_ns));
+    line("overhead", r.overhead_ns.count == 0
+                         ? std::string("-")
+                         : fmt::format("mean {} ({:.2f}% of total time)",
+                                       format_nanos(r.overhead_ns.mean), r.overhead_share * 100.0));
+    line("rt losses",
+         fmt::format("{} ({})", r.counters.total_losses(), losses_line(r.counters.losses)));
+    if (r.has_exception) {
+      line("exceptions", fmt::format("{}; last in {} at cycle {}: {}: {}", r.exception.count,
+                                     to_string(r.exception.hook), r.exception.cycle,
+                                     r.exception.type, r.exception.message));
+    } else {
+      line("exceptions", std::to_string(r.counters.exceptions));
+    }
+    line("dropped", fmt::format("{} (port high water {}/{})", r.counters.dropped, r.port_high_water,
+                                r.port_capacity));
+  }
+  if (r.silence_ns >= 0) line("silence", format_nanos(static_cast<double>(r.silence_ns)));
+  if (r.thread) {
+    const platform::ThreadStats& t = *r.thread;
+    line("thread",
+         fmt::format("tid {} '{}', {} {}, last cpu {}, switches {} voluntary / {} involuntary, "
+                     "faults {} minor / {} major, cpu time {} user / {} system",
+                     t.tid, t.name, t.policy_known ? platform::to_string(t.policy) : "other",
+                     t.priority, t.last_cpu, t.voluntary_switches, t.involuntary_switches,
+                     t.minor_faults, t.major_faults,
+                     format_nanos(static_cast<double>(t.user_time_ns)),
+                     format_nanos(static_cast<double>(t.system_time_ns))));
+  }
+  for (const auto& kv : r.values) line(kv.key, kv.value);
+  return out;
+}
+
+std::string format_details(const ReportSet& reports, bool color) {
+  std::string out;
+  for (const Report& r : reports.components) {
+    if (!out.empty()) out += '\n';
+    out += format_detail(r, color);
+  }
+  return out;
+}
+
+void print_summary(std::FILE* out, const ReportSet& reports, ColorMode mode) {
+  const std::string s = format_summary(reports, use_color(mode, out));
+  std::fwrite(s.data(), 1, s.size(), out);
+  std::fflush(out);
+}
+
+void print_details(std::FILE* out, const ReportSet& reports, ColorMode mode) {
+  const std::string s = format_details(reports, use_color(mode, out));
+  std::fwrite(s.data(), 1, s.size(), out);
+  std::fflush(out);
+}
+
+}  // namespace vigil

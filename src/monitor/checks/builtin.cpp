@@ -1,0 +1,16 @@
+#include "vigil/monitor/checks/builtin.hpp"
+
+namespace vigil::checks {
+
+void add_builtin_checks(CheckList& list) {
+  list.add<InitializationCheck>();
+  list.add<ExceptionCheck>();
+  list.add<StarvationCheck>();
+  list.add<OverrunCheck>();
+  list.add<RealTimeCheck>();
+  list.add<NotRealtimeCheck>();
+  list.add<OverheadCheck>();
+  list.add<DropsCheck>();
+}
+
+}  // namespace vigil::checks

@@ -1,0 +1,87 @@
+#include "vigil/monitor/report.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+namespace vigil {
+
+const std::string* Report::value(std::string_view key) const noexcept {
+  for (const auto& kv : values) {
+    if (kv.key == key) return &kv.value;
+  }
+  return nullptr;
+}
+
+const Report* ReportSet::find(std::string_view name) const noexcept {
+  for (const auto& r : components) {
+    if (r.name == name) return &r;
+  }
+  return nullptr;
+}
+
+StatusLevel ReportSet::worst() const noexcept {
+  StatusLevel w = StatusLevel::Ok;
+  for (const auto& r : components) w = vigil::worst(w, r.status.level());
+  return w;
+}
+
+std::string format_nanos(double ns) {
+  if (!std::isfinite(ns)) return "?";
+  const char* sign = ns < 0 ? "-" : "";
+  const double a = std::fabs(ns);
+  struct Unit {
+    double scale;
+    const char* name;
+  };
+  static constexpr Unit kUnits[] = {{1e9, "s"}, {1e6, "ms"}, {1e3, "us"}};
+  for (const Unit& u : kUnits) {
+    // Pick the unit at the rounded value, so that 999.96 us prints as "1.00ms", not "1000us".
+    const double v = a / u.scale;
+    if (v >= 0.9995) {
+      if (v < 9.995) return fmt::format("{}{:.2f}{}", sign, v, u.name);
+      if (v < 99.95) return fmt::format("{}{:.1f}{}", sign, v, u.name);
+      return fmt::format("{}{:.0f}{}", sign, v, u.name);
+    }
+  }
+  return fmt::format("{}{:.0f}ns", sign, a);
+}
+
+void fill_report(Report& r, const ComponentSnapshot& s) {
+  r.kind = ReportKind::Component;
+  r.id = s.id;
+  r.name = s.name;
+  r.alive = s.alive;
+  r.configured = s.has_info;
+  if (s.has_info) {
+    r.activity = s.info.activity.str();
+    r.requested_policy = s.info.requested_policy;
+    r.policy = s.info.policy;
+    r.realtime_refused = s.info.realtime_refused;
+    r.priority = s.info.priority;
+    r.cpu = s.info.cpu;
+    r.tid = s.info.tid;
+    r.period_ns = s.info.period_ns;
+  }
+  r.state = s.state;
+  r.counters = s.counters;
+  r.samples = s.samples;
+  r.user_ns = s.user_ns;
+  r.total_ns = s.total_ns;
+  r.latency_ns = s.latency_ns;
+  r.measured_period_ns = s.period_ns;
+  r.overhead_ns = s.overhead_ns;
+  r.overhead_share = s.overhead_share();
+  r.port_capacity = s.port_capacity;
+  r.port_high_water = s.port_high_water;
+  r.has_exception = s.has_exception;
+  if (s.has_exception) {
+    r.exception.count = s.counters.exceptions;
+    r.exception.type = s.last_exception_type;
+    r.exception.message = s.last_exception.message.str();
+    r.exception.hook = s.last_exception.hook;
+    r.exception.cycle = s.last_exception.cycle;
+  }
+}
+
+}  // namespace vigil

@@ -1,0 +1,130 @@
+#include "vigil/export/text_report.hpp"
+
+#include <catch2/catch.hpp>
+#include <cstdio>
+
+#include "monitor/harness.hpp"
+
+using namespace vigil;
+
+namespace {
+
+// Components on one fake clock delay each other, so the slow one gets a harness of its own and
+// the reports are put together as one set.
+ReportSet reports() {
+  test::Harness h;
+  test::PeriodicProbe ok(h, "motor", kNanosPerMilli);
+  test::Probe idle("idle", h.registry, h.clock);
+  ok.probe.work_ns = 100 * kNanosPerMicro;
+  for (int i = 0; i < 10; ++i) h.cycle(ok.activity);
+  ReportSet set = h.step();
+
+  test::Harness h2;
+  test::PeriodicProbe slow(h2, "arm", 10 * kNanosPerMilli);
+  slow.probe.work_ns = 9500 * kNanosPerMicro;  // near overrun
+  for (int i = 0; i < 5; ++i) h2.cycle(slow.activity);
+  const ReportSet other = h2.step();
+  set.components.insert(set.components.begin() + 2, *other.find("arm"));
+  return set;
+}
+
+std::size_t count_lines(const std::string& s) {
+  return static_cast<std::size_t>(std::count(s.begin(), s.end(), '\n'));
+}
+
+}  // namespace
+
+TEST_CASE("Durations are shown with 3 significant digits and a unit", "[export][text]") {
+  CHECK(format_nanos(0) == "0ns");
+  CHECK(format_nanos(950) == "950ns");
+  CHECK(format_nanos(999.6) == "1.00us");
+  CHECK(format_nanos(12'345) == "12.3us");
+  CHECK(format_nanos(1'500'000) == "1.50ms");
+  CHECK(format_nanos(100'000'001) == "100ms");
+  CHECK(format_nanos(2e9) == "2.00s");
+  CHECK(format_nanos(-5'000) == "-5.00us");
+}
+
+TEST_CASE("The summary has a header and one line per component", "[export][text]") {
+  const ReportSet set = reports();
+  const std::string s = format_summary(set, false);
+  CHECK(count_lines(s) == set.components.size() + 1);
+  CHECK(s.find('\x1b') == std::string::npos);
+  CHECK(s.rfind("STATUS  NAME", 0) == 0);
+  CHECK(s.find("\nOK      motor ") != std::string::npos);
+  CHECK(s.find("\nWARN    idle ") != std::string::npos);
+  const std::string arm = format_summary_line(*set.find("arm"), false);
+  CHECK(arm.rfind("WARN    arm", 0) == 0);
+  CHECK(arm.find("Running") != std::string::npos);
+  CHECK(arm.find("9.50ms/9.50ms") != std::string::npos);  // user mean/p99
+  CHECK(arm.find("near overrun") != std::string::npos);
+  // Columns line up: every line has its state at the same offset.
+  const std::string motor = format_summary_line(*set.find("motor"), false);
+  CHECK(motor.find("Running") == arm.find("Running"));
+}
+
+TEST_CASE("Colours: only the status word, only when asked or on a terminal", "[export][text]") {
+  const ReportSet set = reports();
+  const std::string c = format_summary_line(*set.find("arm"), true);
+  CHECK(c.rfind("\x1b[33mWARN\x1b[0m    arm", 0) == 0);  // yellow, padding outside
+  CHECK(format_summary_line(*set.find("motor"), true).rfind("\x1b[32mOK\x1b[0m", 0) == 0);
+
+  CHECK(use_color(ColorMode::Always, nullptr));
+  CHECK_FALSE(use_color(ColorMode::Never, stdout));
+  std::FILE* f = std::tmpfile();
+  REQUIRE(f != nullptr);
+  CHECK_FALSE(use_color(ColorMode::Auto, f));  // a file is not a terminal
+  print_summary(f, set);                       // Auto: no colour in the file
+  std::rewind(f);
+  std::string written;
+  char buf[4096];
+  std::size_t n = 0;
+  while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) written.append(buf, n);
+  std::fclose(f);
+  CHECK(written == format_summary(set, false));
+}
+
+TEST_CASE("The detail view lists a component's data as key: value lines", "[export][text]") {
+  const ReportSet set = reports();
+  const std::string d = format_detail(*set.find("arm"), false);
+  CHECK(d.rfind("arm: WARN\n", 0) == 0);
+  for (const char* key :
+       {"  message: [WARN] near overrun", "  kind: component", "  state: Running",
+        "  activity: arm_activity, OTHER, any cpu", "  period: 10.0ms", "  cycles: 5 (5 samples)",
+        "  overruns: 0", "  window: since start", "  user time: mean 9.50ms", "  total time:",
+        "  wake-up latency:", "  measured period:", "  overhead: -", "  rt losses: 0",
+        "  exceptions: 0", "  dropped: 0", "  silence: 0ns", "  load_ewma: 95% of period"}) {
+    INFO(key);
+    CHECK(d.find(key) != std::string::npos);
+  }
+  const std::string idle = format_detail(*set.find("idle"), false);
+  CHECK(idle.find("state: PreOperational (not configured)") != std::string::npos);
+  const std::string all = format_details(set, true);
+  CHECK(all.find("\x1b[") != std::string::npos);
+  CHECK(all.find("\n\nvigil.supervisor: ") != std::string::npos);
+}
+
+TEST_CASE("Text from components cannot break lines or drive the terminal", "[export][text]") {
+  Report r;
+  r.name = "evil\x1b[2J";
+  r.merge(StatusLevel::Error, "boom\nsecond line\ttab");
+  r.add("key", "value\r");
+  const std::string line = format_summary_line(r, false);
+  CHECK(line.find('\n') == std::string::npos);
+  CHECK(line.find('\x1b') == std::string::npos);
+  CHECK(line.find("evil\\x1b[2J") != std::string::npos);
+  CHECK(line.find("boom\\nsecond line\\ttab") != std::string::npos);
+  const std::string detail = format_detail(r, false);
+  CHECK(detail.find("  key: value\\x0d\n") != std::string::npos);
+  CHECK(detail.find('\x1b') == std::string::npos);
+}
+
+TEST_CASE("The supervisor and monitor detail views show their cycles and cycle time",
+          "[export][text]") {
+  const ReportSet set = reports();
+  const std::string d = format_detail(*set.find("vigil.supervisor"), false);
+  CHECK(d.find("  kind: supervisor\n") != std::string::npos);
+  CHECK(d.find("  cycle time: mean") != std::string::npos);
+  CHECK(d.find("  ports: ") != std::string::npos);
+  CHECK(d.find("user time") == std::string::npos);
+}
