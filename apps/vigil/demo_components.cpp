@@ -1,0 +1,210 @@
+// The components of the simulated robot. Each is a plain vigil::Task<Derived>: the supervision
+// the demo shows comes from the one base class, not from code in these components.
+#include "demo_components.hpp"
+
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+#include <vector>
+
+#include "vigil/platform/clock.hpp"
+
+namespace vigil::demo {
+
+void burn(Nanos ns) noexcept {
+  const Nanos end = platform::now_ns() + ns;
+  while (platform::now_ns() < end) {
+  }
+}
+
+namespace {
+
+using deploy::ComponentContext;
+
+Nanos param_duration(const ComponentContext& c, std::string_view key, Nanos fallback) {
+  return c.parameters.defined() ? c.parameters.optional_duration(key, fallback) : fallback;
+}
+template <class T>
+T param(const ComponentContext& c, std::string_view key, T fallback) {
+  return c.parameters.defined() ? c.parameters.optional(key, fallback) : fallback;
+}
+
+/// A motor controller: a PD law on a simulated motor, a few microseconds of work.
+class Motor : public Task<Motor> {
+ public:
+  explicit Motor(const ComponentContext& c)
+      : Task(c.name, c.supervision, c.registry()),
+        kp_(param(c, "kp", 40.0)),
+        kd_(param(c, "kd", 2.0)),
+        work_ns_(param_duration(c, "work", 20 * kNanosPerMicro)) {}
+  void on_update() {
+    const double target = std::sin(static_cast<double>(cycles()) * 1e-3);
+    const double torque = kp_ * (target - position_) - kd_ * velocity_;
+    velocity_ += torque * 1e-3;
+    position_ += velocity_ * 1e-3;
+    burn(work_ns_);
+  }
+
+ private:
+  double kp_, kd_;
+  Nanos work_ns_;
+  double position_ = 0, velocity_ = 0;
+};
+
+/// Sensor fusion: a complementary filter over a simulated IMU.
+class Fusion : public Task<Fusion> {
+ public:
+  explicit Fusion(const ComponentContext& c)
+      : Task(c.name, c.supervision, c.registry()),
+        work_ns_(param_duration(c, "work", 60 * kNanosPerMicro)) {}
+  void on_update() {
+    const double gyro = 0.01 * std::cos(static_cast<double>(cycles()) * 2e-3);
+    const double accel = std::atan2(std::sin(angle_), std::cos(angle_));
+    angle_ = 0.98 * (angle_ + gyro * 2e-3) + 0.02 * accel;
+    burn(work_ns_);
+  }
+
+ private:
+  Nanos work_ns_;
+  double angle_ = 0;
+};
+
+/// A planner at 10 Hz on SCHED_OTHER: a millisecond or two of work, allocations allowed.
+class Planner : public Task<Planner> {
+ public:
+  explicit Planner(const ComponentContext& c)
+      : Task(c.name, c.supervision, c.registry()),
+        work_ns_(param_duration(c, "work", 2 * kNanosPerMilli)) {}
+  void on_update() {
+    waypoints_.assign(64, 0.0);  // planners allocate; this one is not on a real-time policy
+    for (std::size_t i = 0; i < waypoints_.size(); ++i) waypoints_[i] = std::sqrt(double(i));
+    burn(work_ns_);
+  }
+
+ private:
+  Nanos work_ns_;
+  std::vector<double> waypoints_;
+};
+
+/// Injected fault: an execution time that ramps from `from` to `to` (fractions of `period`)
+/// over `over`, as a slowly growing load does. The EWMA-based overrun check flags it early.
+class LoadRamp : public Task<LoadRamp> {
+ public:
+  explicit LoadRamp(const ComponentContext& c)
+      : Task(c.name, c.supervision, c.registry()),
+        period_ns_(param_duration(c, "period", 2 * kNanosPerMilli)),
+        from_(param(c, "from", 0.2)),
+        to_(param(c, "to", 0.98)),
+        over_ns_(param_duration(c, "over", 6 * kNanosPerSecond)) {}
+  bool on_start() {
+    start_ns_ = platform::now_ns();
+    return true;
+  }
+  void on_update() {
+    const double t = std::min(
+        1.0, static_cast<double>(platform::now_ns() - start_ns_) / static_cast<double>(over_ns_));
+    burn(static_cast<Nanos>((from_ + (to_ - from_) * t) * static_cast<double>(period_ns_)));
+  }
+
+ private:
+  Nanos period_ns_;
+  double from_, to_;
+  Nanos over_ns_;
+  Nanos start_ns_ = 0;
+};
+
+/// Injected fault: allocates on every `every`-th cycle (a real-time loss on a FIFO thread).
+class Leaky : public Task<Leaky> {
+ public:
+  explicit Leaky(const ComponentContext& c)
+      : Task(c.name, c.supervision, c.registry()), every_(param<std::uint64_t>(c, "every", 1000)) {}
+  void on_update() {
+    if (++n_ % every_ == 0) {
+      log_.push_back(std::make_unique<double>(static_cast<double>(n_)));  // the hidden allocation
+      if (log_.size() > 16) log_.clear();
+    }
+    burn(5 * kNanosPerMicro);
+  }
+
+ private:
+  std::uint64_t every_;
+  std::uint64_t n_ = 0;
+  std::vector<std::unique_ptr<double>> log_;
+};
+
+/// Injected fault: throws after `after` (an encoder that starts returning garbage).
+class Faulty : public Task<Faulty> {
+ public:
+  explicit Faulty(const ComponentContext& c)
+      : Task(c.name, c.supervision, c.registry()),
+        after_ns_(param_duration(c, "after", 4 * kNanosPerSecond)) {}
+  bool on_start() {
+    start_ns_ = platform::now_ns();
+    return true;
+  }
+  void on_update() {
+    if (platform::now_ns() - start_ns_ > after_ns_) {
+      throw std::runtime_error("encoder checksum mismatch on joint 3");
+    }
+    burn(10 * kNanosPerMicro);
+  }
+
+ private:
+  Nanos after_ns_;
+  Nanos start_ns_ = 0;
+};
+
+}  // namespace
+
+void register_components() {
+  auto& f = deploy::ComponentFactory::instance();
+  f.add<Motor>("demo.motor", "motor controller: PD law on a simulated motor");
+  f.add<Fusion>("demo.fusion", "sensor fusion: complementary filter on a simulated IMU");
+  f.add<Planner>("demo.planner", "trajectory planner (allocates; for SCHED_OTHER)");
+  f.add<LoadRamp>("demo.load_ramp", "fault: execution time ramping toward the period");
+  f.add<Leaky>("demo.leaky", "fault: allocates every N cycles");
+  f.add<Faulty>("demo.faulty", "fault: throws after a delay");
+}
+
+const char* const kDemoDeployment =
+    R"(# vigil demo: a small simulated robot (print it with `vigil demo --print-config`).
+name: demo-robot
+activities:
+  - {name: control, period: 1ms, policy: FIFO, priority: 80, cpu: 1}
+  - {name: fusion, period: 2ms, policy: FIFO, priority: 70, cpu: 1}
+  - {name: planning, period: 100ms, policy: OTHER}
+  # SCHED_OTHER: a FIFO thread near 100% of a CPU would trigger the kernel's RT throttling.
+  - {name: ramp, period: 2ms, policy: OTHER}
+  - {name: aux, period: 1ms, policy: FIFO, priority: 50, cpu: 0}
+  - {name: io, period: 1ms, policy: FIFO, priority: 75, cpu: 0}
+components:
+  - {name: motor_left, type: demo.motor, activity: control}
+  - {name: motor_right, type: demo.motor, activity: control}
+  - {name: sensor_fusion, type: demo.fusion, activity: fusion}
+  - {name: planner, type: demo.planner, activity: planning}
+  - name: load_ramp
+    type: demo.load_ramp
+    activity: ramp
+    parameters: {period: 2ms, from: 0.2, to: 0.98, over: 6s}
+  - name: logger
+    type: demo.leaky
+    activity: aux
+    detectors: [allocation]
+    parameters: {every: 1000}
+  - name: encoder
+    type: demo.faulty
+    activity: aux
+    parameters: {after: 4s}
+supervision:
+  supervisor_period: 10ms
+  monitor_period: 1s
+  ewma_weight: 0.05
+  thresholds:
+    defaults:
+      window: 2s
+      # A shared 2-vCPU machine delays a real-time thread now and then: warn from 1% overruns.
+      overrun: {warn_rate: 0.01, error_rate: 0.1}
+outputs: {}
+)";
+
+}  // namespace vigil::demo

@@ -1,0 +1,70 @@
+// vigil: the command-line tool. `vigil demo` runs a supervised system (the built-in simulated
+// robot, or a deployment file); `vigil check-config` validates configuration files;
+// `vigil can-stats` replays CAN logs through the CAN supervision pipeline.
+#include <fmt/format.h>
+#include <unistd.h>
+#include <CLI/CLI.hpp>
+
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <thread>
+
+#include "commands.hpp"
+#include "vigil/version.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "vigil supervises real-time components: timing, overruns, real-time losses, exceptions,\n"
+      "and an OK / WARN / ERROR status for each component, as text and JSON.",
+      "vigil"};
+  app.set_version_flag("-V,--version", std::string("vigil ") + vigil::kVersion);
+  app.require_subcommand(1);
+  app.footer(
+      "Run `vigil COMMAND --help` for a command's options. Documentation: docs/ in the "
+      "source tree.");
+
+  vigil::app::DemoOptions demo;
+  auto* demo_cmd = app.add_subcommand(
+      "demo",
+      "Run a supervised system with a live view: the built-in simulated robot, or "
+      "--config FILE");
+  demo_cmd->add_option("-c,--config", demo.config, "Deployment file (YAML) to run instead")
+      ->check(CLI::ExistingFile);
+  demo_cmd
+      ->add_option("-d,--duration", demo.duration_s,
+                   "Seconds to run; 0 runs until Ctrl-C (default: 20)")
+      ->check(CLI::NonNegativeNumber);
+  demo_cmd->add_option("-j,--json", demo.json, "Write the final reports to FILE (JSON schema 1)");
+  demo_cmd->add_option("--color", demo.color, "Colour: auto, always or never")
+      ->check(CLI::IsMember({"auto", "always", "never"}));
+  demo_cmd->add_flag("--no-live", demo.no_live, "Print only the final report, no live view");
+  demo_cmd->add_flag("--details", demo.details, "End with the detail view of every component");
+  demo_cmd->add_flag("--print-config", demo.print_config, "Print the built-in deployment and exit");
+
+  vigil::app::CheckConfigOptions check;
+  auto* check_cmd = app.add_subcommand(
+      "check-config", "Validate a deployment or thresholds file; errors name file:line:col");
+  check_cmd->add_option("FILE", check.files, "Files to check")->required();
+  check_cmd->add_option("--kind", check.kind, "deployment, thresholds or auto (default)")
+      ->check(CLI::IsMember({"auto", "deployment", "thresholds"}));
+
+  vigil::app::CanStatsArgs can;
+  auto* can_cmd = app.add_subcommand(
+      "can-stats", "Replay CAN logs (candump -l, PCAN .trc) and report per-node statistics");
+  can_cmd->add_option("FILE", can.files, "Log files")->required()->check(CLI::ExistingFile);
+  can_cmd->add_option("-c,--config", can.config, "CAN configuration (filters, groups, thresholds)")
+      ->check(CLI::ExistingFile);
+  can_cmd->add_flag("--json", can.json, "Print JSON instead of text");
+  can_cmd->add_option("--node-map", can.node_map, "identity, canopen or j1939")
+      ->check(CLI::IsMember({"identity", "canopen", "j1939"}));
+
+  CLI11_PARSE(app, argc, argv);
+
+  if (demo_cmd->parsed()) return vigil::app::run_demo(demo);
+  if (check_cmd->parsed()) return vigil::app::run_check_config(check);
+  if (can_cmd->parsed()) return vigil::app::run_can_stats_command(can);
+  return 2;
+}

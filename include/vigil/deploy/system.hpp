@@ -1,0 +1,119 @@
+#pragma once
+/// @file
+/// `System`: a running deployment. It creates the registry, supervisor, monitor, activities and
+/// components of a DeploymentSpec, configures and starts everything in the right order, and stops
+/// it in reverse; the user never orders anything by hand.
+///
+/// Start order: process set-up for real time (memory locking, prefault) -> supervisor and monitor
+/// threads (so that nothing a component sends is missed) -> extensions (e.g. CAN) -> every
+/// component configured, in file order (all before any starts: a failure leaves nothing
+/// running) -> every activity started, in file order of its components. Stop order: activities
+/// (reverse), extensions, a last supervisor drain, a last monitor cycle.
+///
+/// Not RT-safe; call from one control thread.
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "vigil/deploy/deployment.hpp"
+#include "vigil/error.hpp"
+#include "vigil/monitor/monitor.hpp"
+#include "vigil/platform/memory.hpp"
+#include "vigil/supervisor/component_aggregator.hpp"
+
+namespace vigil::deploy {
+
+class System;
+
+/// A service that lives with the system (e.g. CAN supervision), configured by a top-level
+/// section of the deployment file.
+class Extension {
+ public:
+  virtual ~Extension() = default;
+  /// Called after the supervisor and monitor started, before any component is configured.
+  virtual expected<void, Error> start() { return {}; }
+  /// Called after the components stopped.
+  virtual void stop() {}
+  /// Adds the extension's reports (e.g. one per CAN node) to a monitor cycle's reports.
+  virtual void contribute(ReportSet& /*reports*/) {}
+};
+
+/// Makes an extension from its deployment section.
+using ExtensionMaker = std::function<expected<std::unique_ptr<Extension>, config::ConfigErrors>(
+    const config::Node& section, System& system)>;
+
+/// Extensions by the name of their top-level section. Register before loading deployments.
+void register_extension(std::string section, ExtensionMaker maker);
+
+class System {
+ public:
+  /// Builds (does not start) everything `spec` describes. Errors: a component type that failed
+  /// to build, parameters that failed validation (file:line:col), an extension that failed.
+  static expected<std::unique_ptr<System>, config::ConfigErrors> create(
+      DeploymentSpec spec, const ComponentFactory& factory = ComponentFactory::instance());
+
+  ~System();
+  System(const System&) = delete;
+  System& operator=(const System&) = delete;
+
+  /// Starts everything in order (see the file comment). On failure stops what was started and
+  /// returns what failed.
+  expected<void, Error> start();
+  /// Stops everything in reverse order. Idempotent.
+  void stop();
+  [[nodiscard]] bool running() const noexcept { return running_; }
+
+  /// The latest reports: the monitor's, plus the extensions'.
+  [[nodiscard]] ReportSet reports() const;
+  /// Runs one monitor cycle now and returns its reports with the extensions' (e.g. final
+  /// reports after stop()).
+  ReportSet step_monitor();
+
+  /// What start() did, one line per step (including downgrades such as SCHED_OTHER instead
+  /// of FIFO).
+  [[nodiscard]] const std::vector<std::string>& log() const noexcept { return log_; }
+  [[nodiscard]] const platform::RealtimeSetupReport& realtime_setup() const noexcept {
+    return rt_setup_;
+  }
+
+  [[nodiscard]] const DeploymentSpec& spec() const noexcept { return spec_; }
+  [[nodiscard]] Registry<Message>& registry() noexcept { return registry_; }
+  [[nodiscard]] ComponentAggregator& aggregator() noexcept { return *aggregator_; }
+  [[nodiscard]] ComponentSupervisorLoop& supervisor() noexcept { return *supervisor_; }
+  [[nodiscard]] Monitor& monitor() noexcept { return *monitor_; }
+  /// The component named `name`, or null.
+  [[nodiscard]] TaskCore* component(std::string_view name) const noexcept;
+  /// The first extension of type E, or null.
+  template <class E>
+  [[nodiscard]] E* extension() const noexcept {
+    for (const auto& e : extensions_) {
+      if (auto* p = dynamic_cast<E*>(e.get())) return p;
+    }
+    return nullptr;
+  }
+
+ private:
+  explicit System(DeploymentSpec spec);
+
+  struct Slot {
+    std::unique_ptr<TaskCore> task;
+    std::unique_ptr<PeriodicActivity> activity;
+    const ComponentSpec* spec = nullptr;
+  };
+
+  DeploymentSpec spec_;
+  Registry<Message> registry_;
+  std::unique_ptr<ComponentAggregator> aggregator_;
+  std::unique_ptr<ComponentSupervisorLoop> supervisor_;
+  std::unique_ptr<Monitor> monitor_;
+  std::vector<std::unique_ptr<Extension>> extensions_;
+  std::vector<Slot> slots_;
+  std::vector<std::string> log_;
+  platform::RealtimeSetupReport rt_setup_;
+  bool running_ = false;
+};
+
+}  // namespace vigil::deploy

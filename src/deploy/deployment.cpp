@@ -1,0 +1,194 @@
+#include "vigil/deploy/deployment.hpp"
+
+#include <fmt/format.h>
+
+#include <set>
+
+#include "vigil/config/load.hpp"
+
+namespace vigil::deploy {
+
+namespace {
+
+using config::EnumName;
+
+constexpr EnumName<SchedPolicy> kPolicies[] = {{"FIFO", SchedPolicy::Fifo},
+                                               {"OTHER", SchedPolicy::Other}};
+constexpr EnumName<OverrunPolicy> kOverrunPolicies[] = {{"skip", OverrunPolicy::Skip},
+                                                        {"catch_up", OverrunPolicy::CatchUp},
+                                                        {"reanchor", OverrunPolicy::Reanchor}};
+constexpr EnumName<Detectors> kDetectors[] = {{"allocation", Detectors::Allocation},
+                                              {"blocking", Detectors::Blocking},
+                                              {"page_faults", Detectors::PageFaults},
+                                              {"mode_switch", Detectors::ModeSwitch},
+                                              {"all", Detectors::All}};
+
+ActivitySpec parse_activity(const config::Node& n) {
+  n.reject_unknown_keys({"name", "period", "policy", "priority", "cpu", "overrun", "overrun_limit",
+                         "share_thread", "fallback_to_other", "stack_size"});
+  ActivitySpec a;
+  PeriodicConfig& c = a.config;
+  c.name = n.required<std::string>("name", config::non_empty());
+  c.period_ns = n.required_period("period", config::positive());
+  c.policy = n.optional_enum("policy", SchedPolicy::Other, kPolicies);
+  if (c.policy == SchedPolicy::Fifo) {
+    c.priority = n.required<int>("priority", config::in_range(1, 99));
+  } else {
+    c.priority = n.optional("priority", 0, config::in_range(0, 0));
+  }
+  c.cpu = n.optional("cpu", -1, config::in_range(-1, 1023));
+  c.overrun_policy = n.optional_enum("overrun", OverrunPolicy::Skip, kOverrunPolicies);
+  if (const config::Node lim = n["overrun_limit"]; lim.defined()) {
+    lim.reject_unknown_keys({"overruns", "window"});
+    c.overrun_limit.max_overruns = lim.required<std::uint32_t>("overruns", config::positive());
+    c.overrun_limit.window_cycles = lim.required<std::uint32_t>("window", config::positive());
+    if (c.overrun_limit.max_overruns > c.overrun_limit.window_cycles) {
+      lim.error("overruns must not exceed window (cycles)");
+    }
+  }
+  c.share_thread = n.optional("share_thread", true);
+  c.fallback_to_other = n.optional("fallback_to_other", true);
+  c.stack_size = n.optional<std::size_t>("stack_size", 0);
+  return a;
+}
+
+ComponentSpec parse_component(const config::Node& n, const ComponentFactory& factory) {
+  n.reject_unknown_keys(
+      {"name", "type", "activity", "detectors", "overhead_sample_every", "parameters"});
+  ComponentSpec c;
+  c.node = n;
+  c.name = n.required<std::string>("name", config::non_empty());
+  c.type = n.required<std::string>("type", config::non_empty());
+  c.activity = n.required<std::string>("activity", config::non_empty());
+  if (const config::Node t = n["type"]; t.defined() && !c.type.empty() && !factory.find(c.type)) {
+    const auto types = factory.types();
+    std::vector<std::string_view> names;
+    for (const auto& type : types) names.push_back(type.name);
+    std::string msg = fmt::format("unknown component type '{}'", c.type);
+    if (const auto near = config::closest_match(c.type, std::span<const std::string_view>(names))) {
+      msg += fmt::format("; did you mean '{}'?", *near);
+    } else if (!names.empty()) {
+      msg += fmt::format(" (known: {})", fmt::join(names, ", "));
+    }
+    t.error(msg);
+  }
+  Detectors d = Detectors::None;
+  if (const config::Node det = n["detectors"]; det.defined()) {
+    if (!det.is_sequence()) {
+      det.error(
+          "expected a list of detectors (allocation, blocking, page_faults, mode_switch, "
+          "all)");
+    } else {
+      for (const auto& e : det.elements()) d = d | e.get_enum(kDetectors);
+    }
+  }
+  c.supervision.detectors = d;
+  c.supervision.overhead_sample_every = n.optional<std::uint32_t>(
+      "overhead_sample_every", 16, [](std::uint32_t v) -> std::optional<std::string> {
+        if (v == 0 || (v & (v - 1)) == 0) return std::nullopt;
+        return "must be 0 (never) or a power of two";
+      });
+  c.parameters = n["parameters"];
+  if (c.parameters.defined() && !c.parameters.is_mapping() && !c.parameters.is_null()) {
+    c.parameters.error("expected a mapping of parameters");
+  }
+  return c;
+}
+
+}  // namespace
+
+expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::Node& root,
+                                                                const ComponentFactory& factory) {
+  DeploymentSpec d;
+  d.root = root;
+  if (!root.is_mapping()) {
+    root.error("a deployment is a mapping with activities, components, supervision, outputs");
+    return root.finish(std::move(d));
+  }
+  root.reject_unknown_keys({"name", "activities", "components", "supervision", "outputs", "can"});
+  d.name = root.optional<std::string>("name", "vigil", config::non_empty());
+
+  std::set<std::string, std::less<>> activity_names;
+  const config::Node acts = root.at("activities");
+  if (acts.defined() && !acts.is_sequence()) acts.error("expected a list of activities");
+  for (const auto& n : acts.elements()) {
+    ActivitySpec a = parse_activity(n);
+    if (!a.config.name.empty() && !activity_names.insert(a.config.name).second) {
+      n["name"].error(fmt::format("activity '{}' is defined twice", a.config.name));
+    }
+    d.activities.push_back(std::move(a));
+  }
+
+  std::set<std::string, std::less<>> component_names;
+  const config::Node comps = root.at("components");
+  if (comps.defined() && !comps.is_sequence()) comps.error("expected a list of components");
+  for (const auto& n : comps.elements()) {
+    ComponentSpec c = parse_component(n, factory);
+    if (!c.name.empty() && !component_names.insert(c.name).second) {
+      n["name"].error(fmt::format("component '{}' is defined twice", c.name));
+    }
+    if (!c.activity.empty() && !activity_names.contains(c.activity)) {
+      n["activity"].error(fmt::format("no activity named '{}' (defined: {})", c.activity,
+                                      fmt::join(activity_names, ", ")));
+    }
+    d.components.push_back(std::move(c));
+  }
+  if (comps.defined() && comps.is_sequence() && d.components.empty()) {
+    comps.error("a deployment needs at least one component");
+  }
+
+  if (const config::Node s = root["supervision"]; s.defined()) {
+    s.reject_unknown_keys(
+        {"supervisor_period", "monitor_period", "ewma_weight", "thresholds", "lock_memory"});
+    auto& sp = d.supervision;
+    sp.supervisor_period_ns =
+        s.optional_period("supervisor_period", sp.supervisor_period_ns,
+                          config::duration_in_range(100 * kNanosPerMicro, 10 * kNanosPerSecond));
+    sp.monitor_period_ns =
+        s.optional_period("monitor_period", sp.monitor_period_ns,
+                          config::duration_in_range(kNanosPerMilli, 3600 * kNanosPerSecond));
+    sp.ewma_weight = s.optional("ewma_weight", sp.ewma_weight, config::in_range(1e-6, 1.0));
+    sp.lock_memory = s.optional("lock_memory", true);
+    if (const config::Node t = s["thresholds"]; t.defined()) {
+      if (t.is_scalar()) {
+        std::filesystem::path p = t.get<std::string>();
+        if (p.is_relative() && !root.file().empty()) {
+          p = std::filesystem::path(root.file()).parent_path() / p;
+        }
+        auto loaded = load_thresholds_file(p);
+        if (!loaded) {
+          t.error(fmt::format("thresholds file '{}' is invalid:\n{}", p.string(),
+                              config::to_string(loaded.error())));
+        } else {
+          sp.thresholds = std::move(*loaded);
+          sp.thresholds_file = p;
+        }
+      } else {
+        auto loaded = load_thresholds(t);
+        if (loaded) sp.thresholds = std::move(*loaded);
+      }
+    }
+  }
+  if (const config::Node o = root["outputs"]; o.defined()) {
+    o.reject_unknown_keys({"json"});
+    if (o.has("json")) d.outputs.json = o.required<std::string>("json", config::non_empty());
+  }
+  d.can = root["can"];
+  return root.finish(std::move(d));
+}
+
+expected<DeploymentSpec, config::ConfigErrors> load_deployment_file(
+    const std::filesystem::path& path, const ComponentFactory& factory) {
+  auto root = config::load_file(path);
+  if (!root) return vigil::unexpected(root.error());
+  return parse_deployment(*root, factory);
+}
+
+expected<DeploymentSpec, config::ConfigErrors> load_deployment_string(
+    std::string_view text, std::string name, const ComponentFactory& factory) {
+  auto root = config::load_string(text, std::move(name));
+  if (!root) return vigil::unexpected(root.error());
+  return parse_deployment(*root, factory);
+}
+
+}  // namespace vigil::deploy

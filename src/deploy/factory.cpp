@@ -1,0 +1,31 @@
+#include "vigil/deploy/factory.hpp"
+
+namespace vigil::deploy {
+
+ComponentFactory& ComponentFactory::instance() {
+  static ComponentFactory factory;
+  return factory;
+}
+
+bool ComponentFactory::add(std::string type, ComponentMaker make, std::string description) {
+  std::lock_guard lock(mutex_);
+  std::string key = type;
+  return types_
+      .emplace(std::move(key), Type{std::move(type), std::move(description), std::move(make)})
+      .second;
+}
+
+const ComponentFactory::Type* ComponentFactory::find(std::string_view name) const {
+  std::lock_guard lock(mutex_);
+  const auto it = types_.find(name);
+  return it == types_.end() ? nullptr : &it->second;
+}
+
+std::vector<ComponentFactory::Type> ComponentFactory::types() const {
+  std::lock_guard lock(mutex_);
+  std::vector<Type> out;
+  for (const auto& [name, t] : types_) out.push_back(t);
+  return out;
+}
+
+}  // namespace vigil::deploy

@@ -1,0 +1,177 @@
+#include "vigil/deploy/system.hpp"
+
+#include <fmt/format.h>
+
+#include <exception>
+#include <mutex>
+
+namespace vigil::deploy {
+
+namespace {
+struct ExtensionRegistry {
+  std::mutex mutex;
+  std::map<std::string, ExtensionMaker, std::less<>> makers;
+};
+ExtensionRegistry& extensions() {
+  static ExtensionRegistry r;
+  return r;
+}
+}  // namespace
+
+void register_extension(std::string section, ExtensionMaker maker) {
+  auto& r = extensions();
+  std::lock_guard lock(r.mutex);
+  r.makers[std::move(section)] = std::move(maker);
+}
+
+System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
+  aggregator_ = std::make_unique<ComponentAggregator>(
+      AggregatorOptions{.ewma_weight = spec_.supervision.ewma_weight});
+  supervisor_ = std::make_unique<ComponentSupervisorLoop>(
+      registry_, *aggregator_,
+      SupervisorOptions{.period_ns = spec_.supervision.supervisor_period_ns});
+  monitor_ = std::make_unique<Monitor>(
+      *aggregator_, MonitorOptions{.period_ns = spec_.supervision.monitor_period_ns});
+  monitor_->set_supervisor(supervisor_.get());
+  monitor_->set_thresholds(spec_.supervision.thresholds);
+}
+
+System::~System() { stop(); }
+
+expected<std::unique_ptr<System>, config::ConfigErrors> System::create(
+    DeploymentSpec spec, const ComponentFactory& factory) {
+  std::unique_ptr<System> sys(new System(std::move(spec)));
+  const config::Node& root = sys->spec_.root;
+
+  if (sys->spec_.supervision.thresholds_file) {
+    if (auto r = sys->monitor_->watch_thresholds(*sys->spec_.supervision.thresholds_file); !r) {
+      return vigil::unexpected(r.error());
+    }
+  }
+
+  // Extensions first: components may use them (a CAN I/O component needs its sniffer).
+  if (sys->spec_.can.defined()) {
+    ExtensionMaker maker;
+    {
+      auto& r = extensions();
+      std::lock_guard lock(r.mutex);
+      if (auto it = r.makers.find("can"); it != r.makers.end()) maker = it->second;
+    }
+    if (!maker) {
+      sys->spec_.can.error("this program has no CAN support linked in (section 'can')");
+    } else {
+      auto ext = maker(sys->spec_.can, *sys);
+      if (!ext) return vigil::unexpected(ext.error());
+      sys->extensions_.push_back(std::move(*ext));
+    }
+  }
+
+  for (const ComponentSpec& c : sys->spec_.components) {
+    const auto* type = factory.find(c.type);
+    if (type == nullptr) continue;  // reported by parse_deployment
+    ComponentContext ctx{c.name, c.supervision, c.parameters, &sys->registry_, sys.get()};
+    Slot slot;
+    slot.spec = &c;
+    try {
+      slot.task = type->make(ctx);
+      if (!slot.task) c.node.error(fmt::format("component type '{}' made nothing", c.type));
+    } catch (const std::exception& e) {
+      c.node.error(
+          fmt::format("component '{}' ({}) failed to build: {}", c.name, c.type, e.what()));
+    }
+    const ActivitySpec* act = nullptr;
+    for (const auto& a : sys->spec_.activities) {
+      if (a.config.name == c.activity) act = &a;
+    }
+    if (slot.task && act != nullptr) {
+      slot.activity = std::make_unique<PeriodicActivity>(*slot.task, act->config);
+    }
+    sys->slots_.push_back(std::move(slot));
+  }
+  if (root.has_errors()) return vigil::unexpected(root.errors());
+  return sys;
+}
+
+expected<void, Error> System::start() {
+  if (running_) return {};
+  log_.clear();
+  if (spec_.supervision.lock_memory) {
+    rt_setup_ = platform::setup_realtime_process();
+    log_.push_back(rt_setup_.memory_locked
+                       ? "memory locked and prefaulted"
+                       : fmt::format("memory NOT locked (errno {}): page faults may hit the "
+                                     "real-time threads",
+                                     rt_setup_.lock_errno));
+  }
+  if (auto r = supervisor_->start(); !r) return r;
+  if (auto r = monitor_->start(); !r) {
+    supervisor_->stop();
+    return r;
+  }
+  log_.push_back(fmt::format("supervisor every {} ms, monitor every {} ms",
+                             spec_.supervision.supervisor_period_ns / kNanosPerMilli,
+                             spec_.supervision.monitor_period_ns / kNanosPerMilli));
+  running_ = true;
+  for (auto& e : extensions_) {
+    if (auto r = e->start(); !r) {
+      stop();
+      return r;
+    }
+  }
+  for (auto& s : slots_) {
+    if (!s.task->configure()) {
+      const auto state = s.task->state();
+      stop();
+      return vigil::unexpected(Error{fmt::format("component '{}' did not configure (state {})",
+                                                 s.spec->name, to_string(state))});
+    }
+  }
+  for (auto& s : slots_) {
+    if (!s.activity) continue;
+    if (auto r = s.activity->start(); !r) {
+      stop();
+      return vigil::unexpected(Error{
+          r.error().code, fmt::format("component '{}': {}", s.spec->name, r.error().message)});
+    }
+    const auto& info = s.activity->info();
+    std::string line = fmt::format("{} on '{}': {} {} every {} us, thread {}", s.spec->name,
+                                   info.name, platform::to_string(info.policy), info.priority,
+                                   info.period_ns / kNanosPerMicro, info.tid);
+    if (info.realtime_refused) line += " (SCHED_FIFO refused: running SCHED_OTHER, not real-time)";
+    log_.push_back(std::move(line));
+  }
+  return {};
+}
+
+void System::stop() {
+  if (!running_) return;
+  for (auto it = slots_.rbegin(); it != slots_.rend(); ++it) {
+    if (it->activity) it->activity->stop();
+  }
+  for (auto it = extensions_.rbegin(); it != extensions_.rend(); ++it) (*it)->stop();
+  supervisor_->stop();  // joins after a last full drain
+  monitor_->stop();
+  running_ = false;
+}
+
+ReportSet System::reports() const {
+  ReportSet r = monitor_->latest();
+  for (const auto& e : extensions_) e->contribute(r);
+  return r;
+}
+
+ReportSet System::step_monitor() {
+  if (!supervisor_->running()) supervisor_->step();
+  ReportSet r = monitor_->step();
+  for (const auto& e : extensions_) e->contribute(r);
+  return r;
+}
+
+TaskCore* System::component(std::string_view name) const noexcept {
+  for (const auto& s : slots_) {
+    if (s.spec->name == name) return s.task.get();
+  }
+  return nullptr;
+}
+
+}  // namespace vigil::deploy
