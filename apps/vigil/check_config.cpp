@@ -5,6 +5,7 @@
 #include "demo_components.hpp"
 #include "vigil/config/load.hpp"
 #include "vigil/deploy/deployment.hpp"
+#include "vigil/deploy/system.hpp"
 #include "vigil/monitor/thresholds.hpp"
 
 namespace vigil::app {
@@ -35,8 +36,17 @@ int run_check_config(const CheckConfigOptions& o) {
         ++failures;
         continue;
       }
+      const std::string name = d->name;
+      const std::size_t activities = d->activities.size();
+      const std::size_t components = d->components.size();
+      // Build the system without starting it: components validate their parameters.
+      if (auto sys = deploy::System::create(std::move(*d)); !sys) {
+        std::fprintf(stderr, "%s\n", config::to_string(sys.error()).c_str());
+        ++failures;
+        continue;
+      }
       std::printf("%s: OK (deployment '%s': %zu activities, %zu components)\n", file.c_str(),
-                  d->name.c_str(), d->activities.size(), d->components.size());
+                  name.c_str(), activities, components);
     } else {
       auto t = load_thresholds(*root);
       if (!t) {
