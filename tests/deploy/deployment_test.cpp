@@ -83,11 +83,12 @@ components:
 )");
   CHECK_THAT(e, Catch::Contains("d.yaml:3:12: activities[1].name: activity 'a' is defined twice"));
   CHECK_THAT(e, Catch::Contains("d.yaml:3:23: activities[1].period: '-1ms' is negative"));
-  CHECK_THAT(e, Catch::Contains(
-                    "d.yaml:5:21: components[0].type: unknown component type 'test.dumy'; did "
-                    "you mean 'test.dummy'?"));
+  CHECK_THAT(
+      e, Catch::Contains("d.yaml:5:21: components[0].type: unknown component type 'test.dumy'; did "
+                         "you mean 'test.dummy'?"));
   CHECK_THAT(e, Catch::Contains("d.yaml:6:46: components[1].colour: unknown key"));
-  CHECK_THAT(e, Catch::Contains("d.yaml:6:43: components[1].activity: no activity named 'b' (defined: a)"));
+  CHECK_THAT(e, Catch::Contains(
+                    "d.yaml:6:43: components[1].activity: no activity named 'b' (defined: a)"));
 }
 
 TEST_CASE("A deployment needs components, and activities for them", "[deploy][deployment]") {

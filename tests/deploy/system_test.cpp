@@ -76,7 +76,7 @@ supervision: {lock_memory: false, monitor_period: 50ms}
   sys->stop();
   const ReportSet r = sys->step_monitor();
   const std::vector<std::string> expected{"configure one", "configure two", "start one",
-                                          "start two", "stop two", "stop one"};
+                                          "start two",     "stop two",      "stop one"};
   CHECK(events() == expected);
   REQUIRE(r.find("one") != nullptr);
   CHECK(r.find("one")->counters.cycles > 20);
