@@ -173,7 +173,6 @@ struct Monitor::Impl {
     r.configured = true;
     r.activity = sup.options().thread_name;
     r.period_ns = sup.options().period_ns;
-    r.state = st.cycles > 0 ? TaskState::Running : TaskState::Stopped;
     r.counters.cycles = st.cycles;
     r.samples = st.cycles;
     r.total_ns = st.drain_ns;
@@ -190,6 +189,10 @@ struct Monitor::Impl {
     r.add("max_occupancy", std::to_string(st.max_occupancy));
 
     const Nanos limit = checks::starvation_limit(t, r.period_ns);
+    // Whether its thread runs is not asked (Supervisor::running() is not safe against a
+    // concurrent start/stop): it runs if it cycles.
+    const bool cycling = st.cycles > 0 && (limit <= 0 || r.silence_ns <= limit);
+    r.state = cycling ? TaskState::Running : TaskState::Stopped;
     if (t.starvation.enabled && limit > 0 && r.silence_ns > limit) {
       if (st.cycles == 0) {
         r.merge(StatusLevel::Warn, fmt::format("not started: no cycle in {}",

@@ -4,13 +4,8 @@
 
 #include <utility>
 
-// TODO(config): node.hpp's `(check_(value, checks) && ...);` is an empty fold without checks,
-// which GCC flags as "statement has no effect"; drop this guard once node.hpp casts it to void.
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wunused-value"
 #include "vigil/config/load.hpp"
 #include "vigil/config/node.hpp"
-#pragma GCC diagnostic pop
 
 namespace vigil {
 

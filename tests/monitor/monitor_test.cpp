@@ -6,6 +6,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "monitor/harness.hpp"
@@ -329,9 +330,16 @@ TEST_CASE("Starvation, real thread: the components of a blocked thread go STALE"
   REQUIRE(pa.start());
   REQUIRE(pb.start());
   REQUIRE(wait_for([&] { return a.cycles.load() > 5 && b.cycles.load() > 5; }));
+  // The supervisor's thread may not have seen the components yet: wait until both have data.
+  const auto level_of = [](const ReportSet& s, std::string_view name) {
+    const Report* r = s.find(name);
+    return r == nullptr ? std::optional<StatusLevel>() : r->status.level();
+  };
   REQUIRE(wait_for([&] {
     const ReportSet s = monitor.step();
-    return s.find("blocker_a")->counters.cycles > 0 && s.find("blocker_b")->counters.cycles > 0;
+    const Report* ra = s.find("blocker_a");
+    const Report* rb = s.find("blocker_b");
+    return ra != nullptr && rb != nullptr && ra->counters.cycles > 0 && rb->counters.cycles > 0;
   }));
 
   ReportSet before = monitor.step();
@@ -349,8 +357,8 @@ TEST_CASE("Starvation, real thread: the components of a blocked thread go STALE"
   // No cycle of either task from now on; the supervisor keeps draining (nothing).
   REQUIRE(wait_for([&] {
     const ReportSet s = monitor.step();
-    return s.find("blocker_a")->status.level() == StatusLevel::Stale &&
-           s.find("blocker_b")->status.level() == StatusLevel::Stale;
+    return level_of(s, "blocker_a") == StatusLevel::Stale &&
+           level_of(s, "blocker_b") == StatusLevel::Stale;
   }));
   const ReportSet during = monitor.step();
   CHECK_THAT(find(during, "blocker_a").status.summary(),
@@ -362,8 +370,8 @@ TEST_CASE("Starvation, real thread: the components of a blocked thread go STALE"
   REQUIRE(wait_for([&] { return a.cycles.load() > n + 5; }));
   REQUIRE(wait_for([&] {
     const ReportSet s = monitor.step();
-    return s.find("blocker_a")->status.level() != StatusLevel::Stale &&
-           s.find("blocker_b")->status.level() != StatusLevel::Stale;
+    return level_of(s, "blocker_a") != StatusLevel::Stale &&
+           level_of(s, "blocker_b") != StatusLevel::Stale;
   }));
   pa.stop();
   pb.stop();
@@ -457,6 +465,7 @@ TEST_CASE("The supervisor is reported, STALE when it stops draining", "[monitor]
   const Report s = find(h.step(), "vigil.supervisor");
   CHECK(s.kind == ReportKind::Supervisor);
   CHECK(s.status.ok());
+  CHECK(s.state == TaskState::Running);
   CHECK(s.counters.cycles == 1);
   CHECK(s.period_ns == 10 * kMs);
   CHECK(*s.value("ports") == "1");
@@ -466,6 +475,7 @@ TEST_CASE("The supervisor is reported, STALE when it stops draining", "[monitor]
   h.clock.advance(1);
   const Report stale = find(h.monitor.step(), "vigil.supervisor");
   CHECK(stale.status.level() == StatusLevel::Stale);
+  CHECK(stale.state == TaskState::Stopped);
   CHECK_THAT(stale.status.summary(), Catch::StartsWith("not draining: no cycle for 100ms"));
 
   h.monitor.set_supervisor(nullptr);
