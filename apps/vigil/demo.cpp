@@ -2,10 +2,7 @@
 // view refreshed every second, stops cleanly on Ctrl-C or after --duration, and writes the final
 // reports.
 #include <fmt/format.h>
-#include <unistd.h>
 
-#include <atomic>
-#include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <thread>
@@ -15,14 +12,12 @@
 #include "vigil/deploy/system.hpp"
 #include "vigil/export/json_report.hpp"
 #include "vigil/export/text_report.hpp"
+#include "vigil/platform/process.hpp"
 #include "vigil/version.hpp"
 
 namespace vigil::app {
 
 namespace {
-
-std::atomic<bool> g_stop{false};
-extern "C" void on_signal(int /*sig*/) { g_stop.store(true); }
 
 ColorMode color_mode(const std::string& s) {
   if (s == "always") return ColorMode::Always;
@@ -69,16 +64,13 @@ int run_demo(const DemoOptions& o) {
   }
   deploy::System& system = **sys;
 
-  struct sigaction sa {};
-  sa.sa_handler = &on_signal;
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
+  platform::install_stop_signals();  // Ctrl-C and SIGTERM stop cleanly
 
   if (auto r = system.start(); !r) {
     std::fprintf(stderr, "vigil demo: cannot start: %s\n", r.error().message.c_str());
     return 1;
   }
-  const bool tty = isatty(STDOUT_FILENO) != 0;
+  const bool tty = platform::is_terminal(stdout);
   const ColorMode mode = color_mode(o.color);
   const bool color = use_color(mode, stdout);
   std::printf("vigil %s: running '%s' with %zu components%s\n", kVersion,
@@ -95,7 +87,7 @@ int run_demo(const DemoOptions& o) {
           ? start + static_cast<Nanos>(o.duration_s * static_cast<double>(kNanosPerSecond))
           : INT64_MAX;
   Nanos next_view = start + kNanosPerSecond;
-  while (!g_stop.load() && platform::now_ns() < end) {
+  while (!platform::stop_requested() && platform::now_ns() < end) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     const Nanos now = platform::now_ns();
     if (!o.no_live && now >= next_view) {
@@ -103,7 +95,7 @@ int run_demo(const DemoOptions& o) {
       print_view(system, system.reports(), static_cast<double>(now - start) / 1e9, tty, color);
     }
   }
-  const bool interrupted = g_stop.load();
+  const bool interrupted = platform::stop_requested();
   system.stop();
   const ReportSet final_reports = system.step_monitor();
   std::printf("\n%s after %.1f s. Final report:\n", interrupted ? "Interrupted" : "Stopped",

@@ -2,11 +2,8 @@
 // robot, or a deployment file); `vigil check-config` validates configuration files;
 // `vigil can-stats` replays CAN logs through the CAN supervision pipeline.
 #include <fmt/format.h>
-#include <unistd.h>
 #include <CLI/CLI.hpp>
 
-#include <atomic>
-#include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <iostream>

@@ -16,6 +16,7 @@
 #include "vigil/monitor/monitor.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/platform/memory.hpp"
+#include "vigil/platform/process.hpp"
 #include "vigil/platform/rt_loss.hpp"
 #include "vigil/platform/thread.hpp"
 #include "vigil/platform/thread_stats.hpp"

@@ -2,9 +2,7 @@
 
 #include <fmt/format.h>
 
-// isatty() is the one OS call here; it belongs in the platform layer once that has a terminal
-// query (the other exporters need none).
-#include <unistd.h>
+#include "vigil/platform/process.hpp"
 
 #include <cstdlib>
 #include <cstring>
@@ -100,7 +98,7 @@ bool use_color(ColorMode mode, std::FILE* out) {
     case ColorMode::Auto:
       break;
   }
-  if (out == nullptr || ::isatty(::fileno(out)) == 0) return false;
+  if (!platform::is_terminal(out)) return false;
   // https://no-color.org: any non-empty NO_COLOR disables colours.
   const char* no_color = std::getenv("NO_COLOR");  // NOLINT(concurrency-mt-unsafe): read-only
   if (no_color != nullptr && no_color[0] != '\0') return false;
