@@ -191,6 +191,38 @@ class Floor {
   std::uint64_t pushed_ = 0;
 };
 
+/// An experiment, not a floor: the same cycle pushing a 128-byte, cache-line-aligned element
+/// (a CycleSample alone) instead of the 224-byte Message, to show what the message's size costs.
+class Floor128 {
+ public:
+  struct alignas(64) Slot {
+    CycleSample sample;
+  };
+  static_assert(sizeof(Slot) == 128);
+
+  [[gnu::noinline]] void cycle() noexcept {
+    const Nanos t0 = platform::now_ns();
+    empty_update();
+    const Nanos t1 = platform::now_ns();
+    Slot s;
+    s.sample.cycle = ++cycles_;
+    s.sample.start_ns = t0;
+    s.sample.end_ns = t1;
+    pushed_ += queue_.push(s) ? 1 : 0;
+  }
+  [[nodiscard]] Poller::Drain drain() {
+    return [this](Message*, std::size_t) {
+      return queue_.consume_all([](const Slot& s) { benchmark::DoNotOptimize(s.sample.cycle); });
+    };
+  }
+  [[nodiscard]] std::uint64_t dropped() const noexcept { return cycles_ - pushed_; }
+
+ private:
+  boost::lockfree::spsc_queue<Slot, boost::lockfree::capacity<kDefaultPortCapacity>> queue_;
+  std::uint64_t cycles_ = 0;
+  std::uint64_t pushed_ = 0;
+};
+
 /// Sets the counters benches/run reads.
 inline void report(benchmark::State& state, const char* unit, double value) {
   state.SetLabel(unit);

@@ -199,6 +199,8 @@ void register_all() {
       [](benchmark::State& st) { paired<GuardSubject>(st, false, 1.5); });
   add("task/overhead/unsupervised_activity", kBatchesPerRep,
       [](benchmark::State& st) { paired<BareSubject>(st, false, 0); });
+  add("task/overhead/experiment:floor_with_128B_message", kBatchesPerRep,
+      [](benchmark::State& st) { paired<Floor128>(st, false, 0); });
   add("task/overhead/detectors:none/port_full", kFullBatchesPerRep,
       [](benchmark::State& st) { paired<TaskSubject>(st, true, 0, Detectors::None, kPeriod); });
   add("task/overhead/update_guard/port_full", kFullBatchesPerRep,
