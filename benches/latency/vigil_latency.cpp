@@ -4,13 +4,16 @@
 // A Task<Derived> runs on a PeriodicActivity (SCHED_FIFO, given priority, pinned CPU, given
 // period, a thread of its own); each cycle's latency is start_ns - release_ns, the same numbers
 // its CycleSample carries: when on_update() began minus the scheduled release. Memory is locked
-// first (cyclictest -m), and a supervisor drains the component's port at its default period, as in
-// a deployment, pinned to another CPU. Latencies are counted in 1 us buckets, truncated, as
-// cyclictest -h does.
+// first (cyclictest -m), /dev/cpu_dma_latency is held at 0 (cyclictest's default), and a supervisor
+// drains the component's port at its default period, as in a deployment, pinned to another CPU.
+// Latencies are counted in 1 us buckets, truncated, as cyclictest -h does.
 //
 // usage: vigil_latency [-p prio] [-a cpu] [-i interval_us] [-D seconds] [-h max_us]
 // stdout: "%06d %06llu" lines per bucket, then "# Total/Min/Avg/Max Latencies/Histogram
 // Overflows" lines like cyclictest's; stderr: the policy obtained and the supervisor's view.
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -106,6 +109,15 @@ int main(int argc, char** argv) {
 
   const auto setup = vigil::platform::setup_realtime_process();
   if (!setup.memory_locked) std::fprintf(stderr, "vigil_latency: memory NOT locked\n");
+  // As cyclictest does by default: ask for a 0 us wake-up latency target (PM QoS) while we
+  // measure, so that idle CPUs stay in shallow idle states (or poll, under haltpoll in a VM).
+  // The request holds while the file stays open. Without it the comparison would measure the
+  // idle states, not the wake-up path.
+  const int qos = ::open("/dev/cpu_dma_latency", O_RDWR | O_CLOEXEC);
+  const std::int32_t target_us = 0;
+  const bool qos_set = qos >= 0 && ::write(qos, &target_us, sizeof(target_us)) == sizeof(target_us);
+  std::fprintf(stderr, "vigil_latency: /dev/cpu_dma_latency = 0: %s\n",
+               qos_set ? "held" : "not available (results include idle-state exits)");
 
   // The supervisor drains the component's port every 10 ms, as in a deployment, on a CPU other
   // than the measured one (what Supervisor::start() does, plus the pinning it does not offer).
@@ -153,6 +165,8 @@ int main(int argc, char** argv) {
   quit.store(true, std::memory_order_release);
   supervisor_thread->join();
   (void)supervisor.step();
+
+  if (qos >= 0) ::close(qos);
 
   const auto& h = probe.histogram();
   for (std::size_t i = 0; i < h.size(); ++i) {

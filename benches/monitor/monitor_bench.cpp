@@ -103,7 +103,6 @@ struct World {
         s.start_ns = t + 3'000;
         s.end_ns = s.start_ns + 40'000;
         s.overhead_ns = s.cycle % 16 == 1 ? 150 : 0;
-        s.cycles = s.cycle;
         (void)members[i].port()->try_push(Message{s});
       }
     }

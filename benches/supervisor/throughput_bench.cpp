@@ -51,7 +51,6 @@ struct Components {
     s.end_ns = s.start_ns + 50'000 + static_cast<Nanos>(c % 13) * 1'000;
     s.overhead_ns = c % 16 == 1 ? 120 : 0;
     s.state = TaskState::Running;
-    s.cycles = c;
     return Message{s};
   }
 

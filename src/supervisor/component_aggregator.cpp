@@ -66,6 +66,8 @@ void ComponentAggregator::on_leave(const Entry& e) {
 void ComponentAggregator::begin(const Entry& e) {
   current_ = slot_for(e);
   if (current_ != nullptr) current_->mutex.lock();
+  // One clock read per port drain, not per message: every sample of a batch arrived now.
+  drain_time_ = options_.clock.now();
 }
 
 void ComponentAggregator::end(const Entry& /*e*/, const PortDrain& d) {
@@ -89,7 +91,7 @@ void ComponentAggregator::on(const Entry& /*e*/, const CycleSample& m) {
   auto& d = s.data;
   if (m.totals_only) {
     d.state = m.state;
-    d.counters.cycles = std::max(d.counters.cycles, m.cycles);
+    d.counters.cycles = std::max(d.counters.cycles, m.cycle);
     d.counters.overruns = std::max(d.counters.overruns, m.overruns);
     d.counters.missed_cycles = std::max(d.counters.missed_cycles, m.missed_cycles);
     for (std::size_t i = 0; i < m.losses.size(); ++i) {
@@ -112,13 +114,13 @@ void ComponentAggregator::on(const Entry& /*e*/, const CycleSample& m) {
   d.last = m;
   ++d.samples;
   d.state = m.state;
-  d.counters.cycles = m.cycles;
+  d.counters.cycles = m.cycle;
   d.counters.overruns = m.overruns;
   d.counters.missed_cycles = m.missed_cycles;
   d.counters.losses = m.losses;
   d.counters.exceptions = std::max(m.exceptions, s.exceptions_reported);
   d.counters.dropped = std::max(d.counters.dropped, m.dropped);
-  d.last_sample_at = options_.clock.now();
+  d.last_sample_at = drain_time_;
 }
 
 void ComponentAggregator::on(const Entry& /*e*/, const RealTimeLoss& m) {
@@ -133,8 +135,8 @@ void ComponentAggregator::on(const Entry& /*e*/, const ExceptionReport& m) {
   s.data.has_exception = true;
   s.data.last_exception = m;
   s.data.last_exception_type = demangle(m.type.c_str());
-  s.exceptions_reported = std::max(s.exceptions_reported, m.count);
-  s.data.counters.exceptions = std::max(s.data.counters.exceptions, m.count);
+  s.exceptions_reported = std::max(s.exceptions_reported, std::uint64_t{m.count});
+  s.data.counters.exceptions = std::max(s.data.counters.exceptions, std::uint64_t{m.count});
 }
 
 void ComponentAggregator::on(const Entry& /*e*/, const StateChange& m) {

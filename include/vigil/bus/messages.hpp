@@ -65,8 +65,8 @@ enum class Detectors : std::uint8_t {
 /// Who a component is and where it runs. Sent on configure and again from the component's
 /// thread when it starts (and when the set of tasks sharing its thread changes).
 struct TaskInfo {
-  FixedString<48> name;
-  FixedString<48> activity;
+  FixedString<32> name;  ///< truncated to 31 bytes; the registry keeps the full name
+  FixedString<32> activity;
   SchedPolicy requested_policy = SchedPolicy::Other;
   SchedPolicy policy = SchedPolicy::Other;  ///< what the thread actually got
   bool realtime_refused = false;            ///< asked for FIFO, the system refused it
@@ -96,8 +96,8 @@ struct CycleSample {
   /// leaves, so that totals are exact even if the latest samples were dropped).
   bool totals_only = false;
   TaskState state = TaskState::Running;
-  // Cumulative since the component joined; exact even when earlier samples were dropped.
-  std::uint64_t cycles = 0;
+  // Cumulative since the component joined; exact even when earlier samples were dropped
+  // (the cumulative number of cycles is `cycle`).
   std::uint64_t overruns = 0;
   std::uint64_t missed_cycles = 0;
   std::array<std::uint64_t, kLossCauses> losses{};
@@ -117,10 +117,10 @@ struct RealTimeLoss {
 /// An exception caught at a hook boundary.
 struct ExceptionReport {
   std::uint64_t cycle = 0;
+  std::uint32_t count = 0;  ///< cumulative number of exceptions of this component
   Hook hook = Hook::None;
-  std::uint64_t count = 0;   ///< cumulative number of exceptions of this component
-  FixedString<64> type;      ///< mangled type name (the supervisor demangles it)
-  FixedString<128> message;  ///< what(), truncated
+  FixedString<35> type;     ///< mangled type name (the supervisor demangles it), truncated
+  FixedString<72> message;  ///< what(), truncated to 71 bytes
 };
 
 /// A lifecycle transition or a refused one.
@@ -147,6 +147,7 @@ static_assert(detail::all_trivially_copyable(static_cast<Message*>(nullptr)),
               "every message type must be trivially copyable: no std::string, no pointers owning "
               "memory; use FixedString");
 static_assert(std::is_trivially_copyable_v<Message>, "Message must be trivially copyable");
-static_assert(sizeof(Message) <= 256, "keep Message within 256 bytes: it is copied every cycle");
+// Every cycle copies one Message into the port: 128 bytes are two cache lines. Keep it there.
+static_assert(sizeof(Message) <= 128, "keep Message within 128 bytes: it is copied every cycle");
 
 }  // namespace vigil

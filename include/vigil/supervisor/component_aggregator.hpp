@@ -130,6 +130,7 @@ class ComponentAggregator {
   mutable std::shared_mutex list_mutex_;
   std::vector<std::unique_ptr<Slot>> slots_;  // ordered by id
   Slot* current_ = nullptr;                   // the slot between begin() and end()
+  Nanos drain_time_ = 0;                      // supervisor clock at begin()
 };
 
 static_assert(SupervisorHandler<ComponentAggregator, Message>);

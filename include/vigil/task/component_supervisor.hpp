@@ -134,16 +134,18 @@ using ComponentSupervisor = BasicComponentSupervisor<>;
 
 /// RAII: pre_update() on construction, post_update() on destruction. An exception that leaves
 /// the guarded scope is counted and reported (its type cannot be known here: use
-/// ComponentSupervisor::run() to report it exactly).
+/// ComponentSupervisor::run() to report it exactly). A guard destroyed while the stack unwinds
+/// for another reason (a guard constructed inside a destructor during unwinding) would report
+/// that unwinding too; cycles are not run from destructors in practice, and checking only here
+/// keeps the guard at one std::uncaught_exceptions() call per cycle.
 template <class Supervisor>
 class [[nodiscard]] UpdateGuard {
  public:
-  explicit UpdateGuard(Supervisor& s, Nanos release_ns = 0) noexcept
-      : s_(s), uncaught_(std::uncaught_exceptions()) {
+  explicit UpdateGuard(Supervisor& s, Nanos release_ns = 0) noexcept : s_(s) {
     s_.pre_update(release_ns);
   }
   ~UpdateGuard() {
-    if (std::uncaught_exceptions() > uncaught_) {
+    if (std::uncaught_exceptions() > 0) [[unlikely]] {
       s_.report_exception("unknown", "exception propagated through UpdateGuard");
     }
     s_.post_update();
@@ -153,7 +155,6 @@ class [[nodiscard]] UpdateGuard {
 
  private:
   Supervisor& s_;
-  int uncaught_;
 };
 
 }  // namespace vigil

@@ -131,7 +131,7 @@ class CycleRecorder {
     ++exceptions_;
     exception_.cycle = cycles_;
     exception_.hook = hook;
-    exception_.count = exceptions_;
+    exception_.count = static_cast<std::uint32_t>(exceptions_);
     exception_.type.assign(type);
     exception_.message.assign(what);
     pending_ |= kException;
@@ -141,15 +141,17 @@ class CycleRecorder {
   /// Before on_update(). RT-safe.
   void pre(CycleContext& c) noexcept {
     clock_ = c.clock != nullptr ? c.clock : &system_clock_;
+    // The system clock is read directly, not through the Clock's function pointer.
+    direct_clock_ = clock_->fn == &Clock::system_now;
     measure_ = !sample_never_ && (cycles_ & sample_mask_) == 0;
-    if (measure_) pre_begin_ = clock_->now();
+    if (measure_) pre_begin_ = now();
     if (options_.detectors != Detectors::None) arm();
-    c.start_ns = clock_->now();
+    c.start_ns = now();
   }
 
   /// After on_update(). `state` is what the sample reports. RT-safe.
   void post(CycleContext& c, TaskState state) noexcept {
-    const Nanos end = clock_->now();
+    const Nanos end = now();
     c.end_ns = end;
     if (options_.detectors != Detectors::None) collect();
     ++cycles_;
@@ -159,7 +161,8 @@ class CycleRecorder {
     missed_ += c.missed_before;
     if (pending_ != 0) flush();
     auto* port = membership_.port();
-    CycleSample& s = last_;
+    // The sample is built in place inside a Message: the push is its only copy.
+    CycleSample& s = *std::get_if<CycleSample>(&sample_);
     s.cycle = cycles_;
     s.release_ns = release;
     s.start_ns = c.start_ns;
@@ -168,16 +171,15 @@ class CycleRecorder {
     s.missed_before = c.missed_before;
     s.overrun = overrun;
     s.state = state;
-    s.cycles = cycles_;
     s.overruns = overruns_;
     s.missed_cycles = missed_;
     s.losses = losses_;
     s.exceptions = exceptions_;
     s.dropped = port->dropped();
-    (void)port->try_push(Message{s});
+    (void)port->try_push(sample_);
     published_cycles_.store(cycles_, std::memory_order_relaxed);
     overhead_ = 0;
-    if (measure_) overhead_ = (c.start_ns - pre_begin_) + (clock_->now() - end);
+    if (measure_) overhead_ = (c.start_ns - pre_begin_) + (now() - end);
   }
 
   /// Cycles run so far. Any thread (relaxed atomic).
@@ -196,11 +198,14 @@ class CycleRecorder {
   static constexpr std::uint8_t kException = 4;
   static constexpr std::uint8_t kTotals = 8;
 
+  [[nodiscard]] Nanos now() const noexcept {
+    return direct_clock_ ? platform::now_ns() : clock_->now();
+  }
+
   [[nodiscard]] CycleSample totals() const noexcept {
-    CycleSample t = last_;
+    CycleSample t = *std::get_if<CycleSample>(&sample_);
     t.totals_only = true;
     t.state = state_;
-    t.cycles = cycles_;
     t.overruns = overruns_;
     t.missed_cycles = missed_;
     t.losses = losses_;
@@ -235,6 +240,11 @@ class CycleRecorder {
 
   void collect() noexcept {
     const Detectors d = options_.detectors;
+    if (d == Detectors::Allocation) {  // the common cheap case: one load, one compare
+      const std::uint64_t n = platform::thread_allocations() - alloc0_;
+      if (n != 0) record_loss(LossCause::Allocation, n);
+      return;
+    }
     std::uint64_t delta[kLossCauses] = {};
     if (has(d, Detectors::Allocation)) {
       delta[static_cast<int>(LossCause::Allocation)] = platform::thread_allocations() - alloc0_;
@@ -254,12 +264,14 @@ class CycleRecorder {
       }
     }
     for (int i = 0; i < kLossCauses; ++i) {
-      if (delta[i] == 0) continue;
-      losses_[static_cast<std::size_t>(i)] += delta[i];
-      RealTimeLoss loss{cycles_ + 1, static_cast<LossCause>(i),
-                        static_cast<std::uint32_t>(delta[i])};
-      (void)membership_.port()->try_push(Message{loss});
+      if (delta[i] != 0) record_loss(static_cast<LossCause>(i), delta[i]);
     }
+  }
+
+  void record_loss(LossCause cause, std::uint64_t n) noexcept {
+    losses_[static_cast<std::size_t>(cause)] += n;
+    const RealTimeLoss loss{cycles_ + 1, cause, static_cast<std::uint32_t>(n)};
+    (void)membership_.port()->try_push(Message{loss});
   }
 
   std::string name_;
@@ -267,6 +279,7 @@ class CycleRecorder {
   Membership<Message, N> membership_;
   Clock system_clock_ = Clock::system();
   const Clock* clock_ = &system_clock_;
+  bool direct_clock_ = true;
   std::uint64_t sample_mask_ = 15;
   bool sample_never_ = false;
   bool measure_ = false;
@@ -284,7 +297,7 @@ class CycleRecorder {
   TaskState state_ = TaskState::PreOperational;
   std::uint8_t pending_ = 0;
   TaskInfo info_;
-  CycleSample last_;
+  Message sample_{std::in_place_type<CycleSample>};  // the latest sample, pushed by copy
   ExceptionReport exception_;
   StateChange change_;
 };

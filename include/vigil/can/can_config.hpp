@@ -1,0 +1,172 @@
+#pragma once
+/// @file
+/// CAN supervision configuration: the node mapping, the filter, the thresholds of the CAN
+/// monitor (defaults, per group, per node), named nodes and groups; and their YAML loaders.
+///
+/// ```yaml
+/// node_map: canopen                  # identity (default) | canopen | j1939
+/// filter:                            # default: every frame
+///   all:
+///     - bus: 0
+///     - any: [{ids: [0x181, 0x182]}, {id_range: [0x200, 0x27F]}]
+/// defaults:                          # thresholds for every node
+///   not_responding: {after: 100ms}
+///   rx_gap: {warn: 15ms, error: 50ms, stat: max}
+/// nodes:
+///   left_shoulder: {node: 11, bus: 0}
+/// groups:
+///   left_arm: {nodes: [11, 12, 13, 14], thresholds: {read_time: {warn: 200us}}}
+/// ```
+///
+/// Every key is documented in docs/reference/can-config.md. Errors name file:line:col and the
+/// field, as every vigil schema does (vigil/config/node.hpp). Reload at run time with
+/// `config::Reloadable<CanConfig>::open(path, load_can_config)`, then hand the new value to
+/// `CanMonitor::set_config` and its filter to `Sniffer::set_filter`.
+///
+/// Nothing here is RT-safe: configuration is read by non-RT threads only.
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "vigil/can/can_statistics.hpp"
+#include "vigil/can/filter.hpp"
+#include "vigil/can/node_map.hpp"
+#include "vigil/config/error.hpp"
+#include "vigil/expected.hpp"
+#include "vigil/monitor/status.hpp"
+#include "vigil/platform/clock.hpp"
+
+namespace vigil::config {
+class Node;
+}
+
+namespace vigil::can {
+
+/// Which statistic of a distribution a limit compares.
+enum class LimitStat : std::uint8_t {
+  Last,  ///< the latest sample
+  Mean,  ///< the mean since the start
+  Ewma,  ///< the exponentially weighted moving average (recovers after a spike)
+  Max,   ///< the largest sample since the start (the default)
+  P50,   ///< median
+  P90,   ///< 90th percentile
+  P99,   ///< 99th percentile
+  P999,  ///< 99.9th percentile
+};
+
+/// "last", "mean", "ewma", "max", "p50", "p90", "p99", "p999".
+[[nodiscard]] std::string_view to_string(LimitStat s) noexcept;
+
+/// `s`'s value of `summary`, in ns (the mean and EWMA rounded to the nearest ns).
+[[nodiscard]] Nanos stat_value(const StatsSummary& summary, LimitStat s) noexcept;
+
+/// A resolved limit on a duration: WARN above `warn`, ERROR above `error` (strictly: a value
+/// equal to its limit passes); disabled when both are empty.
+struct Limit {
+  std::optional<Nanos> warn;
+  std::optional<Nanos> error;
+  LimitStat stat = LimitStat::Max;
+
+  /// True when a limit is set.
+  [[nodiscard]] bool enabled() const noexcept { return warn.has_value() || error.has_value(); }
+};
+
+/// The thresholds the CAN monitor applies to one node, after layering.
+struct NodeThresholds {
+  bool never_seen_enabled = true;                     ///< check "not initialized"
+  StatusLevel never_seen_level = StatusLevel::Error;  ///< level when an expected node is unseen
+  bool not_responding_enabled = true;                 ///< check "not responding"
+  Nanos not_responding_after_ns = kNanosPerSecond;    ///< silence (no Rx) that counts as such
+  StatusLevel not_responding_level = StatusLevel::Error;
+  Limit read_time;   ///< time spent reading a frame from the node (Rx I/O time)
+  Limit write_time;  ///< time spent writing a frame to the node (Tx I/O time)
+  Limit rx_gap;      ///< time between consecutive frames received from the node
+  Limit tx_gap;      ///< time between consecutive frames sent to the node
+};
+
+/// One layer of a limit, as written: each field replaces the layer below when set.
+struct LimitOverride {
+  std::optional<bool> enabled;  ///< false: no limit (whatever lower layers say)
+  std::optional<Nanos> warn;
+  std::optional<Nanos> error;
+  std::optional<LimitStat> stat;
+
+  /// Applies this layer on top of `l`.
+  void apply_to(Limit& l) const;
+};
+
+/// One layer of thresholds (defaults, a group's, a node's), as written in a file.
+struct ThresholdOverrides {
+  std::optional<bool> never_seen_enabled;
+  std::optional<StatusLevel> never_seen_level;
+  std::optional<bool> not_responding_enabled;
+  std::optional<Nanos> not_responding_after_ns;
+  std::optional<StatusLevel> not_responding_level;
+  LimitOverride read_time;
+  LimitOverride write_time;
+  LimitOverride rx_gap;
+  LimitOverride tx_gap;
+
+  /// Applies this layer on top of `t`.
+  void apply_to(NodeThresholds& t) const;
+};
+
+/// A named node: shown by name, expected to be seen, with its own thresholds.
+struct NodeConfig {
+  std::string name;                 ///< the key in `nodes:`
+  std::optional<std::uint8_t> bus;  ///< empty: on any bus
+  std::uint32_t node = 0;           ///< as the node mapping numbers it
+  bool expected = true;             ///< report "not initialized" when it is never seen
+  ThresholdOverrides thresholds;    ///< applied after the defaults and the groups
+};
+
+/// A group: its members (statistics and summary row) and the thresholds of its members.
+struct GroupConfig {
+  GroupSpec members;
+  bool expected = true;           ///< the nodes listed in `members.nodes` (not ranges) are expected
+  ThresholdOverrides thresholds;  ///< applied to each member, after the defaults
+};
+
+/// A whole CAN supervision configuration. Defaults: identity mapping, accept every frame,
+/// built-in thresholds (see NodeThresholds), no named node, no group.
+struct CanConfig {
+  NodeMapKind node_map = NodeMapKind::Identity;
+  FilterExpr filter;                ///< accept every frame by default
+  ThresholdOverrides defaults;      ///< on top of the built-in thresholds
+  std::vector<NodeConfig> nodes;    ///< in file order
+  std::vector<GroupConfig> groups;  ///< in file order
+
+  /// The thresholds of node `node` on `bus`: built-in, then `defaults`, then each group that
+  /// contains it (file order), then its `nodes` entries.
+  [[nodiscard]] NodeThresholds thresholds_for(std::uint8_t bus, std::uint32_t node) const;
+  /// The groups' memberships, for `CanAggregator::snapshot`.
+  [[nodiscard]] std::vector<GroupSpec> group_specs() const;
+  /// The named node for (bus, node), or null.
+  [[nodiscard]] const NodeConfig* find_node(std::uint8_t bus, std::uint32_t node) const noexcept;
+};
+
+/// Schema loader of a whole file (the root mapping). Use it with `config::load_file`,
+/// `config::load_string` or `config::Reloadable<CanConfig>::open`. Errors are recorded in the
+/// document (see vigil/config/node.hpp).
+[[nodiscard]] CanConfig load_can_config(const config::Node& root);
+
+/// Loads a CAN configuration file; every error as file:line:col: field: message.
+[[nodiscard]] expected<CanConfig, config::ConfigErrors> load_can_config_file(
+    const std::filesystem::path& path);
+
+/// Loads a CAN configuration from `text`, named `name` in errors.
+[[nodiscard]] expected<CanConfig, config::ConfigErrors> load_can_config_string(
+    std::string_view text, std::string name = "<string>");
+
+/// Sub-loader of one filter (a mapping of conditions, all of which must hold; see
+/// docs/reference/can-config.md). A null or empty mapping accepts every frame.
+[[nodiscard]] FilterExpr load_filter(const config::Node& node);
+
+/// Sub-loader of one layer of thresholds.
+[[nodiscard]] ThresholdOverrides load_thresholds(const config::Node& node);
+
+}  // namespace vigil::can

@@ -1,0 +1,215 @@
+#pragma once
+/// @file
+/// `CanAggregator`: the CAN supervisor's handler. It turns the sniffers' records and tables into
+/// statistics per (bus, id, direction), per (bus, node, direction) and per category (all nodes,
+/// and user groups such as "left arm" = nodes 11-14), and hands out consistent snapshots.
+///
+/// Where each figure comes from:
+///  - frames, first and last time seen (liveness): the sniffers' RT-side tables, read once per
+///    supervisor cycle: exact whatever the port dropped;
+///  - timing (`RunningStats`: count, min, max, mean, EWMA, percentiles) of the time spent in the
+///    read/write call and of the gaps between consecutive frames: the records drained from the
+///    ports. Each gap is measured exactly on the RT side (from the table's last-seen time), so a
+///    dropped record removes a sample but never distorts one; `records` says how many samples
+///    arrived, and `frames - records` how many were lost to a full port;
+///  - categories and groups: the node statistics of their members merged (`RunningStats::merge`):
+///    a group's gap distribution is that of its nodes' gaps, not the gap between any two frames.
+///
+/// Percentiles have `RunningStats`' bounded error (< 2^-5, upper bound). For offline replay,
+/// `CanAggregatorOptions::exact_percentiles` keeps every gap so that the snapshot's gap
+/// percentiles are exact (memory grows with the frames; min, max and mean are always exact).
+///
+/// Design: the supervisor thread is the only writer. One mutex guards the statistics; the
+/// supervisor holds it while it applies one port's batch (begin .. end) and a reader while it
+/// builds a snapshot. Keys are few (ids and nodes of a bus), so snapshots copy summaries, not
+/// histograms. Not RT-safe (supervisor and reader threads only).
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "vigil/can/frame.hpp"
+#include "vigil/can/node_map.hpp"
+#include "vigil/can/sniffer.hpp"
+#include "vigil/platform/clock.hpp"
+#include "vigil/supervisor/registry.hpp"
+#include "vigil/supervisor/running_stats.hpp"
+#include "vigil/supervisor/supervisor.hpp"
+
+namespace vigil::can {
+
+/// A set of nodes whose statistics are also reported together (and whose thresholds the CAN
+/// monitor applies to each member). Membership: on `bus` (any bus when empty), node in `nodes`
+/// or in one of `node_ranges`.
+struct GroupSpec {
+  std::string name{};                  ///< e.g. "left_arm"
+  std::optional<std::uint8_t> bus{};   ///< empty: nodes on any bus
+  std::vector<std::uint32_t> nodes{};  ///< explicit members
+  /// Inclusive ranges of members, e.g. {11, 14}.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> node_ranges{};
+
+  /// Whether node `node` on bus `bus` belongs to the group. O(members).
+  [[nodiscard]] bool contains(std::uint8_t bus_index, std::uint32_t node) const noexcept;
+};
+
+/// Statistics of one (bus, id, direction).
+struct IdStats {
+  std::uint8_t bus = 0;
+  std::uint32_t id = 0;
+  bool extended = false;
+  Direction direction = Direction::Rx;
+  std::uint32_t node = 0;        ///< mapped node
+  std::uint32_t function = 0;    ///< mapped function
+  std::uint64_t frames = 0;      ///< exact when `exact_count`, else the records received
+  bool exact_count = true;       ///< false when the sniffer's id table had no room for it
+  Nanos first_ns = 0;            ///< first frame (exact when `exact_count`)
+  Nanos last_ns = 0;             ///< latest frame (exact when `exact_count`)
+  std::uint64_t records = 0;     ///< timing records received (frames - records were dropped)
+  StatsSummary io_ns;            ///< time spent in the read/write call
+  StatsSummary gap_ns;           ///< time between consecutive frames of this id
+  bool gap_exact = false;        ///< gap percentiles are exact (exact_percentiles)
+  std::uint8_t last_length = 0;  ///< length of the latest record's frame
+  std::array<std::uint8_t, 8> last_data{};  ///< its first 8 data bytes
+};
+
+/// Statistics of one (bus, node, direction): the original's per-node metrics and more.
+struct NodeStats {
+  std::uint8_t bus = 0;
+  std::uint32_t node = 0;
+  Direction direction = Direction::Rx;
+  std::uint64_t frames = 0;   ///< exact when `exact_count` (messages in or out)
+  bool exact_count = true;    ///< false when the sniffer's node table had no room for it
+  Nanos first_ns = 0;         ///< first frame
+  Nanos last_ns = 0;          ///< latest frame (liveness)
+  std::uint64_t records = 0;  ///< timing records received
+  std::size_t ids = 0;        ///< distinct identifiers seen for this node and direction
+  StatsSummary io_ns;         ///< time spent reading (Rx) or writing (Tx)
+  StatsSummary gap_ns;        ///< time between consecutive frames from (Rx) / to (Tx) the node
+  bool gap_exact = false;     ///< gap percentiles are exact (exact_percentiles)
+};
+
+/// One row of the summary table: every node ("all"), or a group, in one direction.
+struct CategoryStats {
+  std::string name;  ///< "all" or the group's name
+  bool group = false;
+  Direction direction = Direction::Rx;
+  std::size_t nodes = 0;      ///< member nodes with frames in this direction
+  std::uint64_t frames = 0;   ///< sum over the members
+  std::uint64_t records = 0;  ///< sum over the members
+  Nanos last_ns = 0;          ///< latest frame of any member
+  StatsSummary io_ns;         ///< the members' I/O times, merged
+  StatsSummary gap_ns;        ///< the members' gaps, merged
+};
+
+/// What the aggregator knows about one sniffer.
+struct SnifferInfo {
+  std::uint32_t port_id = 0;
+  std::string name;
+  bool alive = true;  ///< false once the sniffer left
+  NodeMapKind node_map = NodeMapKind::Identity;
+  std::string filter;  ///< the current filter as text
+  SnifferTotals totals;
+  std::size_t ids = 0;  ///< keys in its id table
+  std::size_t max_ids = 0;
+  std::size_t nodes = 0;  ///< keys in its node table
+  std::size_t max_nodes = 0;
+  std::size_t port_capacity = 0;
+};
+
+/// Everything the aggregator knows at one moment. Plain values: copy freely.
+struct CanSnapshot {
+  std::uint64_t cycle = 0;            ///< supervisor cycles applied so far
+  std::uint64_t records = 0;          ///< timing records aggregated so far
+  SnifferTotals totals;               ///< summed over every sniffer seen
+  std::vector<SnifferInfo> sniffers;  ///< by port id
+  std::vector<IdStats> ids;           ///< by bus, id, format, direction
+  std::vector<NodeStats> nodes;       ///< by bus, node, direction
+  /// "all" Rx then Tx, then each group Rx then Tx (groups in the order given). Rows without
+  /// frames are left out, except one (Rx) row for a group that has none at all.
+  std::vector<CategoryStats> categories;
+
+  /// The node's statistics, or null. O(log n).
+  [[nodiscard]] const NodeStats* find_node(std::uint8_t bus, std::uint32_t node,
+                                           Direction d) const noexcept;
+  /// The id's statistics, or null. O(log n).
+  [[nodiscard]] const IdStats* find_id(std::uint8_t bus, std::uint32_t id, bool extended,
+                                       Direction d) const noexcept;
+};
+
+/// Options of the aggregator.
+struct CanAggregatorOptions {
+  /// Keep every gap sample so that gap percentiles are exact (offline replay: memory grows by
+  /// 16 bytes per frame). Live supervision leaves it off: percentiles within 2^-5.
+  bool exact_percentiles = false;
+  /// Weight of the newest sample in the EWMAs (0 < w <= 1).
+  double ewma_weight = RunningStats::kDefaultEwmaWeight;
+};
+
+/**
+ * The handler of `Supervisor<CanMessage, CanAggregator>` (alias `CanSupervisor`).
+ *
+ * @code
+ * vigil::can::CanRegistry can;
+ * vigil::can::Sniffer<> sniffer(can, "bus0");
+ * vigil::can::CanAggregator stats(can);
+ * vigil::can::CanSupervisor supervisor(can.ports(), stats, {.period_ns = 100 *
+ * vigil::kNanosPerMilli}); supervisor.start();                     // or supervisor.step() from
+ * your own loop vigil::can::CanSnapshot s = stats.snapshot(groups);
+ * @endcode
+ *
+ * Handler members: supervisor thread only. `snapshot`, `cycles`: any thread.
+ */
+class CanAggregator {
+ public:
+  using Entry = RegistryEntry<CanMessage>;
+
+  /// Reads sniffer states from `registry`, which must outlive the aggregator.
+  explicit CanAggregator(CanRegistry& registry, CanAggregatorOptions options = {});
+  ~CanAggregator();
+  CanAggregator(const CanAggregator&) = delete;
+  CanAggregator& operator=(const CanAggregator&) = delete;
+
+  // --- SupervisorHandler (supervisor thread only; called by CanSupervisor::step) ---
+  /// A sniffer's port appeared: starts its record (its state is looked up in the registry).
+  void on_join(const Entry& e);
+  /// A sniffer left and was drained: reads its tables one last time, releases its state.
+  void on_leave(const Entry& e);
+  /// Starts applying one port's batch (takes the statistics lock until `end`).
+  void begin(const Entry& e);
+  /// Adds one record's timing to its id and node. O(1) amortised (hash lookups).
+  void on(const Entry& e, const FrameRecord& r);
+  /// Ends the batch: reads the sniffer's tables (exact counts), frees replaced filters.
+  void end(const Entry& e, const PortDrain& d);
+  /// Counts supervisor cycles.
+  void on_cycle(const SupervisorCycle& c);
+
+  // --- readers (any thread) ---
+  /// A consistent copy of every statistic, with categories for "all" and for `groups`.
+  /// O(ids + nodes * (1 + groups)) plus sorting the gaps in exact mode. Allocates.
+  [[nodiscard]] CanSnapshot snapshot(std::span<const GroupSpec> groups = {}) const;
+  /// Supervisor cycles applied so far.
+  [[nodiscard]] std::uint64_t cycles() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+static_assert(SupervisorHandler<CanAggregator, CanMessage>);
+
+/// The CAN supervisor: drains the sniffers' ports into a `CanAggregator`.
+using CanSupervisor = Supervisor<CanMessage, CanAggregator>;
+
+/// Exact nearest-rank percentiles of `samples` (sorted in place): count, min, max, mean, p50,
+/// p90, p99, p99.9, with the same rank rule as `RunningStats` (smallest sample with at least
+/// q * count samples <= it); `last` and `ewma` are 0. Not RT-safe (sorts).
+[[nodiscard]] StatsSummary exact_summary(std::vector<Nanos>& samples);
+
+}  // namespace vigil::can

@@ -1,0 +1,156 @@
+#pragma once
+/// @file
+/// Offline replay of CAN logs through the live pipeline (sniffer -> CAN supervisor -> CAN
+/// aggregator -> CAN monitor), with the logs' timestamps as the clock, and `run_can_stats`, the
+/// body of the `vigil can-stats` command.
+///
+/// A replay feeds each frame to a real `Sniffer` with begin = end = the frame's timestamp and
+/// steps the supervisor whenever the sniffer's port could be full, so nothing is dropped; the
+/// aggregator keeps every gap (`exact_percentiles`) so that the figures printed for a log are
+/// exact: frame counts, per-id and per-node gap min / median / max / mean. Several files are
+/// merged in timestamp order.
+///
+/// Nothing here is RT-safe: it is tooling (file I/O, allocation).
+
+#include <cstdint>
+#include <filesystem>
+#include <iosfwd>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "vigil/can/can_config.hpp"
+#include "vigil/can/can_monitor.hpp"
+#include "vigil/can/can_statistics.hpp"
+#include "vigil/can/filter.hpp"
+#include "vigil/can/frame.hpp"
+#include "vigil/can/log_reader.hpp"
+#include "vigil/can/node_map.hpp"
+#include "vigil/error.hpp"
+#include "vigil/expected.hpp"
+
+namespace vigil::can {
+
+/// The text format of a log file.
+enum class LogFormat : std::uint8_t {
+  Auto,     ///< `.trc` (any case) is a PEAK trace, anything else a candump log
+  Candump,  ///< `candump -l` (candump.hpp)
+  Trc,      ///< PEAK trace (trc.hpp)
+};
+
+/// Options of a replay.
+struct ReplayOptions {
+  NodeMap node_map = NodeMap::identity();       ///< how ids map to nodes
+  FilterExpr filter{};                          ///< frames outside it are not supervised
+  Direction default_direction = Direction::Rx;  ///< for log lines that carry none
+  bool exact_percentiles = true;                ///< keep every gap: exact percentiles
+  std::size_t max_ids = 8192;                   ///< the sniffer's id table
+  std::size_t max_nodes = 4096;                 ///< the sniffer's node table
+  ReaderOptions reader{};                       ///< what the log readers do with bad lines
+};
+
+/// What was read from one file.
+struct ReplayFile {
+  std::filesystem::path path;
+  LogFormat format = LogFormat::Candump;  ///< as detected
+  std::uint64_t frames = 0;               ///< frames read from it
+  std::uint64_t malformed = 0;            ///< malformed lines skipped
+  std::uint64_t skipped = 0;              ///< well-formed records that are not frames (TRC)
+  std::vector<ParseError> errors;         ///< the first malformed lines
+};
+
+/**
+ * A replay pipeline. Feed it frames (`feed`) or whole logs (`feed_files`), then ask for the
+ * statistics or a monitor report at the log's last timestamp.
+ *
+ * @code
+ * vigil::can::LogReplay replay({.node_map = vigil::can::NodeMap::j1939()});
+ * if (auto r = replay.feed_files(std::vector<std::filesystem::path>{"truck.log"}); !r)
+ * fail(r.error()); vigil::can::CanSnapshot s = replay.snapshot();
+ * @endcode
+ * Not thread-safe (one thread drives a replay).
+ */
+class LogReplay {
+ public:
+  /// Capacity of the replay sniffer's port; the supervisor is stepped before it can overflow.
+  static constexpr std::size_t kPortCapacity = 4096;
+
+  /// A pipeline with `options`. A filter that does not compile is ignored (accept-all):
+  /// validate it first (`Filter::compile`, or `load_can_config`, which does).
+  explicit LogReplay(ReplayOptions options = {});
+  ~LogReplay();
+  LogReplay(const LogReplay&) = delete;
+  LogReplay& operator=(const LogReplay&) = delete;
+
+  /// Feeds one frame, going in direction `d`, at `f.timestamp`.
+  void feed(const Frame& f, Direction d);
+
+  /// Reads `files` (merged by timestamp) and feeds every frame. Candump interface names become
+  /// bus indices in order of first appearance over all files (`bus_names()`); TRC buses are
+  /// named "bus1", "bus2"... Fails (with the file's name) when a file cannot be opened or read;
+  /// malformed lines are skipped and reported in `files()` unless the reader options say Stop.
+  [[nodiscard]] expected<void, Error> feed_files(std::span<const std::filesystem::path> files,
+                                                 LogFormat format = LogFormat::Auto);
+
+  /// Hands everything fed so far to the aggregator (the snapshot/report calls do it too).
+  void flush();
+
+  /// The statistics, with categories for `groups`.
+  [[nodiscard]] CanSnapshot snapshot(std::span<const GroupSpec> groups = {});
+  /// The monitor's report at `last_ns()` (the log's end).
+  [[nodiscard]] CanReport report(const CanMonitor& monitor);
+
+  /// Frames fed so far.
+  [[nodiscard]] std::uint64_t frames() const noexcept;
+  /// Earliest and latest timestamps fed (0 before the first frame).
+  [[nodiscard]] Nanos first_ns() const noexcept;
+  [[nodiscard]] Nanos last_ns() const noexcept;
+  /// The files read by `feed_files`, in the order given.
+  [[nodiscard]] const std::vector<ReplayFile>& files() const noexcept;
+  /// Bus names by bus index (candump interfaces, TRC "busN").
+  [[nodiscard]] const std::vector<std::string>& bus_names() const noexcept;
+  /// The sniffer's exact counters.
+  [[nodiscard]] SnifferTotals totals() const noexcept;
+  /// The aggregator.
+  [[nodiscard]] const CanAggregator& aggregator() const noexcept;
+
+  struct Impl;  ///< defined in replay.cpp
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+/// The format of `path` under `format` (Auto: by extension).
+[[nodiscard]] LogFormat detect_log_format(const std::filesystem::path& path,
+                                          LogFormat format = LogFormat::Auto);
+
+/// "candump" or "trc" ("auto" for Auto).
+[[nodiscard]] std::string_view to_string(LogFormat f) noexcept;
+
+/// Options of `vigil can-stats` (one field per command-line option).
+struct CanStatsOptions {
+  std::vector<std::filesystem::path> files{};     ///< FILE...: candump logs or PEAK traces
+  std::optional<std::filesystem::path> config{};  ///< --config FILE: a CAN configuration
+  bool json = false;                              ///< --json: one JSON object instead of text
+  std::optional<NodeMapKind> node_map{};          ///< --node-map: overrides the configuration's
+  LogFormat format = LogFormat::Auto;             ///< --format auto|candump|trc
+  Direction default_direction = Direction::Rx;    ///< --direction rx|tx: for lines without one
+  bool ids = true;                                ///< per-id table in the text output
+};
+
+/**
+ * `vigil can-stats FILE... [--config FILE] [--json] [--node-map identity|canopen|j1939]`:
+ * replays the logs through the sniffer -> supervisor -> monitor pipeline (log timestamps as the
+ * clock, exact percentiles) and prints to `out` the files read, the summary table, each node's
+ * status and statistics and each id's statistics, as text or JSON. Warnings (malformed lines,
+ * first 10 of each file) and errors go to `err`.
+ *
+ * Returns 0 when every file was read, 1 when a file or the configuration could not be read (or
+ * a malformed line with OnMalformed::Stop), 2 when no file was given. The monitor's verdict does
+ * not change the exit code: it is in the output.
+ */
+int run_can_stats(const CanStatsOptions& options, std::ostream& out, std::ostream& err);
+
+}  // namespace vigil::can

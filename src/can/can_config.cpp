@@ -1,0 +1,373 @@
+#include "vigil/can/can_config.hpp"
+
+#include <fmt/format.h>
+
+#include <array>
+#include <cmath>
+#include <utility>
+
+#include "vigil/config/load.hpp"
+#include "vigil/config/node.hpp"
+
+namespace vigil::can {
+
+namespace cfg = vigil::config;
+
+std::string_view to_string(LimitStat s) noexcept {
+  switch (s) {
+    case LimitStat::Last:
+      return "last";
+    case LimitStat::Mean:
+      return "mean";
+    case LimitStat::Ewma:
+      return "ewma";
+    case LimitStat::Max:
+      return "max";
+    case LimitStat::P50:
+      return "p50";
+    case LimitStat::P90:
+      return "p90";
+    case LimitStat::P99:
+      return "p99";
+    case LimitStat::P999:
+      return "p999";
+  }
+  return "?";
+}
+
+Nanos stat_value(const StatsSummary& s, LimitStat stat) noexcept {
+  switch (stat) {
+    case LimitStat::Last:
+      return s.last;
+    case LimitStat::Mean:
+      return static_cast<Nanos>(std::llround(s.mean));
+    case LimitStat::Ewma:
+      return static_cast<Nanos>(std::llround(s.ewma));
+    case LimitStat::Max:
+      return s.max;
+    case LimitStat::P50:
+      return s.p50;
+    case LimitStat::P90:
+      return s.p90;
+    case LimitStat::P99:
+      return s.p99;
+    case LimitStat::P999:
+      return s.p999;
+  }
+  return s.max;
+}
+
+void LimitOverride::apply_to(Limit& l) const {
+  if (enabled && !*enabled) {
+    l.warn.reset();
+    l.error.reset();
+  }
+  if (warn) l.warn = warn;
+  if (error) l.error = error;
+  if (stat) l.stat = *stat;
+}
+
+void ThresholdOverrides::apply_to(NodeThresholds& t) const {
+  if (never_seen_enabled) t.never_seen_enabled = *never_seen_enabled;
+  if (never_seen_level) t.never_seen_level = *never_seen_level;
+  if (not_responding_enabled) t.not_responding_enabled = *not_responding_enabled;
+  if (not_responding_after_ns) t.not_responding_after_ns = *not_responding_after_ns;
+  if (not_responding_level) t.not_responding_level = *not_responding_level;
+  read_time.apply_to(t.read_time);
+  write_time.apply_to(t.write_time);
+  rx_gap.apply_to(t.rx_gap);
+  tx_gap.apply_to(t.tx_gap);
+}
+
+NodeThresholds CanConfig::thresholds_for(std::uint8_t bus, std::uint32_t node) const {
+  NodeThresholds t;
+  defaults.apply_to(t);
+  for (const GroupConfig& g : groups) {
+    if (g.members.contains(bus, node)) g.thresholds.apply_to(t);
+  }
+  for (const NodeConfig& n : nodes) {
+    if (n.node == node && (!n.bus || *n.bus == bus)) n.thresholds.apply_to(t);
+  }
+  return t;
+}
+
+std::vector<GroupSpec> CanConfig::group_specs() const {
+  std::vector<GroupSpec> v;
+  v.reserve(groups.size());
+  for (const GroupConfig& g : groups) v.push_back(g.members);
+  return v;
+}
+
+const NodeConfig* CanConfig::find_node(std::uint8_t bus, std::uint32_t node) const noexcept {
+  // A bus-specific entry wins over an any-bus one.
+  const NodeConfig* any = nullptr;
+  for (const NodeConfig& n : nodes) {
+    if (n.node != node) continue;
+    if (n.bus && *n.bus == bus) return &n;
+    if (!n.bus && any == nullptr) any = &n;
+  }
+  return any;
+}
+
+namespace {
+
+constexpr std::array<cfg::EnumName<NodeMapKind>, 3> kNodeMaps{{
+    {"identity", NodeMapKind::Identity},
+    {"canopen", NodeMapKind::CanOpen},
+    {"j1939", NodeMapKind::J1939},
+}};
+
+constexpr std::array<cfg::EnumName<StatusLevel>, 3> kLevels{{
+    {"OK", StatusLevel::Ok},
+    {"WARN", StatusLevel::Warn},
+    {"ERROR", StatusLevel::Error},
+}};
+
+constexpr std::array<cfg::EnumName<LimitStat>, 8> kStats{{
+    {"last", LimitStat::Last},
+    {"mean", LimitStat::Mean},
+    {"ewma", LimitStat::Ewma},
+    {"max", LimitStat::Max},
+    {"p50", LimitStat::P50},
+    {"p90", LimitStat::P90},
+    {"p99", LimitStat::P99},
+    {"p999", LimitStat::P999},
+}};
+
+constexpr std::array<cfg::EnumName<Direction>, 2> kDirections{{
+    {"rx", Direction::Rx},
+    {"tx", Direction::Tx},
+}};
+
+enum class Format : std::uint8_t { Standard, Extended };
+constexpr std::array<cfg::EnumName<Format>, 2> kFormats{{
+    {"standard", Format::Standard},
+    {"extended", Format::Extended},
+}};
+
+// Check: at most `max`, written in hex ("must be at most 0x1FFFFFFF").
+auto at_most_hex(std::uint32_t max) {
+  return [max](std::uint32_t v) -> std::optional<std::string> {
+    if (v <= max) return std::nullopt;
+    return fmt::format("must be at most 0x{:X}", max);
+  };
+}
+
+// One integer, or a sequence of them, each checked.
+template <class C>
+std::vector<std::uint32_t> u32_list(const cfg::Node& n, const C& check) {
+  std::vector<std::uint32_t> out;
+  if (n.is_sequence()) {
+    for (const cfg::Node& e : n.elements()) out.push_back(e.get<std::uint32_t>(check));
+  } else {
+    out.push_back(n.get<std::uint32_t>(check));
+  }
+  return out;
+}
+
+// `[lo, hi]`, each checked, lo <= hi.
+template <class C>
+std::optional<std::pair<std::uint32_t, std::uint32_t>> u32_range(const cfg::Node& n,
+                                                                 const C& check) {
+  if (!n.is_sequence()) {
+    if (n.defined()) n.error("expected a sequence [lo, hi]");
+    return std::nullopt;
+  }
+  const std::vector<cfg::Node> items = n.elements();
+  if (items.size() != 2) {
+    n.error(fmt::format("expected two values [lo, hi], got {}", items.size()));
+    return std::nullopt;
+  }
+  const auto lo = items[0].get<std::uint32_t>(check);
+  const auto hi = items[1].get<std::uint32_t>(check);
+  if (lo > hi) {
+    items[0].error(fmt::format("lo (0x{:X}) must not be above hi (0x{:X})", lo, hi));
+    return std::nullopt;
+  }
+  return std::make_pair(lo, hi);
+}
+
+std::vector<std::uint8_t> bus_list(const cfg::Node& n) {
+  std::vector<std::uint8_t> out;
+  const auto check = cfg::in_range<unsigned>(0, 255);
+  if (n.is_sequence()) {
+    for (const cfg::Node& e : n.elements())
+      out.push_back(static_cast<std::uint8_t>(e.get<unsigned>(check)));
+  } else {
+    out.push_back(static_cast<std::uint8_t>(n.get<unsigned>(check)));
+  }
+  return out;
+}
+
+FilterExpr payload_condition(const cfg::Node& n) {
+  n.reject_unknown_keys({"byte", "value", "mask"});
+  const auto index = n.required<unsigned>("byte", cfg::in_range<unsigned>(0, 63));
+  const auto value = n.required<unsigned>("value", cfg::in_range<unsigned>(0, 255));
+  const auto mask = n.optional<unsigned>("mask", 0xFF, cfg::in_range<unsigned>(0, 255));
+  return match::payload_byte(index, value, mask);
+}
+
+LimitOverride load_limit(const cfg::Node& n) {
+  LimitOverride l;
+  if (!n.defined()) return l;
+  n.reject_unknown_keys({"enabled", "warn", "error", "stat"});
+  if (n.has("enabled")) l.enabled = n.required<bool>("enabled");
+  if (n.has("warn")) l.warn = n.required_duration("warn");
+  if (n.has("error")) l.error = n.required_duration("error");
+  if (n.has("stat")) l.stat = n.required_enum("stat", kStats);
+  if (l.warn && l.error && *l.warn > *l.error) {
+    n["warn"].error(fmt::format("must not be above error ({})", cfg::format_duration(*l.error)));
+  }
+  return l;
+}
+
+}  // namespace
+
+FilterExpr load_filter(const cfg::Node& n) {
+  if (!n.defined() || n.is_null()) return match::accept_all();
+  if (!n.is_mapping()) {
+    n.error("expected a mapping of conditions");
+    return match::accept_all();
+  }
+  n.reject_unknown_keys({"all", "any", "not", "bus", "ids", "id_range", "id_mask", "nodes",
+                         "node_range", "functions", "format", "direction", "fd", "remote",
+                         "payload"});
+  std::vector<FilterExpr> parts;
+  // Conditions in file order, so that the compiled program follows what the user wrote.
+  for (const auto& [key, value] : n.entries()) {
+    if (key == "all" || key == "any") {
+      std::vector<FilterExpr> children;
+      if (!value.is_sequence() && !value.is_null()) {
+        value.error("expected a sequence of filters");
+        continue;
+      }
+      for (const cfg::Node& e : value.elements()) children.push_back(load_filter(e));
+      parts.push_back(key == "all" ? match::all_of(std::move(children))
+                                   : match::any_of(std::move(children)));
+    } else if (key == "not") {
+      parts.push_back(!load_filter(value));
+    } else if (key == "bus") {
+      parts.push_back(match::bus(bus_list(value)));
+    } else if (key == "ids") {
+      parts.push_back(match::ids(u32_list(value, at_most_hex(kMaxExtendedId))));
+    } else if (key == "id_range") {
+      if (auto r = u32_range(value, at_most_hex(kMaxExtendedId))) {
+        parts.push_back(match::id_range(r->first, r->second));
+      }
+    } else if (key == "id_mask") {
+      value.reject_unknown_keys({"id", "mask"});
+      const auto id = value.required<std::uint32_t>("id", at_most_hex(kMaxExtendedId));
+      const auto mask = value.required<std::uint32_t>("mask", at_most_hex(kMaxExtendedId));
+      parts.push_back(match::id_mask(id, mask));
+    } else if (key == "nodes") {
+      parts.push_back(match::nodes(u32_list(value, at_most_hex(0xFFFFFFFFU))));
+    } else if (key == "node_range") {
+      if (auto r = u32_range(value, at_most_hex(0xFFFFFFFFU))) {
+        parts.push_back(match::node_range(r->first, r->second));
+      }
+    } else if (key == "functions") {
+      parts.push_back(match::functions(u32_list(value, at_most_hex(0xFFFFFFFFU))));
+    } else if (key == "format") {
+      parts.push_back(value.get_enum(kFormats) == Format::Extended ? match::extended()
+                                                                   : match::standard());
+    } else if (key == "direction") {
+      parts.push_back(match::direction(value.get_enum(kDirections)));
+    } else if (key == "fd") {
+      parts.push_back(value.get<bool>() ? match::fd() : !match::fd());
+    } else if (key == "remote") {
+      parts.push_back(value.get<bool>() ? match::remote() : !match::remote());
+    } else if (key == "payload") {
+      if (value.is_sequence()) {
+        for (const cfg::Node& e : value.elements()) parts.push_back(payload_condition(e));
+      } else {
+        parts.push_back(payload_condition(value));
+      }
+    }
+  }
+  if (parts.empty()) return match::accept_all();
+  if (parts.size() == 1) return parts.front();
+  return match::all_of(std::move(parts));
+}
+
+ThresholdOverrides load_thresholds(const cfg::Node& n) {
+  ThresholdOverrides t;
+  if (!n.defined()) return t;
+  n.reject_unknown_keys(
+      {"never_seen", "not_responding", "read_time", "write_time", "rx_gap", "tx_gap"});
+  if (const cfg::Node ns = n["never_seen"]; ns.defined()) {
+    ns.reject_unknown_keys({"enabled", "level"});
+    if (ns.has("enabled")) t.never_seen_enabled = ns.required<bool>("enabled");
+    if (ns.has("level")) t.never_seen_level = ns.required_enum("level", kLevels);
+  }
+  if (const cfg::Node nr = n["not_responding"]; nr.defined()) {
+    nr.reject_unknown_keys({"enabled", "after", "level"});
+    if (nr.has("enabled")) t.not_responding_enabled = nr.required<bool>("enabled");
+    if (nr.has("after")) t.not_responding_after_ns = nr.required_duration("after", cfg::positive());
+    if (nr.has("level")) t.not_responding_level = nr.required_enum("level", kLevels);
+  }
+  t.read_time = load_limit(n["read_time"]);
+  t.write_time = load_limit(n["write_time"]);
+  t.rx_gap = load_limit(n["rx_gap"]);
+  t.tx_gap = load_limit(n["tx_gap"]);
+  return t;
+}
+
+CanConfig load_can_config(const cfg::Node& root) {
+  CanConfig c;
+  root.reject_unknown_keys({"node_map", "filter", "defaults", "nodes", "groups"});
+  c.node_map = root.optional_enum("node_map", NodeMapKind::Identity, kNodeMaps);
+  c.filter = load_filter(root["filter"]);
+  // Compile now, so that a filter the sniffer would refuse fails the load, not the reload. Its
+  // operands were checked above, with their positions; this catches what remains (nesting).
+  if (!root.has_errors()) {
+    if (auto compiled = Filter::compile(c.filter); !compiled) {
+      root["filter"].error(compiled.error().message);
+    }
+  }
+  c.defaults = load_thresholds(root["defaults"]);
+
+  const auto bus_check = cfg::in_range<unsigned>(0, 255);
+  for (const auto& [name, n] : root["nodes"].entries()) {
+    n.reject_unknown_keys({"node", "bus", "expected", "thresholds"});
+    NodeConfig nc;
+    nc.name = name;
+    nc.node = n.required<std::uint32_t>("node");
+    if (n.has("bus")) nc.bus = static_cast<std::uint8_t>(n.required<unsigned>("bus", bus_check));
+    nc.expected = n.optional("expected", true);
+    nc.thresholds = load_thresholds(n["thresholds"]);
+    c.nodes.push_back(std::move(nc));
+  }
+  for (const auto& [name, g] : root["groups"].entries()) {
+    g.reject_unknown_keys({"nodes", "node_range", "bus", "expected", "thresholds"});
+    GroupConfig gc;
+    gc.members.name = name;
+    if (g.has("nodes")) gc.members.nodes = u32_list(g["nodes"], at_most_hex(0xFFFFFFFFU));
+    if (g.has("node_range")) {
+      if (auto r = u32_range(g["node_range"], at_most_hex(0xFFFFFFFFU))) {
+        gc.members.node_ranges.push_back(*r);
+      }
+    }
+    if (!g.has("nodes") && !g.has("node_range") && g.is_mapping()) {
+      g.error("a group needs 'nodes' or 'node_range'");
+    }
+    if (g.has("bus")) {
+      gc.members.bus = static_cast<std::uint8_t>(g.required<unsigned>("bus", bus_check));
+    }
+    gc.expected = g.optional("expected", true);
+    gc.thresholds = load_thresholds(g["thresholds"]);
+    c.groups.push_back(std::move(gc));
+  }
+  return c;
+}
+
+expected<CanConfig, cfg::ConfigErrors> load_can_config_file(const std::filesystem::path& path) {
+  return cfg::load_file(path, [](const cfg::Node& root) { return load_can_config(root); });
+}
+
+expected<CanConfig, cfg::ConfigErrors> load_can_config_string(std::string_view text,
+                                                              std::string name) {
+  return cfg::load_string(text, std::move(name),
+                          [](const cfg::Node& root) { return load_can_config(root); });
+}
+
+}  // namespace vigil::can

@@ -1,0 +1,336 @@
+#include "vigil/can/replay.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cctype>
+#include <limits>
+#include <ostream>
+#include <variant>
+
+#include "can/can_json.hpp"
+#include "vigil/can/candump.hpp"
+#include "vigil/can/sniffer.hpp"
+#include "vigil/can/trc.hpp"
+#include "vigil/config/error.hpp"
+#include "vigil/export/json_writer.hpp"
+
+namespace vigil::can {
+
+namespace {
+
+// The replay clock: the latest log timestamp (the supervisor's own timing is meaningless in a
+// replay, but it must not read the wall clock for it either).
+Nanos replay_now(const void* ctx) noexcept { return *static_cast<const Nanos*>(ctx); }
+
+}  // namespace
+
+struct LogReplay::Impl {
+  ReplayOptions options;
+  CanRegistry registry;
+  Sniffer<kPortCapacity> sniffer;
+  CanAggregator aggregator;
+  Nanos clock_ns = 0;
+  CanSupervisor supervisor;
+  std::size_t pending = 0;
+  std::uint64_t frames = 0;
+  Nanos first = 0;
+  Nanos last = 0;
+  std::vector<ReplayFile> files;
+  std::vector<std::string> bus_names;
+
+  explicit Impl(ReplayOptions o)
+      : options(std::move(o)),
+        sniffer(registry, "replay",
+                SnifferOptions{.max_ids = options.max_ids,
+                               .max_nodes = options.max_nodes,
+                               .node_map = options.node_map}),
+        aggregator(registry, CanAggregatorOptions{.exact_percentiles = options.exact_percentiles}),
+        supervisor(registry.ports(), aggregator,
+                   SupervisorOptions{.period_ns = 100 * kNanosPerMilli,
+                                     .batch = 256,
+                                     .thread_name = "vigil-can-replay",
+                                     .clock = Clock{&replay_now, &clock_ns}}) {}
+
+  void feed(const Frame& f, Direction d) {
+    if (frames == 0) {
+      first = f.timestamp;
+      last = f.timestamp;
+    }
+    first = std::min(first, f.timestamp);
+    last = std::max(last, f.timestamp);
+    clock_ns = last;
+    ++frames;
+    sniffer.on_frame(f, d, f.timestamp, f.timestamp);
+    // Each frame pushes at most one record: step before the port can be full, so that the
+    // replay never drops a record.
+    if (++pending >= kPortCapacity) flush();
+  }
+
+  void flush() {
+    supervisor.step();
+    pending = 0;
+  }
+
+  std::uint8_t bus_index(const std::string& name) {
+    const auto it = std::find(bus_names.begin(), bus_names.end(), name);
+    if (it != bus_names.end()) return static_cast<std::uint8_t>(it - bus_names.begin());
+    bus_names.push_back(name);
+    return static_cast<std::uint8_t>(bus_names.size() - 1);
+  }
+};
+
+LogReplay::LogReplay(ReplayOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {
+  if (!impl_->options.filter.accepts_all()) {
+    // An invalid filter is the caller's error; it is reported by load_can_config / compile
+    // before a replay is built, so a failure here keeps accept-all.
+    static_cast<void>(impl_->sniffer.set_filter(impl_->options.filter));
+  }
+  impl_->flush();  // the supervisor picks up the sniffer
+}
+
+LogReplay::~LogReplay() = default;
+
+void LogReplay::feed(const Frame& f, Direction d) { impl_->feed(f, d); }
+
+void LogReplay::flush() { impl_->flush(); }
+
+CanSnapshot LogReplay::snapshot(std::span<const GroupSpec> groups) {
+  flush();
+  return impl_->aggregator.snapshot(groups);
+}
+
+CanReport LogReplay::report(const CanMonitor& monitor) {
+  flush();
+  return monitor.evaluate(impl_->aggregator, impl_->last);
+}
+
+std::uint64_t LogReplay::frames() const noexcept { return impl_->frames; }
+Nanos LogReplay::first_ns() const noexcept { return impl_->first; }
+Nanos LogReplay::last_ns() const noexcept { return impl_->last; }
+const std::vector<ReplayFile>& LogReplay::files() const noexcept { return impl_->files; }
+const std::vector<std::string>& LogReplay::bus_names() const noexcept { return impl_->bus_names; }
+SnifferTotals LogReplay::totals() const noexcept { return impl_->sniffer.totals(); }
+const CanAggregator& LogReplay::aggregator() const noexcept { return impl_->aggregator; }
+
+LogFormat detect_log_format(const std::filesystem::path& path, LogFormat format) {
+  if (format != LogFormat::Auto) return format;
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".trc" ? LogFormat::Trc : LogFormat::Candump;
+}
+
+std::string_view to_string(LogFormat f) noexcept {
+  switch (f) {
+    case LogFormat::Auto:
+      return "auto";
+    case LogFormat::Candump:
+      return "candump";
+    case LogFormat::Trc:
+      return "trc";
+  }
+  return "?";
+}
+
+namespace {
+
+// One open log with its next frame (read ahead for the timestamp merge).
+struct Source {
+  std::variant<CandumpReader, TrcReader> reader;
+  std::size_t file = 0;              // index in LogReplay's files()
+  std::vector<std::uint8_t> bus_of;  // reader's bus index -> replay bus index
+  std::optional<LogEntry> next;
+};
+
+expected<void, Error> advance(Source& s, LogReplay::Impl& m) {
+  expected<std::optional<LogEntry>, Error> e =
+      std::visit([](auto& r) { return r.next(); }, s.reader);
+  if (!e) return unexpected(e.error());
+  s.next = std::move(*e);
+  if (!s.next) return {};
+  Frame& f = s.next->frame;
+  // Map the reader's bus index to the replay's.
+  if (auto* c = std::get_if<CandumpReader>(&s.reader)) {
+    const auto& names = c->interfaces();
+    while (s.bus_of.size() < names.size()) s.bus_of.push_back(m.bus_index(names[s.bus_of.size()]));
+  } else {
+    while (s.bus_of.size() <= f.bus) {
+      s.bus_of.push_back(m.bus_index(fmt::format("bus{}", s.bus_of.size() + 1)));
+    }
+  }
+  f.bus = s.bus_of[f.bus];
+  return {};
+}
+
+void finish_file(const Source& s, ReplayFile& rf) {
+  std::visit(
+      [&](const auto& r) {
+        rf.malformed = r.malformed_count();
+        rf.errors = r.errors();
+        if constexpr (std::is_same_v<std::decay_t<decltype(r)>, TrcReader>) {
+          rf.skipped = r.skipped_count();
+        }
+      },
+      s.reader);
+}
+
+}  // namespace
+
+expected<void, Error> LogReplay::feed_files(std::span<const std::filesystem::path> paths,
+                                            LogFormat format) {
+  Impl& m = *impl_;
+  std::vector<Source> sources;
+  sources.reserve(paths.size());
+  for (const std::filesystem::path& p : paths) {
+    ReplayFile rf;
+    rf.path = p;
+    rf.format = detect_log_format(p, format);
+    m.files.push_back(rf);
+    const std::size_t index = m.files.size() - 1;
+    if (rf.format == LogFormat::Trc) {
+      auto r = TrcReader::open(p, m.options.reader);
+      if (!r) return unexpected(r.error());
+      sources.push_back(Source{std::move(*r), index, {}, std::nullopt});
+    } else {
+      auto r = CandumpReader::open(p, m.options.reader);
+      if (!r) return unexpected(r.error());
+      sources.push_back(Source{std::move(*r), index, {}, std::nullopt});
+    }
+  }
+  for (Source& s : sources) {
+    if (auto r = advance(s, m); !r) return r;
+  }
+  for (;;) {
+    // The source with the earliest next frame; ties go to the file given first.
+    Source* best = nullptr;
+    for (Source& s : sources) {
+      if (s.next && (best == nullptr || s.next->frame.timestamp < best->next->frame.timestamp)) {
+        best = &s;
+      }
+    }
+    if (best == nullptr) break;
+    const LogEntry& e = *best->next;
+    m.feed(e.frame, e.direction.value_or(m.options.default_direction));
+    ++m.files[best->file].frames;
+    if (auto r = advance(*best, m); !r) {
+      finish_file(*best, m.files[best->file]);
+      return r;
+    }
+  }
+  for (const Source& s : sources) finish_file(s, m.files[s.file]);
+  m.flush();
+  return {};
+}
+
+// ---------------------------------------------------------------------------------------------
+// vigil can-stats
+
+namespace {
+
+// A log timestamp as candump writes it: seconds with 6 decimals (9 when not whole µs).
+std::string timestamp_text(Nanos t) {
+  const Nanos s = t / kNanosPerSecond;
+  const Nanos ns = t % kNanosPerSecond;
+  if (ns % 1000 == 0) return fmt::format("{}.{:06}", s, ns / 1000);
+  return fmt::format("{}.{:09}", s, ns);
+}
+
+void print_warnings(const LogReplay& replay, std::ostream& err) {
+  for (const ReplayFile& f : replay.files()) {
+    if (f.malformed == 0) continue;
+    err << fmt::format("vigil can-stats: warning: {}: {} malformed line{} skipped\n",
+                       f.path.string(), f.malformed, f.malformed == 1 ? "" : "s");
+    for (std::size_t i = 0; i < f.errors.size() && i < 10; ++i) {
+      err << "  " << f.errors[i].to_string() << '\n';
+    }
+  }
+}
+
+}  // namespace
+
+int run_can_stats(const CanStatsOptions& options, std::ostream& out, std::ostream& err) {
+  if (options.files.empty()) {
+    err << "vigil can-stats: no log file given\n"
+           "usage: vigil can-stats FILE... [--config FILE] [--json] "
+           "[--node-map identity|canopen|j1939]\n";
+    return 2;
+  }
+  CanConfig config;
+  if (options.config) {
+    auto loaded = load_can_config_file(*options.config);
+    if (!loaded) {
+      err << config::to_string(loaded.error()) << '\n';
+      return 1;
+    }
+    config = std::move(*loaded);
+  }
+  if (options.node_map) config.node_map = *options.node_map;
+
+  ReplayOptions ro;
+  ro.node_map = NodeMap::of(config.node_map);
+  ro.filter = config.filter;
+  ro.default_direction = options.default_direction;
+  ro.exact_percentiles = true;
+  LogReplay replay(ro);
+  if (auto r = replay.feed_files(options.files, options.format); !r) {
+    print_warnings(replay, err);
+    err << "vigil can-stats: " << r.error().message << '\n';
+    return 1;
+  }
+  print_warnings(replay, err);
+
+  const CanMonitor monitor(config);
+  const CanReport report = replay.report(monitor);
+  const Nanos duration = replay.last_ns() - replay.first_ns();
+
+  if (options.json) {
+    JsonWriter w(2);
+    w.begin_object();
+    w.field("schema", 1).field("tool", "vigil can-stats");
+    w.key("files").begin_array();
+    for (const ReplayFile& f : replay.files()) {
+      w.begin_object();
+      w.field("path", f.path.string()).field("format", to_string(f.format));
+      w.field("frames", f.frames).field("malformed", f.malformed).field("skipped", f.skipped);
+      w.end_object();
+    }
+    w.end_array();
+    w.key("buses").begin_array();
+    for (const std::string& b : replay.bus_names()) w.value(b);
+    w.end_array();
+    w.field("frames", replay.frames());
+    w.field("first_timestamp_ns", replay.first_ns()).field("last_timestamp_ns", replay.last_ns());
+    w.field("duration_ns", duration);
+    detail::write_report_members(w, report, replay.bus_names());
+    w.end_object();
+    out << w.str() << '\n';
+    return 0;
+  }
+
+  out << fmt::format("vigil can-stats: {} file{}, {} frames, {} to {} ({:.6f} s)\n",
+                     replay.files().size(), replay.files().size() == 1 ? "" : "s", replay.frames(),
+                     timestamp_text(replay.first_ns()), timestamp_text(replay.last_ns()),
+                     static_cast<double>(duration) / 1e9);
+  for (const ReplayFile& f : replay.files()) {
+    out << fmt::format("  {}: {}, {} frames", f.path.string(), to_string(f.format), f.frames);
+    if (f.malformed > 0) out << fmt::format(", {} malformed lines skipped", f.malformed);
+    if (f.skipped > 0) out << fmt::format(", {} status records", f.skipped);
+    out << '\n';
+  }
+  std::string buses;
+  for (std::size_t i = 0; i < replay.bus_names().size(); ++i) {
+    if (i > 0) buses += ", ";
+    buses += fmt::format("{} = {}", i, replay.bus_names()[i]);
+  }
+  if (!buses.empty()) out << "  buses: " << buses << '\n';
+  if (options.config) out << "  config: " << options.config->string() << '\n';
+  out << '\n';
+  CanTextOptions text;
+  text.ids = options.ids;
+  text.bus_names = replay.bus_names();
+  out << format_can_report(report, text);
+  return 0;
+}
+
+}  // namespace vigil::can

@@ -1,0 +1,285 @@
+#include "vigil/can/can_monitor.hpp"
+
+#include <catch2/catch.hpp>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include "can_test_support.hpp"
+#include "support/json_reader.hpp"
+#include "vigil/config/reloadable.hpp"
+
+using namespace vigil::can;
+using vigil::kNanosPerMicro;
+using vigil::kNanosPerMilli;
+using vigil::kNanosPerSecond;
+using vigil::Nanos;
+using vigil::StatusLevel;
+using vigil::can::test::frame;
+using vigil::can::test::Pipeline;
+
+namespace {
+CanConfig config_of(std::string_view yaml) {
+  auto c = load_can_config_string(yaml, "test.yaml");
+  if (!c) FAIL(vigil::config::to_string(c.error()));
+  return *c;
+}
+bool has_message(const vigil::Status& s, std::string_view text) {
+  return s.summary().find(text) != std::string::npos;
+}
+}  // namespace
+
+TEST_CASE("CAN check: an expected node never seen is not initialized", "[can][monitor]") {
+  Pipeline<64> p({.node_map = NodeMap::canopen()});
+  p.read(frame(0x181, kNanosPerSecond));   // node 1 only
+  p.write(frame(0x603, kNanosPerSecond));  // we talk to node 3, it never answers
+  p.supervisor.step();
+  const CanMonitor monitor(config_of(R"(
+node_map: canopen
+nodes:
+  shoulder: {node: 1, bus: 0}
+  elbow: {node: 2}
+  wrist: {node: 3, bus: 0}
+  spare: {node: 9, expected: false}
+groups:
+  hand: {nodes: [4], bus: 0, thresholds: {never_seen: {level: WARN}}}
+)"));
+  const CanReport r = monitor.evaluate(p.aggregator, kNanosPerSecond);
+  const NodeReport* shoulder = r.find("shoulder");
+  REQUIRE(shoulder != nullptr);
+  CHECK(shoulder->status.level() == StatusLevel::Ok);
+  CHECK(shoulder->named);
+  CHECK(shoulder->silence_ns == 0);
+
+  const NodeReport* elbow = r.find("elbow");  // any bus, never seen on any
+  REQUIRE(elbow != nullptr);
+  CHECK_FALSE(elbow->bus.has_value());
+  CHECK(elbow->status.level() == StatusLevel::Error);
+  CHECK(has_message(elbow->status, "not initialized: never seen"));
+
+  const NodeReport* wrist = r.find("wrist");
+  REQUIRE(wrist != nullptr);
+  CHECK(wrist->status.level() == StatusLevel::Error);
+  CHECK(has_message(wrist->status, "never answered (1 frames sent to it)"));
+
+  CHECK(r.find("spare") == nullptr);  // not expected, not seen: not reported
+  const NodeReport* hand = r.find(0, 4);
+  REQUIRE(hand != nullptr);
+  CHECK(hand->status.level() == StatusLevel::Warn);  // the group's level
+  CHECK(hand->groups == std::vector<std::string>{"hand"});
+  CHECK(r.status.level() == StatusLevel::Error);
+  INFO(r.status.summary());
+  CHECK(has_message(r.status, "2 nodes ERROR: wrist, elbow"));  // seen (bus 0) first
+  CHECK(has_message(r.status, "1 node WARN: 4"));
+
+  // Disabled: nothing to say.
+  const CanMonitor quiet(
+      config_of("defaults: {never_seen: {enabled: false}}\n"
+                "nodes: {elbow: {node: 2}}\n"));
+  CHECK(quiet.evaluate(p.aggregator, kNanosPerSecond).find("elbow")->status.ok());
+}
+
+TEST_CASE("CAN check: not responding after its silence threshold, at the edge", "[can][monitor]") {
+  Pipeline<64> p({.node_map = NodeMap::canopen()});
+  for (int i = 1; i <= 10; ++i) p.read(frame(0x181, i * 10 * kNanosPerMilli));
+  p.supervisor.step();
+  const Nanos last = 100 * kNanosPerMilli;
+  const CanMonitor monitor(config_of("defaults: {not_responding: {after: 50ms}}\n"));
+  // Equal to the limit passes; one nanosecond more does not.
+  CHECK(monitor.evaluate(p.aggregator, last + 50 * kNanosPerMilli).nodes[0].status.ok());
+  const CanReport late = monitor.evaluate(p.aggregator, last + 50 * kNanosPerMilli + 1);
+  REQUIRE(late.nodes.size() == 1);
+  CHECK(late.nodes[0].status.level() == StatusLevel::Error);
+  CHECK(late.nodes[0].silence_ns == 50 * kNanosPerMilli + 1);
+  CHECK(has_message(late.nodes[0].status, "not responding: silent for 50.0ms (limit 50ms)"));
+
+  const CanMonitor warn(config_of("defaults: {not_responding: {after: 50ms, level: WARN}}\n"));
+  CHECK(warn.evaluate(p.aggregator, last + kNanosPerSecond).nodes[0].status.level() ==
+        StatusLevel::Warn);
+  const CanMonitor off(config_of("defaults: {not_responding: {enabled: false}}\n"));
+  CHECK(off.evaluate(p.aggregator, last + 100 * kNanosPerSecond).nodes[0].status.ok());
+  // The built-in limit is 1 s.
+  const CanMonitor builtin;
+  CHECK(builtin.evaluate(p.aggregator, last + kNanosPerSecond).nodes[0].status.ok());
+  CHECK_FALSE(builtin.evaluate(p.aggregator, last + kNanosPerSecond + 1).nodes[0].status.ok());
+}
+
+TEST_CASE("CAN check: read/write times and gaps above thresholds, at the edge", "[can][monitor]") {
+  Pipeline<256> p({.node_map = NodeMap::canopen()});
+  // Node 1 answers every 10 ms (one gap of 20 ms); reads take 100 us, one 300 us.
+  // We write to node 1 every 10 ms; writes take 50 us.
+  Nanos t = 0;
+  for (int i = 0; i < 20; ++i) {
+    t += (i == 10 ? 20 : 10) * kNanosPerMilli;
+    p.read(frame(0x181, t), (i == 5 ? 300 : 100) * kNanosPerMicro);
+    p.write(frame(0x201, t), 50 * kNanosPerMicro);
+  }
+  p.supervisor.step();
+  const auto level = [&](std::string_view yaml) {
+    const CanMonitor m(config_of(yaml));
+    const CanReport r = m.evaluate(p.aggregator, t);
+    REQUIRE(r.nodes.size() == 1);
+    INFO(r.nodes[0].status.summary());
+    return r.nodes[0].status.level();
+  };
+  CHECK(level("defaults: {rx_gap: {warn: 20ms}}") == StatusLevel::Ok);  // equal passes
+  CHECK(level("defaults: {rx_gap: {warn: 19999999ns}}") == StatusLevel::Warn);
+  CHECK(level("defaults: {rx_gap: {warn: 15ms, error: 19ms}}") == StatusLevel::Error);
+  CHECK(level("defaults: {rx_gap: {error: 15ms, stat: p50}}") == StatusLevel::Ok);
+  CHECK(level("defaults: {rx_gap: {error: 15ms, stat: mean}}") == StatusLevel::Ok);
+  CHECK(level("defaults: {read_time: {warn: 300us}}") == StatusLevel::Ok);
+  CHECK(level("defaults: {read_time: {warn: 299us}}") == StatusLevel::Warn);
+  CHECK(level("defaults: {read_time: {warn: 299us, stat: last}}") == StatusLevel::Ok);
+  CHECK(level("defaults: {write_time: {error: 49us}}") == StatusLevel::Error);
+  CHECK(level("defaults: {write_time: {error: 50us}}") == StatusLevel::Ok);
+  CHECK(level("defaults: {tx_gap: {warn: 11ms}}") == StatusLevel::Warn);  // the 20 ms one
+  // Percentiles are upper bounds within 2^-5 (10 ms reads as at most 10.3 ms).
+  CHECK(level("defaults: {tx_gap: {warn: 11ms, stat: p90}}") == StatusLevel::Ok);
+
+  const CanMonitor m(config_of("defaults: {rx_gap: {warn: 15ms}, read_time: {error: 200us}}"));
+  const CanReport r = m.evaluate(p.aggregator, t);
+  CHECK(has_message(r.nodes[0].status, "rx gap max 20.0ms above 15ms"));
+  CHECK(has_message(r.nodes[0].status, "read time max 300us above 200us"));
+}
+
+TEST_CASE("CAN thresholds layer: defaults, then groups, then the node", "[can][monitor]") {
+  const CanConfig c = config_of(R"(
+defaults:
+  rx_gap: {warn: 10ms, error: 50ms}
+  not_responding: {after: 200ms}
+groups:
+  arm: {node_range: [11, 14], thresholds: {rx_gap: {warn: 5ms}, not_responding: {after: 100ms}}}
+  fast: {nodes: [12], thresholds: {rx_gap: {stat: p99}}}
+nodes:
+  elbow: {node: 12, bus: 0, thresholds: {rx_gap: {error: 20ms}}}
+  other_bus: {node: 12, bus: 1, thresholds: {rx_gap: {enabled: false}}}
+)");
+  const NodeThresholds base = c.thresholds_for(0, 1);
+  CHECK(base.rx_gap.warn == 10 * kNanosPerMilli);
+  CHECK(base.rx_gap.error == 50 * kNanosPerMilli);
+  CHECK(base.not_responding_after_ns == 200 * kNanosPerMilli);
+  CHECK(base.never_seen_level == StatusLevel::Error);
+  const NodeThresholds arm = c.thresholds_for(0, 11);
+  CHECK(arm.rx_gap.warn == 5 * kNanosPerMilli);
+  CHECK(arm.rx_gap.error == 50 * kNanosPerMilli);
+  CHECK(arm.not_responding_after_ns == 100 * kNanosPerMilli);
+  const NodeThresholds elbow = c.thresholds_for(0, 12);
+  CHECK(elbow.rx_gap.warn == 5 * kNanosPerMilli);
+  CHECK(elbow.rx_gap.error == 20 * kNanosPerMilli);
+  CHECK(elbow.rx_gap.stat == LimitStat::P99);
+  const NodeThresholds other = c.thresholds_for(1, 12);
+  CHECK_FALSE(other.rx_gap.enabled());
+  CHECK(c.find_node(0, 12)->name == "elbow");
+  CHECK(c.find_node(1, 12)->name == "other_bus");
+  CHECK(c.find_node(0, 13) == nullptr);
+}
+
+TEST_CASE("CAN monitor: overall status, untracked frames and sampled timing", "[can][monitor]") {
+  Pipeline<4> p({.max_ids = 2});
+  for (int i = 0; i < 10; ++i) p.read(frame(0x100 + static_cast<std::uint32_t>(i % 3), i));
+  p.sniffer.on_read(Frame::error_frame(0x4), 10, 10);
+  p.supervisor.step();
+  const CanReport r = CanMonitor().evaluate(p.aggregator, 10);
+  CHECK(r.status.level() == StatusLevel::Warn);
+  CHECK(has_message(r.status, "3 frames not counted per id"));
+  CHECK(has_message(r.status, "1 error frame"));
+  CHECK(has_message(r.status, "timing sampled: 6 records of 10 dropped"));
+  // The untracked id is still reported, from its records, marked as a lower bound.
+  const IdStats* id = r.snapshot.find_id(0, 0x102, false, Direction::Rx);
+  REQUIRE(id != nullptr);
+  CHECK_FALSE(id->exact_count);
+}
+
+TEST_CASE("CAN monitor: custom checks and reloaded thresholds", "[can][monitor]") {
+  Pipeline<64> p;
+  for (int i = 1; i <= 5; ++i) p.read(frame(0x7, i * kNanosPerMilli));
+  p.supervisor.step();
+
+  const auto dir = std::filesystem::temp_directory_path() / "vigil_can_monitor_test";
+  std::filesystem::create_directories(dir);
+  const auto path = dir / "can.yaml";
+  const auto write = [&](std::string_view text) {
+    std::ofstream(path, std::ios::trunc) << text;
+    // A new size is enough for poll() to see the change even within one mtime tick.
+  };
+  write("defaults: {rx_gap: {warn: 5ms}}\n");
+  auto reloadable = vigil::config::Reloadable<CanConfig>::open(
+      path, [](const vigil::config::Node& root) { return load_can_config(root); });
+  REQUIRE(reloadable.has_value());
+  CanMonitor monitor;
+  monitor.set_config(reloadable->current());
+  reloadable->subscribe(
+      [&](const std::shared_ptr<const CanConfig>& c, std::uint64_t) { monitor.set_config(c); });
+  monitor.add_check("odd", [](const NodeReport& n, const CanReport&, vigil::Status& out) {
+    if (n.node % 2 == 1) out.merge(StatusLevel::Ok, "odd node");
+  });
+  CanReport r = monitor.evaluate(p.aggregator, 5 * kNanosPerMilli);
+  CHECK(r.nodes[0].status.ok());
+  CHECK(has_message(r.nodes[0].status, "odd node"));
+
+  write("defaults: {rx_gap: {warn: 500us, error: 900us}}\n");
+  REQUIRE(reloadable->reload().has_value());
+  r = monitor.evaluate(p.aggregator, 5 * kNanosPerMilli);
+  CHECK(r.nodes[0].status.level() == StatusLevel::Error);
+
+  write("defaults: {rx_gap: {warn: 5 parsecs}}\n");  // a bad edit keeps the previous value
+  CHECK_FALSE(reloadable->reload().has_value());
+  CHECK(monitor.evaluate(p.aggregator, 5 * kNanosPerMilli).nodes[0].status.level() ==
+        StatusLevel::Error);
+
+  monitor.add_check("throws", [](const NodeReport&, const CanReport&, vigil::Status&) {
+    throw std::runtime_error("boom");
+  });
+  r = monitor.evaluate(p.aggregator, 5 * kNanosPerMilli);
+  CHECK(has_message(r.nodes[0].status, "check throws failed: boom"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("CAN report as text and JSON", "[can][monitor][export]") {
+  Pipeline<256> p({.node_map = NodeMap::canopen()});
+  for (int i = 1; i <= 20; ++i) {
+    p.read(frame(0x181, i * kNanosPerMilli), 10 * kNanosPerMicro);
+    p.write(frame(0x201, i * kNanosPerMilli), 20 * kNanosPerMicro);
+  }
+  p.supervisor.step();
+  const CanMonitor monitor(config_of(R"(
+nodes: {base: {node: 1}, "ghost \"node\"": {node: 7}}
+groups: {arm: {nodes: [1, 2], expected: false}}
+)"));
+  const CanReport r = monitor.evaluate(p.aggregator, 20 * kNanosPerMilli);
+  const std::string text = format_can_report(r, {.bus_names = {"can0"}});
+  INFO(text);
+  CHECK(text.find("CAN status: ERROR") == 0);
+  CHECK(text.find("\nSummary\nCATEGORY") != std::string::npos);
+  CHECK(text.find("group arm") != std::string::npos);
+  CHECK(text.find("ghost \"node\"") != std::string::npos);
+  CHECK(text.find("not initialized: never seen") != std::string::npos);
+  CHECK(text.find("TPDO1") != std::string::npos);
+  CHECK(text.find("can0") != std::string::npos);
+
+  const auto j = vigil::test::JsonParser::parse(can_report_json(r, 2, {"can0"}));
+  CHECK(j["schema"].number() == 1);
+  CHECK(j["status"].str() == "ERROR");
+  CHECK(j["node_map"].str() == "canopen");
+  CHECK(j["totals"]["frames"].number() == 40);
+  const auto& summary = j["summary"].array();
+  REQUIRE(summary.size() == 4);  // all Rx, all Tx, arm Rx, arm Tx
+  CHECK(summary[0]["category"].str() == "all");
+  CHECK(summary[0]["io_us"]["mean"].number() == Approx(10.0));
+  CHECK(summary[0]["gap_us"]["min"].number() == Approx(1000.0));
+  const auto& nodes = j["nodes"].array();
+  REQUIRE(nodes.size() == 2);
+  CHECK(nodes[0]["name"].str() == "base");
+  CHECK(nodes[0]["bus_name"].str() == "can0");
+  CHECK(nodes[0]["rx"]["frames"].number() == 20);
+  CHECK(nodes[0]["tx"]["io_ns"]["max"].number() == 20000);
+  CHECK(nodes[1]["name"].str() == "ghost \"node\"");
+  CHECK(nodes[1]["bus"].is_null());
+  CHECK(nodes[1]["status"].str() == "ERROR");
+  CHECK(nodes[1]["rx"].is_null());
+  const auto& ids = j["ids"].array();
+  REQUIRE(ids.size() == 2);
+  CHECK(ids[0]["id"].str() == "181");
+  CHECK(ids[0]["gap_ns"]["p50"].number() == 1'000'000);
+  CHECK(j["sniffers"][0]["name"].str() == "test-bus");
+}
