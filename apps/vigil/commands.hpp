@@ -26,7 +26,7 @@ struct CanStatsArgs {
   std::vector<std::string> files;
   std::string config;
   bool json = false;
-  std::string node_map = "identity";
+  std::string node_map;  ///< empty: the configuration's (identity without one)
 };
 int run_can_stats_command(const CanStatsArgs& args);
 

@@ -2,11 +2,15 @@
 // the demo shows comes from the one base class, not from code in these components.
 #include "demo_components.hpp"
 
+#include <array>
 #include <cmath>
 #include <memory>
 #include <stdexcept>
 #include <vector>
 
+#include "can_extension.hpp"
+#include "vigil/can/sniffer.hpp"
+#include "vigil/deploy/system.hpp"
 #include "vigil/platform/clock.hpp"
 
 namespace vigil::demo {
@@ -154,6 +158,69 @@ class Faulty : public Task<Faulty> {
   Nanos start_ns_ = 0;
 };
 
+/// A CAN I/O component: every millisecond it sends SYNC and one RPDO1 (control word) to each of
+/// `drives` simulated CANopen drives and reads their TPDO1 answers, timing every driver call into
+/// the sniffer of the deployment's CAN supervision. Drive `silent_node` stops answering after
+/// `silent_after`.
+class CanIo : public Task<CanIo> {
+ public:
+  explicit CanIo(const ComponentContext& c)
+      : Task(c.name, c.supervision, c.registry()),
+        drives_(param<std::uint32_t>(c, "drives", 8)),
+        silent_node_(param<std::uint32_t>(c, "silent_node", 5)),
+        silent_after_ns_(param_duration(c, "silent_after", 3 * kNanosPerSecond)) {
+    auto* ext = c.system != nullptr ? c.system->extension<app::CanExtension>() : nullptr;
+    if (ext == nullptr) {
+      throw std::runtime_error("demo.can_io needs a `can:` section in the deployment");
+    }
+    sniffer_ = std::make_unique<can::Sniffer<256>>(
+        ext->registry(), c.name,
+        can::SnifferOptions{.max_ids = 64, .node_map = can::NodeMap::canopen()});
+    if (auto ok = sniffer_->set_filter(ext->config().filter); !ok) {
+      throw std::runtime_error("CAN filter: " + ok.error().message);
+    }
+    if (drives_ == 0 || drives_ > 127) throw std::runtime_error("drives must be 1..127");
+  }
+  bool on_start() {
+    start_ns_ = platform::now_ns();
+    return true;
+  }
+  void on_update() {
+    const bool silent_phase = platform::now_ns() - start_ns_ > silent_after_ns_;
+    send(can::Frame::classic(0x080, {}));  // SYNC
+    pending_ = 0;
+    for (std::uint32_t node = 1; node <= drives_; ++node) {
+      send(can::Frame::classic(0x200 + node, {0x0F, 0x00, 0x00, 0x10}));  // RPDO1: control word
+      if (!(silent_phase && node == silent_node_)) answers_[pending_++] = node;
+    }
+    for (std::uint32_t i = 0; i < pending_; ++i) {  // the drives' TPDO1 (status word) answers
+      const Nanos t0 = platform::now_ns();
+      burn(2 * kNanosPerMicro);  // the driver's read call
+      can::Frame f = can::Frame::classic(0x180 + answers_[i], {0x27, 0x06, 0x00, 0x10});
+      const Nanos t1 = platform::now_ns();
+      f.timestamp = t1;
+      sniffer_->on_read(f, t0, t1);
+    }
+  }
+
+ private:
+  void send(can::Frame f) {
+    const Nanos t0 = platform::now_ns();
+    burn(3 * kNanosPerMicro);  // the driver's write call
+    const Nanos t1 = platform::now_ns();
+    f.timestamp = t1;
+    sniffer_->on_write(f, t0, t1);
+  }
+
+  std::uint32_t drives_;
+  std::uint32_t silent_node_;
+  Nanos silent_after_ns_;
+  Nanos start_ns_ = 0;
+  std::unique_ptr<can::Sniffer<256>> sniffer_;
+  std::array<std::uint32_t, 128> answers_{};
+  std::uint32_t pending_ = 0;
+};
+
 }  // namespace
 
 void register_components() {
@@ -164,6 +231,8 @@ void register_components() {
   f.add<LoadRamp>("demo.load_ramp", "fault: execution time ramping toward the period");
   f.add<Leaky>("demo.leaky", "fault: allocates every N cycles");
   f.add<Faulty>("demo.faulty", "fault: throws after a delay");
+  f.add<CanIo>("demo.can_io", "CAN I/O with simulated CANopen drives (needs a `can:` section)");
+  app::register_can_extension();
 }
 
 const char* const kDemoDeployment =
@@ -195,6 +264,10 @@ components:
     type: demo.faulty
     activity: aux
     parameters: {after: 4s}
+  - name: can_io
+    type: demo.can_io
+    activity: io
+    parameters: {drives: 8, silent_node: 5, silent_after: 3s}
 supervision:
   supervisor_period: 10ms
   monitor_period: 1s
@@ -207,6 +280,24 @@ supervision:
       # The simulated workloads are tiny (5-60 us): supervision is ~1% of them in a release
       # build, but several times more in a sanitizer build. Warn from 20%.
       overhead: {warn_share: 0.2}
+can:
+  node_map: canopen
+  filter: {not: {ids: [0x080]}}   # SYNC is nobody's traffic
+  defaults:
+    not_responding: {after: 100ms}
+    rx_gap: {warn: 5ms, error: 50ms, stat: p99}
+  nodes:
+    drive_1: {node: 1, bus: 0}
+    drive_2: {node: 2, bus: 0}
+    drive_3: {node: 3, bus: 0}
+    drive_4: {node: 4, bus: 0}
+    drive_5: {node: 5, bus: 0}
+    drive_6: {node: 6, bus: 0}
+    drive_7: {node: 7, bus: 0}
+    drive_8: {node: 8, bus: 0}
+  groups:
+    left_arm: {node_range: [1, 4], bus: 0}
+    right_arm: {node_range: [5, 8], bus: 0}
 outputs: {}
 )";
 

@@ -145,6 +145,7 @@ expected<void, Error> System::start() {
 
 void System::stop() {
   if (!running_) return;
+  for (auto& e : extensions_) e->stopping();
   for (auto it = slots_.rbegin(); it != slots_.rend(); ++it) {
     if (it->activity) it->activity->stop();
   }

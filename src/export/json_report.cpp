@@ -72,7 +72,7 @@ void write_json(JsonWriter& w, const Report& r) {
   w.end_array();
   w.field("alive", r.alive);
   w.field("configured", r.configured);
-  w.field("state", to_string(r.state));
+  w.field("state", r.state_label.empty() ? std::string(to_string(r.state)) : r.state_label);
   w.field("activity", r.activity);
   w.field("policy", platform::to_string(r.policy));
   w.field("requested_policy", platform::to_string(r.requested_policy));

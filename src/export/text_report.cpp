@@ -58,6 +58,7 @@ std::string status_word(StatusLevel l, bool color, std::size_t width) {
 }
 
 std::string state_of(const Report& r) {
+  if (!r.state_label.empty()) return r.state_label;
   if (!r.alive) return "left";
   return to_string(r.state);
 }

@@ -1,6 +1,7 @@
 # Runs `vigil demo --duration 10 --json OUT` and checks the final reports (JSON schema 1):
 # healthy components end OK; the ramping one WARN (near overrun) or worse; the allocating one
-# reports allocation losses; the throwing one ERROR with the exception's message.
+# reports allocation losses; the throwing one ERROR with the exception's message; the silent CAN
+# node is reported not responding and all others respond.
 execute_process(COMMAND ${VIGIL} demo --duration 10 --no-live --json ${OUT}
                 RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
 message("${out}${err}")
@@ -20,6 +21,11 @@ foreach(i RANGE ${last})
   string(JSON status GET "${json}" components ${i} status)
   string(JSON kind GET "${json}" components ${i} kind)
   set(status_${name} ${status})
+  if(kind STREQUAL "can_node")
+    string(JSON state GET "${json}" components ${i} state)
+    list(APPEND can_nodes ${name})
+    set(can_state_${name} "${state}")
+  endif()
   if(kind STREQUAL "component")
     string(JSON msgs GET "${json}" components ${i} messages)
     set(messages_${name} "${msgs}")
@@ -43,6 +49,20 @@ endif()
 if(NOT status_encoder STREQUAL "ERROR" OR NOT messages_encoder MATCHES "encoder checksum mismatch")
   list(APPEND failures "encoder is ${status_encoder} (${messages_encoder}), expected ERROR with its message")
 endif()
+# CAN: drive 5 goes silent after 3 s and is reported not responding; the 7 others respond.
+list(LENGTH can_nodes n_can)
+if(NOT n_can EQUAL 8)
+  list(APPEND failures "expected 8 CAN nodes, found ${n_can}: ${can_nodes}")
+endif()
+foreach(node ${can_nodes})
+  if(node STREQUAL "can0/drive_5")
+    if(NOT status_${node} STREQUAL "ERROR" OR NOT can_state_${node} STREQUAL "not responding")
+      list(APPEND failures "${node} is ${status_${node}} (${can_state_${node}}), expected not responding")
+    endif()
+  elseif(NOT status_${node} STREQUAL "OK" OR NOT can_state_${node} STREQUAL "responding")
+    list(APPEND failures "${node} is ${status_${node}} (${can_state_${node}}), expected responding")
+  endif()
+endforeach()
 if(failures)
   list(JOIN failures "\n  " text)
   message(FATAL_ERROR "demo reports are wrong:\n  ${text}")

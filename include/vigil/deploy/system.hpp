@@ -35,6 +35,9 @@ class Extension {
   virtual ~Extension() = default;
   /// Called after the supervisor and monitor started, before any component is configured.
   virtual expected<void, Error> start() { return {}; }
+  /// Called when the system begins to stop, before any component stops (e.g. to judge
+  /// liveness as of that moment rather than after the shutdown's own delays).
+  virtual void stopping() {}
   /// Called after the components stopped.
   virtual void stop() {}
   /// Adds the extension's reports (e.g. one per CAN node) to a monitor cycle's reports.

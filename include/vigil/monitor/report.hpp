@@ -26,9 +26,11 @@ enum class ReportKind : std::uint8_t {
   Component,   ///< a supervised component
   Supervisor,  ///< the supervisor itself ("vigil.supervisor")
   Monitor,     ///< the monitor itself ("vigil.monitor")
+  CanNode,     ///< a CAN node, from a CAN monitor ("can0/drive_5")
+  CanGroup,    ///< a group of CAN nodes ("can0/left_arm"), the worst of its nodes
 };
 
-/// "component", "supervisor", "monitor".
+/// "component", "supervisor", "monitor", "can_node", "can_group".
 [[nodiscard]] constexpr const char* to_string(ReportKind k) noexcept {
   switch (k) {
     case ReportKind::Component:
@@ -37,6 +39,10 @@ enum class ReportKind : std::uint8_t {
       return "supervisor";
     case ReportKind::Monitor:
       return "monitor";
+    case ReportKind::CanNode:
+      return "can_node";
+    case ReportKind::CanGroup:
+      return "can_group";
   }
   return "?";
 }
@@ -105,6 +111,9 @@ struct Report {
 
   // --- state and counters ---
   TaskState state = TaskState::PreOperational;
+  /// For reports that are not components (CAN nodes, groups): the state in words
+  /// ("responding", "silent", "never seen"), shown and exported instead of `state`.
+  std::string state_label;
   ComponentCounters counters;  ///< cumulative, exact
   std::uint64_t samples = 0;   ///< cycle samples received (fewer than cycles when some dropped)
   Window window;               ///< counter deltas over the recent window

@@ -1,0 +1,89 @@
+#include "can_extension.hpp"
+
+#include <fmt/format.h>
+
+namespace vigil::app {
+
+CanExtension::CanExtension(can::CanConfig config) : config_(std::move(config)) {
+  statistics_ = std::make_unique<can::CanAggregator>(registry_);
+  supervisor_ = std::make_unique<can::CanSupervisor>(
+      registry_.ports(), *statistics_,
+      SupervisorOptions{.period_ns = 100 * kNanosPerMilli, .thread_name = "vigil-can-sup"});
+  monitor_ = std::make_unique<can::CanMonitor>(config_);
+}
+
+expected<void, Error> CanExtension::start() {
+  stopped_at_ = 0;
+  return supervisor_->start();
+}
+
+void CanExtension::stopping() { stopped_at_ = platform::now_ns(); }
+
+void CanExtension::stop() { supervisor_->stop(); }
+
+void CanExtension::contribute(ReportSet& reports) {
+  if (!supervisor_->running()) supervisor_->step();
+  // After a stop, nodes are judged as of the moment the system began to stop: the bus went quiet
+  // because the system stopped, not because a node failed.
+  const Nanos now = stopped_at_ != 0 ? stopped_at_ : platform::now_ns();
+  const can::CanReport r = monitor_->evaluate(*statistics_, now);
+  std::map<std::string, Report> groups;
+  for (const auto& n : r.nodes) {
+    Report rep;
+    rep.kind = ReportKind::CanNode;
+    rep.name = fmt::format("can{}/{}", n.bus ? std::to_string(*n.bus) : std::string("*"), n.name);
+    rep.status = n.status;
+    const std::uint64_t rx = n.rx ? n.rx->frames : 0;
+    const std::uint64_t tx = n.tx ? n.tx->frames : 0;
+    rep.counters.cycles = rx + tx;  // frames, for the summary's count column
+    if (n.rx) {
+      rep.latency_ns = n.rx->io_ns;  // read time
+      rep.user_ns = n.rx->gap_ns;    // time between frames received
+    }
+    if (!n.rx && !n.tx) {
+      rep.state_label = "never seen";
+    } else if (n.status.level() >= StatusLevel::Error && n.silence_ns > 0) {
+      rep.state_label = "not responding";
+    } else {
+      rep.state_label = "responding";
+    }
+    rep.add("frames_rx", std::to_string(rx));
+    rep.add("frames_tx", std::to_string(tx));
+    if (n.silence_ns >= 0) rep.add("silence", format_nanos(static_cast<double>(n.silence_ns)));
+    if (n.rx) {
+      rep.add("rx_gap", fmt::format("p50 {} max {}", format_nanos(double(n.rx->gap_ns.p50)),
+                                    format_nanos(double(n.rx->gap_ns.max))));
+    }
+    for (const auto& g : n.groups) {
+      Report& gr = groups[g];
+      gr.kind = ReportKind::CanGroup;
+      gr.name = "can group " + g;
+      gr.counters.cycles += rx + tx;
+      if (n.status.level() != StatusLevel::Ok) {
+        gr.merge(n.status.level(), fmt::format("{}: {}", n.name, n.status.summary()));
+      }
+    }
+    reports.components.push_back(std::move(rep));
+  }
+  for (auto& [name, g] : groups) {
+    g.state_label = g.status.level() == StatusLevel::Ok ? "all responding" : "degraded";
+    reports.components.push_back(std::move(g));
+  }
+}
+
+void register_can_extension() {
+  static const bool once = [] {
+    deploy::register_extension(
+        "can",
+        [](const config::Node& section,
+           deploy::System&) -> expected<std::unique_ptr<deploy::Extension>, config::ConfigErrors> {
+          can::CanConfig cfg = can::load_can_config(section);
+          if (section.has_errors()) return vigil::unexpected(section.errors());
+          return std::make_unique<CanExtension>(std::move(cfg));
+        });
+    return true;
+  }();
+  (void)once;
+}
+
+}  // namespace vigil::app
