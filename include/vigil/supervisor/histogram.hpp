@@ -191,6 +191,29 @@ class LogLinearHistogram {
     return {0, 0};  // not reached: the buckets and overflow hold count_ samples
   }
 
+  /**
+   * Several quantiles in one pass: `out[k]` = value_at_quantile(qs[k]) for ascending `qs`.
+   * Scans only buckets `first`..`last`, which must hold every tracked sample (a caller that
+   * knows its minimum and maximum passes their bucket indexes: a few buckets instead of all).
+   * RT-safe; O(last - first + K).
+   */
+  template <std::size_t K>
+  void values_at_quantiles(const std::array<double, K>& qs, std::array<std::int64_t, K>& out,
+                           std::size_t first = 0,
+                           std::size_t last = kBucketCount - 1) const noexcept {
+    out.fill(0);
+    if (count_ == 0) return;
+    std::array<std::uint64_t, K> ranks{};
+    for (std::size_t k = 0; k < K; ++k) ranks[k] = detail::nearest_rank(qs[k], count_);
+    std::size_t k = 0;
+    std::uint64_t seen = 0;
+    for (std::size_t i = first; i <= last && i < kBucketCount && k < K; ++i) {
+      seen += counts_[i];
+      while (k < K && seen >= ranks[k]) out[k++] = bucket_highest(i);
+    }
+    for (; k < K; ++k) out[k] = kOverflowValue;  // among the overflowed samples
+  }
+
   /// The q-quantile (nearest rank) as one value: `quantile(q).highest`, an upper bound with
   /// relative error < 2^-S for tracked values, exact below kExactLimit; kOverflowValue when it
   /// falls among overflowed samples; 0 when empty. Same q rules and cost as `quantile`.
