@@ -382,15 +382,17 @@ inline bool SnifferState::process(const Frame& f, Direction d, Nanos begin, Nano
   out.extended = f.extended;
   out.rtr = f.rtr;
   out.fd = f.fd;
-  // One 8-byte load and a mask instead of a branch per byte: the bytes past the data are zeroed.
   const std::size_t n = std::min<std::size_t>(f.data_size(), out.data.size());
-  std::uint64_t bytes = 0;
-  std::memcpy(&bytes, f.data.data(), sizeof bytes);
-  const std::uint64_t keep = n >= 8 ? ~std::uint64_t{0} : (std::uint64_t{1} << (8 * n)) - 1;
-  static_assert(std::endian::native == std::endian::little,
-                "the sniffer's byte mask assumes a little-endian target");
-  bytes &= keep;  // little-endian: the first n bytes are the low ones
-  std::memcpy(out.data.data(), &bytes, sizeof bytes);
+  if constexpr (std::endian::native == std::endian::little) {
+    // One 8-byte load and a mask instead of a branch per byte; the bytes past the data are
+    // zeroed (little-endian: the first n bytes are the low ones).
+    std::uint64_t bytes = 0;
+    std::memcpy(&bytes, f.data.data(), sizeof bytes);
+    bytes &= n >= 8 ? ~std::uint64_t{0} : (std::uint64_t{1} << (8 * n)) - 1;
+    std::memcpy(out.data.data(), &bytes, sizeof bytes);
+  } else {
+    for (std::size_t i = 0; i < out.data.size(); ++i) out.data[i] = i < n ? f.data[i] : 0;
+  }
 
   const auto [is, id_new] =
       ids_.find_or_insert(id_key(f.bus, f.id, f.extended, tx), [&](IdSlot& s) noexcept {
