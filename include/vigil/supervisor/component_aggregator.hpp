@@ -57,8 +57,10 @@ struct ComponentSnapshot {
   CycleSample last;  ///< latest cycle sample received
   std::uint64_t samples = 0;
   ComponentCounters counters;
-  StatsSummary user_ns;      ///< on_update() alone
-  StatsSummary total_ns;     ///< user + the latest measured supervision overhead
+  StatsSummary user_ns;  ///< on_update() alone
+  /// user + the latest measured supervision overhead: count, min, max, mean and EWMA exact;
+  /// percentiles are user_ns's plus that overhead (capped at max).
+  StatsSummary total_ns;
   StatsSummary latency_ns;   ///< wake-up latency: start - scheduled release
   StatsSummary period_ns;    ///< start-to-start of consecutive cycles
   StatsSummary overhead_ns;  ///< supervision's own time per cycle (sampled)
