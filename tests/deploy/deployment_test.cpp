@@ -32,6 +32,27 @@ std::string errors_of(std::string_view yaml) {
 }
 }  // namespace
 
+namespace {
+class Registered : public Task<Registered> {
+ public:
+  explicit Registered(const ComponentContext& c) : Task(c.name, c.supervision, c.registry()) {}
+  void on_update() {}
+};
+}  // namespace
+VIGIL_REGISTER_COMPONENT(Registered, "test.registered");  // the one registration line
+
+TEST_CASE("VIGIL_REGISTER_COMPONENT registers a type in the process's factory in one line",
+          "[deploy][factory]") {
+  const auto* t = ComponentFactory::instance().find("test.registered");
+  REQUIRE(t != nullptr);
+  Registry<Message> reg;
+  ComponentContext ctx{"r", {}, {}, &reg, nullptr};
+  const auto task = t->make(ctx);
+  REQUIRE(task != nullptr);
+  CHECK(task->name() == "r");
+  CHECK_FALSE(ComponentFactory::instance().add<Registered>("test.registered"));  // taken
+}
+
 TEST_CASE("A deployment parses activities, components, supervision and outputs",
           "[deploy][deployment]") {
   auto d = load_deployment_string(R"(

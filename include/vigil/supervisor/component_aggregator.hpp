@@ -110,6 +110,9 @@ class ComponentAggregator {
   void on(const Entry& e, const RealTimeLoss& m);
   void on(const Entry& e, const ExceptionReport& m);
   void on(const Entry& e, const StateChange& m);
+  /// Any other message type (one added to `Message` later): ignored until a handler cares.
+  template <class M>
+  void on(const Entry& /*e*/, const M& /*m*/) {}
   void end(const Entry& e, const PortDrain& d);
   void on_cycle(const SupervisorCycle& c);
 
