@@ -74,9 +74,15 @@ ComponentAggregator::~ComponentAggregator() = default;
 
 ComponentAggregator::Slot* ComponentAggregator::slot_for(const Entry& e) {
   // Called by the supervisor thread, the only writer of slots_: no lock needed to read it.
-  auto it = std::lower_bound(slots_.begin(), slots_.end(), e.id,
-                             [](const auto& s, std::uint32_t id) { return s->data.id < id; });
-  return it != slots_.end() && (*it)->data.id == e.id ? it->get() : nullptr;
+  // The supervisor visits ports in id order, so the slot after the previous one is the usual
+  // answer; otherwise a binary search over the contiguous ids (no pointer chasing: with
+  // thousands of components every dereference would be a cache miss).
+  if (hint_ < ids_.size() && ids_[hint_] == e.id) return slots_[hint_++].get();
+  const auto it = std::lower_bound(ids_.begin(), ids_.end(), e.id);
+  if (it == ids_.end() || *it != e.id) return nullptr;
+  const auto i = static_cast<std::size_t>(it - ids_.begin());
+  hint_ = i + 1;
+  return slots_[i].get();
 }
 
 void ComponentAggregator::on_join(const Entry& e) {
@@ -90,9 +96,10 @@ void ComponentAggregator::on_join(const Entry& e) {
   }
   slot->total.weight = ewma_weight_.load(std::memory_order_relaxed);
   std::unique_lock lock(list_mutex_);
-  auto it = std::lower_bound(slots_.begin(), slots_.end(), e.id,
-                             [](const auto& s, std::uint32_t id) { return s->data.id < id; });
-  slots_.insert(it, std::move(slot));
+  const auto at = std::lower_bound(ids_.begin(), ids_.end(), e.id) - ids_.begin();
+  ids_.insert(ids_.begin() + at, e.id);
+  slots_.insert(slots_.begin() + at, std::move(slot));
+  hint_ = 0;
 }
 
 void ComponentAggregator::on_leave(const Entry& e) {
@@ -100,6 +107,7 @@ void ComponentAggregator::on_leave(const Entry& e) {
     std::lock_guard lock(s->mutex);
     s->data.alive = false;
     s->data.left_at = options_.clock.now();
+    ++departed_;
   }
 }
 
@@ -187,15 +195,26 @@ void ComponentAggregator::on(const Entry& /*e*/, const StateChange& m) {
 }
 
 void ComponentAggregator::on_cycle(const SupervisorCycle& /*c*/) {
+  hint_ = 0;
+  if (departed_ == 0) return;  // nothing to forget: no walk over thousands of records
   const Nanos now = options_.clock.now();
-  const bool expired = std::any_of(slots_.begin(), slots_.end(), [&](const auto& s) {
+  const auto expired = [&](const auto& s) {
     return !s->data.alive && now - s->data.left_at > options_.retain_left_ns;
-  });
-  if (!expired) return;
+  };
+  if (std::none_of(slots_.begin(), slots_.end(), expired)) return;
   std::unique_lock lock(list_mutex_);
-  std::erase_if(slots_, [&](const auto& s) {
-    return !s->data.alive && now - s->data.left_at > options_.retain_left_ns;
-  });
+  std::size_t out = 0;
+  for (std::size_t i = 0; i < slots_.size(); ++i) {
+    if (expired(slots_[i])) {
+      --departed_;
+      continue;
+    }
+    slots_[out] = std::move(slots_[i]);
+    ids_[out] = ids_[i];
+    ++out;
+  }
+  slots_.resize(out);
+  ids_.resize(out);
 }
 
 namespace {

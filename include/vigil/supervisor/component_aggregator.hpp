@@ -134,6 +134,9 @@ class ComponentAggregator {
   std::atomic<double> ewma_weight_;
   mutable std::shared_mutex list_mutex_;
   std::vector<std::unique_ptr<Slot>> slots_;  // ordered by id
+  std::vector<std::uint32_t> ids_;            // slots_[i]'s id, contiguous for the searches
+  std::size_t hint_ = 0;                      // where the next port's slot probably is
+  std::size_t departed_ = 0;                  // records of components that left
   Slot* current_ = nullptr;                   // the slot between begin() and end()
   Nanos drain_time_ = 0;                      // supervisor clock at begin()
 };
