@@ -93,10 +93,13 @@ TEST_CASE("Touching fresh pages is counted as page faults, in those cycles only"
   const Run r = run(p, 2'000);
   CHECK(of(r, LossCause::MinorFault) >= 20 * 4);  // 4 fresh pages per touching cycle
   CHECK(of(r, LossCause::MajorFault) == 0);
+#if !defined(VIGIL_SANITIZER_BUILD)
+  // (AddressSanitizer's shadow memory takes page faults of its own in other cycles.)
   for (const auto& l : r.losses) {
     CHECK(l.cause == LossCause::MinorFault);
     CHECK(l.cycle % 100 == 0);
   }
+#endif
 }
 
 TEST_CASE("A clean component has no loss of any kind with every detector on", "[rt_loss]") {
@@ -104,10 +107,16 @@ TEST_CASE("A clean component has no loss of any kind with every detector on", "[
   Probe p("clean", {.detectors = Detectors::All}, reg);
   const Run r = run(p, 10'000);
   for (int c = 0; c < kLossCauses; ++c) {
+#if defined(VIGIL_SANITIZER_BUILD)
+    // AddressSanitizer's shadow memory takes page faults of its own: not the component's.
+    if (c == static_cast<int>(LossCause::MinorFault)) continue;
+#endif
     INFO("cause " << platform::to_string(static_cast<LossCause>(c)));
     CHECK(r.totals[static_cast<std::size_t>(c)] == 0);
   }
+#if !defined(VIGIL_SANITIZER_BUILD)
   CHECK(r.losses.empty());
+#endif
 }
 
 TEST_CASE("Detectors are selected per component", "[rt_loss]") {
