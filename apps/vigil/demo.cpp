@@ -79,9 +79,9 @@ int run_demo(const DemoOptions& o) {
                                : " until Ctrl-C");
   for (const auto& line : system.log()) std::printf("  %s\n", line.c_str());
   std::fflush(stdout);
+  const Nanos start = platform::now_ns();  // the system runs from here
   if (tty && !o.no_live) std::this_thread::sleep_for(std::chrono::milliseconds(1500));
 
-  const Nanos start = platform::now_ns();
   const Nanos end =
       o.duration_s > 0
           ? start + static_cast<Nanos>(o.duration_s * static_cast<double>(kNanosPerSecond))
