@@ -52,6 +52,8 @@ std::string RealtimeSetupReport::describe() const {
   s += "\nheap prefaulted: " + std::to_string(heap_prefaulted) + " bytes";
   s += "\nSCHED_FIFO allowed: ";
   s += can_use_fifo ? "yes" : "no";
+  s += "\nzero CPU latency requested: ";
+  s += cpu_latency_requested ? "yes" : "no";
   s += '\n';
   return s;
 }

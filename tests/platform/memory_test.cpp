@@ -37,6 +37,11 @@ TEST_CASE("setup_realtime_process reports every step and locks memory when privi
     CHECK(report.lock_errno != 0);
   }
   CHECK(report.can_use_fifo == vigil::test::have_rt_privileges());
+  // The PM QoS request is kept for the process's life where the kernel offers it to us.
+  if (vigil::test::have_rt_privileges() && std::ifstream("/dev/cpu_dma_latency").good()) {
+    CHECK(report.cpu_latency_requested);
+  }
+  CHECK(report.describe().find("zero CPU latency requested: ") != std::string::npos);
 }
 
 TEST_CASE("prefault_stack takes the stack's page faults up front", "[platform][memory]") {

@@ -17,6 +17,10 @@ struct RealtimeSetupOptions {
   /// Bytes of heap to allocate, touch and give back to malloc, which then keeps them
   /// (M_TRIM_THRESHOLD and M_MMAP_MAX are set so that glibc neither returns nor mmaps them).
   std::size_t prefault_heap_bytes = 16 * 1024 * 1024;
+  /// Ask the kernel for zero CPU wake-up latency (PM QoS, /dev/cpu_dma_latency, as cyclictest
+  /// does) for the life of the process: deep idle states are then not used, which on many
+  /// machines changes wake-up latency more than anything else. Needs root.
+  bool request_zero_cpu_latency = true;
 };
 
 /// What `setup_realtime_process` achieved. Every step reports success or the errno it failed with;
@@ -29,6 +33,8 @@ struct RealtimeSetupReport {
   std::size_t heap_prefaulted = 0;
   /// True when SCHED_FIFO threads can be created (privilege probe, nothing changed).
   bool can_use_fifo = false;
+  /// The zero CPU latency request is in force (false when not asked for or refused).
+  bool cpu_latency_requested = false;
 
   /// One line per step, e.g. "memory locked: yes", for logs and reports.
   [[nodiscard]] std::string describe() const;

@@ -2,6 +2,7 @@
 #include "vigil/platform/memory.hpp"
 
 #include <alloca.h>
+#include <fcntl.h>
 #include <malloc.h>
 #include <pthread.h>
 #include <sched.h>
@@ -10,6 +11,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 
@@ -62,6 +64,20 @@ RealtimeSetupReport setup_realtime_process(const RealtimeSetupOptions& options) 
   prefault_stack(options.prefault_stack_bytes);
   report.stack_prefaulted = options.prefault_stack_bytes;
   report.can_use_fifo = fifo_allowed();
+  if (options.request_zero_cpu_latency) {
+    // The request lasts while the file stays open: the descriptor is kept for the process's
+    // life on purpose (one per process; a second call reuses it).
+    static int fd = -1;
+    if (fd < 0) {
+      fd = ::open("/dev/cpu_dma_latency", O_WRONLY | O_CLOEXEC);
+      const std::int32_t zero = 0;
+      if (fd >= 0 && ::write(fd, &zero, sizeof zero) != static_cast<ssize_t>(sizeof zero)) {
+        ::close(fd);
+        fd = -1;
+      }
+    }
+    report.cpu_latency_requested = fd >= 0;
+  }
   return report;
 }
 
