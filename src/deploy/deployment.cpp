@@ -84,7 +84,7 @@ ComponentSpec parse_component(const config::Node& n, const ComponentFactory& fac
   }
   c.supervision.detectors = d;
   c.supervision.overhead_sample_every = n.optional<std::uint32_t>(
-      "overhead_sample_every", 16, [](std::uint32_t v) -> std::optional<std::string> {
+      "overhead_sample_every", 64, [](std::uint32_t v) -> std::optional<std::string> {
         if (v == 0 || (v & (v - 1)) == 0) return std::nullopt;
         return "must be 0 (never) or a power of two";
       });

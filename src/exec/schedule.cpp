@@ -9,7 +9,7 @@ Schedule::Schedule(Nanos period_ns, OverrunPolicy policy, OverrunLimit limit)
   }
 }
 
-Schedule::Outcome Schedule::advance(Nanos end) noexcept {
+Schedule::Outcome Schedule::advance_slow(Nanos end) noexcept {
   Outcome o;
   const Nanos deadline = release_ + period_;
   o.overrun = period_ > 0 && end > deadline;

@@ -47,12 +47,22 @@ class Schedule {
   /// CatchUp: next = release + period (runs at once, late; nothing missed);
   /// Skip: next = the first release at or after `end`, the ones before it are missed;
   /// Reanchor: next = end + period, the releases that passed are missed.
-  Outcome advance(Nanos end) noexcept;
+  Outcome advance(Nanos end) noexcept {
+    // The common case inline: on time, no overrun limit to keep.
+    if (end <= release_ + period_ && window_.empty()) [[likely]] {
+      release_ += period_;
+      ++cycle_;
+      return {};
+    }
+    return advance_slow(end);
+  }
 
   [[nodiscard]] std::uint64_t overruns() const noexcept { return overruns_; }
   [[nodiscard]] std::uint64_t missed() const noexcept { return missed_; }
 
  private:
+  Outcome advance_slow(Nanos end) noexcept;
+
   Nanos period_;
   OverrunPolicy policy_;
   OverrunLimit limit_;

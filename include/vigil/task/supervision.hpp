@@ -35,7 +35,7 @@ struct SupervisionOptions {
   Detectors detectors = Detectors::None;
   /// Measure supervision's own overhead (two more clock reads) on one cycle in this many
   /// (a power of two); 1 = every cycle, 0 = never. User time is measured on every cycle.
-  std::uint32_t overhead_sample_every = 16;
+  std::uint32_t overhead_sample_every = 64;
 };
 
 namespace detail {
@@ -280,7 +280,7 @@ class CycleRecorder {
   Clock system_clock_ = Clock::system();
   const Clock* clock_ = &system_clock_;
   bool direct_clock_ = true;
-  std::uint64_t sample_mask_ = 15;
+  std::uint64_t sample_mask_ = 63;
   bool sample_never_ = false;
   bool measure_ = false;
   Nanos pre_begin_ = 0;
