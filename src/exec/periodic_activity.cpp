@@ -7,6 +7,7 @@
 #include <mutex>
 #include <tuple>
 
+#include "exec/spawn.hpp"
 #include "vigil/platform/rt_loss.hpp"
 #include "vigil/platform/wait.hpp"
 
@@ -37,15 +38,8 @@ class PeriodicThread {
                               .priority = config_.priority,
                               .cpu = config_.cpu,
                               .stack_size = config_.stack_size};
-    auto t = platform::Thread::spawn(tc, [this] { run(); });
-    if (!t && config_.policy == SchedPolicy::Fifo && t.error().code == EPERM &&
-        config_.fallback_to_other) {
-      realtime_refused_ = true;
-      refusal_ = t.error().message;
-      tc.policy = SchedPolicy::Other;
-      tc.priority = 0;
-      t = platform::Thread::spawn(tc, [this] { run(); });
-    }
+    auto t = spawn_activity_thread(
+        tc, config_.fallback_to_other, [this] { run(); }, realtime_refused_);
     if (!t) return unexpected(t.error());
     policy_ = tc.policy;
     thread_ = std::move(*t);
@@ -184,7 +178,6 @@ class PeriodicThread {
   platform::Thread thread_;
   SchedPolicy policy_ = SchedPolicy::Other;
   bool realtime_refused_ = false;
-  std::string refusal_;
   std::array<Slot, kMaxTasks> slots_;
   std::atomic<std::uint32_t> count_{0};
   std::atomic<bool> quit_{false};

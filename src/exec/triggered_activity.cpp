@@ -2,6 +2,7 @@
 
 #include <cerrno>
 
+#include "exec/spawn.hpp"
 #include "vigil/platform/rt_loss.hpp"
 #include "vigil/platform/wait.hpp"
 
@@ -28,14 +29,8 @@ expected<void, Error> TriggeredActivity::start() {
                             .priority = config_.priority,
                             .cpu = config_.cpu,
                             .stack_size = config_.stack_size};
-  auto t = platform::Thread::spawn(tc, [this] { run(); });
-  if (!t && config_.policy == SchedPolicy::Fifo && t.error().code == EPERM &&
-      config_.fallback_to_other) {
-    info_.realtime_refused = true;
-    tc.policy = SchedPolicy::Other;
-    tc.priority = 0;
-    t = platform::Thread::spawn(tc, [this] { run(); });
-  }
+  auto t = detail::spawn_activity_thread(
+      tc, config_.fallback_to_other, [this] { run(); }, info_.realtime_refused);
   if (!t) return unexpected(t.error());
   thread_ = std::move(*t);
   info_.name = config_.name;
