@@ -16,3 +16,13 @@ if(PROJECT_IS_TOP_LEVEL AND NOT CMAKE_BUILD_TYPE AND NOT CMAKE_CONFIGURATION_TYP
   set(CMAKE_BUILD_TYPE RelWithDebInfo CACHE STRING "Build type" FORCE)
 endif()
 set(CMAKE_EXPORT_COMPILE_COMMANDS ON)
+
+# ccache, when installed, for every compile of this tree (scripts/setup.sh installs it). Builds of
+# several checkouts of the same sources (a CI copy, git worktrees) then reuse each other's objects.
+option(VIGIL_CCACHE "Compile through ccache when it is installed" ON)
+if(VIGIL_CCACHE AND NOT CMAKE_CXX_COMPILER_LAUNCHER)
+  find_program(VIGIL_CCACHE_EXE ccache)
+  if(VIGIL_CCACHE_EXE)
+    set(CMAKE_CXX_COMPILER_LAUNCHER "${VIGIL_CCACHE_EXE}")
+  endif()
+endif()

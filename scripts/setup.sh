@@ -8,7 +8,7 @@ set -euo pipefail
 
 packages=(
   # toolchain
-  g++ cmake ninja-build pkg-config clang-format-14 git
+  g++ cmake ninja-build pkg-config clang-format-14 git ccache
   # libraries
   libboost-dev libfmt-dev libyaml-cpp-dev libcpp-httplib-dev libcli11-dev
   # tests and benchmarks
