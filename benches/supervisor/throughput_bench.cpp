@@ -21,8 +21,8 @@
 #include <vector>
 
 #include "support/bench_support.hpp"
+#include "vigil/bus/registry.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
-#include "vigil/supervisor/registry.hpp"
 #include "vigil/supervisor/supervisor.hpp"
 
 namespace vigil::bench {

@@ -31,9 +31,9 @@
 #include <thread>
 #include <vector>
 
-#include "vigil/bus/messages.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/supervisor/supervisor.hpp"
+#include "vigil/task/messages.hpp"
 #include "vigil/task/supervision.hpp"
 
 namespace vigil::bench {

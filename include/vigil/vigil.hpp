@@ -3,8 +3,8 @@
 /// Umbrella header: everything a component author and an integrator need.
 /// Library code includes the precise headers instead.
 
-#include "vigil/bus/messages.hpp"
 #include "vigil/bus/port.hpp"
+#include "vigil/bus/registry.hpp"
 #include "vigil/config.hpp"
 #include "vigil/error.hpp"
 #include "vigil/exec/manual_activity.hpp"
@@ -21,8 +21,9 @@
 #include "vigil/platform/thread.hpp"
 #include "vigil/platform/thread_stats.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
-#include "vigil/supervisor/registry.hpp"
 #include "vigil/supervisor/supervisor.hpp"
 #include "vigil/task/component_supervisor.hpp"
+#include "vigil/task/default_registry.hpp"
+#include "vigil/task/messages.hpp"
 #include "vigil/task/task.hpp"
 #include "vigil/version.hpp"

@@ -267,9 +267,4 @@ void ComponentAggregator::set_ewma_weight(double w) {
   ewma_weight_.store(w, std::memory_order_relaxed);
 }
 
-Registry<Message>& default_registry() {
-  static Registry<Message> registry;
-  return registry;
-}
-
 }  // namespace vigil

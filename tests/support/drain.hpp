@@ -2,8 +2,8 @@
 // Pops everything a port holds, for tests that check what a component sent.
 #include <vector>
 
-#include "vigil/bus/messages.hpp"
 #include "vigil/bus/port.hpp"
+#include "vigil/task/messages.hpp"
 
 namespace vigil::test {
 

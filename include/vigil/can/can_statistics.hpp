@@ -34,11 +34,11 @@
 #include <utility>
 #include <vector>
 
+#include "vigil/bus/registry.hpp"
 #include "vigil/can/frame.hpp"
 #include "vigil/can/node_map.hpp"
 #include "vigil/can/sniffer.hpp"
 #include "vigil/platform/clock.hpp"
-#include "vigil/supervisor/registry.hpp"
 #include "vigil/supervisor/running_stats.hpp"
 #include "vigil/supervisor/supervisor.hpp"
 

@@ -53,13 +53,13 @@
 #include <vector>
 
 #include "vigil/bus/port.hpp"
+#include "vigil/bus/registry.hpp"
 #include "vigil/can/filter.hpp"
 #include "vigil/can/frame.hpp"
 #include "vigil/can/node_map.hpp"
 #include "vigil/error.hpp"
 #include "vigil/expected.hpp"
 #include "vigil/platform/clock.hpp"
-#include "vigil/supervisor/registry.hpp"
 
 namespace vigil::can {
 

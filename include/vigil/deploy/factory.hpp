@@ -26,9 +26,9 @@
 #include <string>
 #include <vector>
 
-#include "vigil/bus/messages.hpp"
+#include "vigil/bus/registry.hpp"
 #include "vigil/config/node.hpp"
-#include "vigil/supervisor/registry.hpp"
+#include "vigil/task/messages.hpp"
 #include "vigil/task/supervision.hpp"
 #include "vigil/task/task_core.hpp"
 

@@ -6,8 +6,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "vigil/bus/messages.hpp"
 #include "vigil/platform/clock.hpp"
+#include "vigil/task/messages.hpp"
 
 namespace vigil {
 

@@ -12,12 +12,12 @@
 #include <string_view>
 #include <vector>
 
-#include "vigil/bus/messages.hpp"
 #include "vigil/monitor/status.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/platform/thread_stats.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 #include "vigil/supervisor/running_stats.hpp"
+#include "vigil/task/messages.hpp"
 
 namespace vigil {
 

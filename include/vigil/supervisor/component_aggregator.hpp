@@ -21,11 +21,12 @@
 #include <string_view>
 #include <vector>
 
-#include "vigil/bus/messages.hpp"
+#include "vigil/bus/registry.hpp"
 #include "vigil/platform/clock.hpp"
-#include "vigil/supervisor/registry.hpp"
 #include "vigil/supervisor/running_stats.hpp"
 #include "vigil/supervisor/supervisor.hpp"
+#include "vigil/task/default_registry.hpp"
+#include "vigil/task/messages.hpp"
 
 namespace vigil {
 
@@ -145,9 +146,5 @@ static_assert(SupervisorHandler<ComponentAggregator, Message>);
 
 /// The supervisor of components.
 using ComponentSupervisorLoop = Supervisor<Message, ComponentAggregator>;
-
-/// The process's default registry of components, for the one-line use case. Components join it
-/// unless given another. Thread-safe; created on first use.
-Registry<Message>& default_registry();
 
 }  // namespace vigil

@@ -21,11 +21,11 @@
 #include <variant>
 #include <vector>
 
+#include "vigil/bus/registry.hpp"
 #include "vigil/error.hpp"
 #include "vigil/expected.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/platform/thread.hpp"
-#include "vigil/supervisor/registry.hpp"
 #include "vigil/supervisor/running_stats.hpp"
 
 namespace vigil {

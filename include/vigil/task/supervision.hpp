@@ -9,12 +9,12 @@
 #include <string_view>
 #include <vector>
 
-#include "vigil/bus/messages.hpp"
 #include "vigil/bus/port.hpp"
+#include "vigil/bus/registry.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/platform/rt_loss.hpp"
-#include "vigil/supervisor/component_aggregator.hpp"
-#include "vigil/supervisor/registry.hpp"
+#include "vigil/task/default_registry.hpp"
+#include "vigil/task/messages.hpp"
 #include "vigil/task/task_core.hpp"
 
 namespace vigil {

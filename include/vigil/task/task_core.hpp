@@ -8,8 +8,8 @@
 #include <string>
 #include <string_view>
 
-#include "vigil/bus/messages.hpp"
 #include "vigil/platform/clock.hpp"
+#include "vigil/task/messages.hpp"
 #include "vigil/task/state.hpp"
 
 namespace vigil {

@@ -1,4 +1,4 @@
-#include "vigil/supervisor/registry.hpp"
+#include "vigil/bus/registry.hpp"
 
 #include <catch2/catch.hpp>
 #include <variant>
@@ -10,7 +10,7 @@ using V = std::variant<int>;
 }
 
 TEST_CASE("Registry ids are unique and the generation changes on join and leave",
-          "[supervisor][registry]") {
+          "[bus][registry]") {
   Registry<V> reg;
   const auto g0 = reg.generation();
   auto a = reg.join<8>("a");
@@ -27,7 +27,7 @@ TEST_CASE("Registry ids are unique and the generation changes on join and leave"
 }
 
 TEST_CASE("A member that joined and left between two collections is still handed over once",
-          "[supervisor][registry]") {
+          "[bus][registry]") {
   Registry<V> reg;
   std::vector<std::shared_ptr<RegistryEntry<V>>> out;
   reg.collect(out);
@@ -44,7 +44,7 @@ TEST_CASE("A member that joined and left between two collections is still handed
   CHECK(out.empty());
 }
 
-TEST_CASE("Membership moves keep the port", "[supervisor][registry]") {
+TEST_CASE("Membership moves keep the port", "[bus][registry]") {
   Registry<V> reg;
   auto a = reg.join<4>("a");
   auto* port = a.port();

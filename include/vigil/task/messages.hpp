@@ -1,7 +1,8 @@
 #pragma once
 /// @file
-/// The messages a supervised component sends to the supervisor, and `vigil::Message`, the
-/// static variant that carries them through one Port per component.
+/// The messages a supervised task sends to the supervisor, and `vigil::Message`, the static
+/// variant that carries them through one Port per component. They belong to the task module (the
+/// bus below it is a generic transport that knows no message type).
 ///
 /// Every message is trivially copyable and fixed-size (names are FixedStrings), so pushing one
 /// never allocates. Each CycleSample repeats the component's cumulative counters: when a port is

@@ -1,11 +1,11 @@
-#include "vigil/bus/messages.hpp"
+#include "vigil/task/messages.hpp"
 
 #include <catch2/catch.hpp>
 #include <type_traits>
 
 using namespace vigil;
 
-TEST_CASE("Every message type is trivially copyable and Message stays small", "[bus][messages]") {
+TEST_CASE("Every message type is trivially copyable and Message stays small", "[task][messages]") {
   STATIC_REQUIRE(std::is_trivially_copyable_v<TaskInfo>);
   STATIC_REQUIRE(std::is_trivially_copyable_v<CycleSample>);
   STATIC_REQUIRE(std::is_trivially_copyable_v<RealTimeLoss>);
@@ -15,14 +15,14 @@ TEST_CASE("Every message type is trivially copyable and Message stays small", "[
   STATIC_REQUIRE(sizeof(Message) <= 256);
 }
 
-TEST_CASE("CycleSample user time is end minus start", "[bus][messages]") {
+TEST_CASE("CycleSample user time is end minus start", "[task][messages]") {
   CycleSample s;
   s.start_ns = 100;
   s.end_ns = 350;
   CHECK(s.user_ns() == 250);
 }
 
-TEST_CASE("Detectors combine as a bit mask", "[bus][messages]") {
+TEST_CASE("Detectors combine as a bit mask", "[task][messages]") {
   const auto d = Detectors::Allocation | Detectors::Blocking;
   CHECK(has(d, Detectors::Allocation));
   CHECK(has(d, Detectors::Blocking));
