@@ -134,7 +134,7 @@ struct Timing {
   }
 };
 
-struct IdSlot {
+struct IdAccumulator {
   std::uint8_t bus = 0;
   std::uint32_t id = 0;
   bool extended = false;
@@ -147,7 +147,7 @@ struct IdSlot {
   std::array<std::uint8_t, 8> last_data{};
 };
 
-struct NodeSlot {
+struct NodeAccumulator {
   std::uint8_t bus = 0;
   std::uint32_t node = 0;
   Direction direction = Direction::Rx;
@@ -183,17 +183,17 @@ struct CanAggregator::Impl {
 
   mutable std::mutex mutex;           // guards everything below
   std::vector<SnifferSlot> sniffers;  // by port id
-  std::unordered_map<std::uint64_t, std::unique_ptr<IdSlot>> ids;
-  std::unordered_map<std::uint64_t, std::unique_ptr<NodeSlot>> nodes;
+  std::unordered_map<std::uint64_t, std::unique_ptr<IdAccumulator>> ids;
+  std::unordered_map<std::uint64_t, std::unique_ptr<NodeAccumulator>> nodes;
   std::uint64_t records = 0;
   std::uint64_t cycles = 0;
 
   // Supervisor thread only.
   SnifferSlot* current = nullptr;
   std::uint64_t cached_id_key = 0;
-  IdSlot* cached_id = nullptr;
+  IdAccumulator* cached_id = nullptr;
   std::uint64_t cached_node_key = 0;
-  NodeSlot* cached_node = nullptr;
+  NodeAccumulator* cached_node = nullptr;
   std::vector<IdEntry> id_scratch;
   std::vector<NodeEntry> node_scratch;
 
@@ -212,12 +212,12 @@ struct CanAggregator::Impl {
     return s;
   }
 
-  IdSlot& id_slot(std::uint64_t key, std::uint8_t bus, std::uint32_t id, bool extended, Direction d,
-                  std::uint32_t node, std::uint32_t function) {
+  IdAccumulator& id_slot(std::uint64_t key, std::uint8_t bus, std::uint32_t id, bool extended,
+                         Direction d, std::uint32_t node, std::uint32_t function) {
     if (key == cached_id_key && cached_id != nullptr) return *cached_id;
     auto& p = ids[key];
     if (!p) {
-      p = std::make_unique<IdSlot>();
+      p = std::make_unique<IdAccumulator>();
       p->bus = bus;
       p->id = id;
       p->extended = extended;
@@ -232,11 +232,11 @@ struct CanAggregator::Impl {
     return *p;
   }
 
-  NodeSlot& node_slot(std::uint64_t key, std::uint8_t bus, std::uint32_t node, Direction d) {
+  NodeAccumulator& node_slot(std::uint64_t key, std::uint8_t bus, std::uint32_t node, Direction d) {
     if (key == cached_node_key && cached_node != nullptr) return *cached_node;
     auto& p = nodes[key];
     if (!p) {
-      p = std::make_unique<NodeSlot>();
+      p = std::make_unique<NodeAccumulator>();
       p->bus = bus;
       p->node = node;
       p->direction = d;
@@ -257,15 +257,15 @@ struct CanAggregator::Impl {
     id_scratch.clear();
     st.read_ids(id_scratch);
     for (const IdEntry& e : id_scratch) {
-      IdSlot& slot = id_slot(detail::id_key(e.bus, e.id, e.extended, is_tx(e.direction)), e.bus,
-                             e.id, e.extended, e.direction, e.node, e.function);
+      IdAccumulator& slot = id_slot(detail::id_key(e.bus, e.id, e.extended, is_tx(e.direction)),
+                                    e.bus, e.id, e.extended, e.direction, e.node, e.function);
       contribute(slot.from, port, e.frames, e.first_ns, e.last_ns);
     }
     node_scratch.clear();
     st.read_nodes(node_scratch);
     for (const NodeEntry& e : node_scratch) {
-      NodeSlot& slot = node_slot(detail::node_key(e.bus, e.node, is_tx(e.direction)), e.bus, e.node,
-                                 e.direction);
+      NodeAccumulator& slot = node_slot(detail::node_key(e.bus, e.node, is_tx(e.direction)), e.bus,
+                                        e.node, e.direction);
       contribute(slot.from, port, e.frames, e.first_ns, e.last_ns);
     }
     const std::uint64_t dropped = s.info.totals.dropped;
@@ -318,12 +318,12 @@ void CanAggregator::begin(const Entry& e) {
 void CanAggregator::on(const Entry& /*e*/, const FrameRecord& r) {
   Impl& m = *impl_;
   const bool exact = m.options.exact_percentiles;
-  IdSlot& id = m.id_slot(detail::id_key(r.bus, r.id, r.extended, is_tx(r.direction)), r.bus, r.id,
-                         r.extended, r.direction, r.node, r.function);
+  IdAccumulator& id = m.id_slot(detail::id_key(r.bus, r.id, r.extended, is_tx(r.direction)), r.bus,
+                                r.id, r.extended, r.direction, r.node, r.function);
   id.timing.add(r, r.id_gap_ns, exact);
   id.last_length = r.length;
   id.last_data = r.data;
-  NodeSlot& node =
+  NodeAccumulator& node =
       m.node_slot(detail::node_key(r.bus, r.node, is_tx(r.direction)), r.bus, r.node, r.direction);
   node.timing.add(r, r.node_gap_ns, exact);
   ++m.records;
@@ -363,7 +363,7 @@ CanSnapshot CanAggregator::snapshot(std::span<const GroupSpec> groups) const {
 
   snap.ids.reserve(m.ids.size());
   for (auto& [key, p] : m.ids) {
-    IdSlot& slot = *p;
+    IdAccumulator& slot = *p;
     IdStats s;
     s.bus = slot.bus;
     s.id = slot.id;
@@ -393,11 +393,11 @@ CanSnapshot CanAggregator::snapshot(std::span<const GroupSpec> groups) const {
   for (const IdStats& s : snap.ids)
     ++ids_of_node[detail::node_key(s.bus, s.node, is_tx(s.direction))];
 
-  std::vector<const NodeSlot*> node_slots;
+  std::vector<const NodeAccumulator*> node_slots;
   node_slots.reserve(m.nodes.size());
   snap.nodes.reserve(m.nodes.size());
   for (auto& [key, p] : m.nodes) {
-    NodeSlot& slot = *p;
+    NodeAccumulator& slot = *p;
     NodeStats s;
     s.bus = slot.bus;
     s.node = slot.node;
@@ -427,7 +427,7 @@ CanSnapshot CanAggregator::snapshot(std::span<const GroupSpec> groups) const {
     c.direction = d;
     RunningStats io = m.fresh();
     RunningStats gap = m.fresh();
-    for (const NodeSlot* slot : node_slots) {
+    for (const NodeAccumulator* slot : node_slots) {
       if (slot->direction != d || !member(*slot)) continue;
       const Counted counted = sum(slot->from);
       const std::uint64_t frames = counted.any ? counted.frames : slot->timing.records;
@@ -444,11 +444,11 @@ CanSnapshot CanAggregator::snapshot(std::span<const GroupSpec> groups) const {
     return c;
   };
   for (const Direction d : {Direction::Rx, Direction::Tx}) {
-    CategoryStats c = category("all", false, d, [](const NodeSlot&) { return true; });
+    CategoryStats c = category("all", false, d, [](const NodeAccumulator&) { return true; });
     if (c.frames > 0) snap.categories.push_back(std::move(c));
   }
   for (const GroupSpec& g : groups) {
-    const auto member = [&](const NodeSlot& s) { return g.contains(s.bus, s.node); };
+    const auto member = [&](const NodeAccumulator& s) { return g.contains(s.bus, s.node); };
     CategoryStats rx = category(g.name, true, Direction::Rx, member);
     CategoryStats tx = category(g.name, true, Direction::Tx, member);
     const bool none = rx.frames == 0 && tx.frames == 0;

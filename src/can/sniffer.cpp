@@ -87,7 +87,7 @@ SnifferTotals SnifferState::totals() const noexcept {
 }
 
 void SnifferState::read_ids(std::vector<IdEntry>& out) const {
-  ids_.for_each([&](std::uint64_t k, const IdSlot& s) {
+  ids_.for_each([&](std::uint64_t k, const IdCounter& s) {
     IdEntry e;
     e.bus = key_bus(k);
     e.id = static_cast<std::uint32_t>(k & 0xFFFFFFFFU);
@@ -103,7 +103,7 @@ void SnifferState::read_ids(std::vector<IdEntry>& out) const {
 }
 
 void SnifferState::read_nodes(std::vector<NodeEntry>& out) const {
-  nodes_.for_each([&](std::uint64_t k, const NodeSlot& s) {
+  nodes_.for_each([&](std::uint64_t k, const NodeCounter& s) {
     NodeEntry e;
     e.bus = key_bus(k);
     e.node = static_cast<std::uint32_t>(k & 0xFFFFFFFFU);

@@ -6,8 +6,9 @@
 #include <set>
 #include <sstream>
 
+#include "can_stats.hpp"  // apps/vigil: the can-stats command
 #include "support/json_reader.hpp"
-#include "vigil/can/candump.hpp"
+#include "vigil/can/log/candump.hpp"
 
 using namespace vigil::can;
 using vigil::kNanosPerMilli;
@@ -43,11 +44,13 @@ struct Run {
   std::string err;
 };
 
+using vigil::app::CanStatsOptions;
+
 Run can_stats(const CanStatsOptions& o) {
   std::ostringstream out;
   std::ostringstream err;
   Run r;
-  r.code = run_can_stats(o, out, err);
+  r.code = vigil::app::run_can_stats(o, out, err);
   r.out = out.str();
   r.err = err.str();
   return r;

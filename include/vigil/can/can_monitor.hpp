@@ -2,8 +2,8 @@
 /// @file
 /// `CanMonitor`: judges every CAN node from the CAN aggregator's statistics and the thresholds
 /// of a `CanConfig`, and `CanReport`, what it produces: one status per node, an overall status,
-/// and the summary table (category, frames, records, mean/min/max I/O time, mean/min/max gap),
-/// printable as text or JSON.
+/// and the statistics judged. The export module prints it as text or JSON
+/// (vigil/export/can_report.hpp).
 ///
 /// The checks, per node (bus, node), in this order:
 ///  1. never seen ("not initialized"): an expected node (named in `nodes:` or listed in a
@@ -20,7 +20,7 @@
 /// (table full) and for error frames; dropped records are reported as an OK message (timing is
 /// sampled, counts are not).
 ///
-/// Threads: `evaluate` and the formatters from any non-RT thread; `set_config` and `add_check`
+/// Threads: `evaluate` from any non-RT thread; `set_config` and `add_check`
 /// are thread-safe against `evaluate`. Not RT-safe (allocates).
 
 #include <cstdint>
@@ -77,7 +77,7 @@ using CanNodeCheck =
  * @code
  * vigil::can::CanMonitor monitor(*vigil::can::load_can_config_file("can.yaml"));
  * vigil::can::CanReport r = monitor.evaluate(aggregator, vigil::platform::now_ns());
- * std::fputs(vigil::can::format_can_report(r).c_str(), stdout);
+ * std::fputs(vigil::exporter::format_can_report(r).c_str(), stdout);  // vigil/export
  * @endcode
  */
 class CanMonitor {
@@ -107,21 +107,5 @@ class CanMonitor {
   std::shared_ptr<const CanConfig> config_;
   std::vector<std::pair<std::string, CanNodeCheck>> checks_;
 };
-
-/// Options of the text form.
-struct CanTextOptions {
-  bool ids = true;                       ///< append the per-id table
-  std::vector<std::string> bus_names{};  ///< name of bus i (e.g. candump's interfaces); else i
-};
-
-/// The report for people: status line, summary table (I/O and gap times in µs), node table,
-/// optionally the id table (gaps in ms). Ends with a newline.
-[[nodiscard]] std::string format_can_report(const CanReport& report,
-                                            const CanTextOptions& options = {});
-
-/// The report as one JSON object (schema in docs/guide/can-supervision.md); `indent` as
-/// `JsonWriter`. `bus_names` names buses as in the text form.
-[[nodiscard]] std::string can_report_json(const CanReport& report, int indent = 0,
-                                          const std::vector<std::string>& bus_names = {});
 
 }  // namespace vigil::can
