@@ -15,7 +15,7 @@ int run_can_stats(const CanStatsOptions& options, std::ostream& out, std::ostrea
   if (options.files.empty()) {
     err << "vigil can-stats: no log file given\n"
            "usage: vigil can-stats FILE... [--config FILE] [--json] "
-           "[--node-map identity|canopen|j1939]\n";
+           "[--node-map identity|canopen|j1939|dronecan]\n";
     return 2;
   }
   can::CanConfig config;

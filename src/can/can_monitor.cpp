@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <map>
+#include <set>
+#include <tuple>
 #include <utility>
 
 #include "vigil/config/units.hpp"
@@ -46,25 +48,182 @@ void check_limit(Status& s, std::string_view what, const Limit& l,
   }
 }
 
-void builtin_checks(NodeReport& n, Nanos now) {
-  const NodeThresholds& t = n.thresholds;
-  const bool received = n.rx && n.rx->frames > 0;
-  if (n.expected && !received && t.never_seen_enabled) {
-    if (n.tx && n.tx->frames > 0) {
-      n.status.merge(
-          t.never_seen_level,
-          fmt::format("not initialized: never answered ({} frames sent to it)", n.tx->frames));
+std::string plural(std::uint64_t n, std::string_view word) {
+  return fmt::format("{} {}{}", n, word, n == 1 ? "" : "s");
+}
+
+std::string duration(Nanos ns) { return format_nanos(static_cast<double>(ns)); }
+
+std::string id_text(const IdStats& s) {
+  return s.extended ? fmt::format("{:08X}", s.id) : fmt::format("{:03X}", s.id);
+}
+
+// The node a request asks: the addressee of a frame "to the node", else the peer.
+std::uint32_t asked_node(const IdStats& s) {
+  return (s.flags & node_flags::kToNode) != 0 ? s.node : s.peer;
+}
+
+// Where the ids of one (bus, node) are, and what the monitor learns from them.
+struct NodeIds {
+  std::vector<std::size_t> from;  // Rx data ids the node sent
+  Nanos last_from = -1;           // latest of them
+  Nanos last_answer = -1;         // latest answer among them
+  Nanos last_request = -1;        // latest request to the node (any direction)
+  std::uint64_t requests = 0;     // frames of requests to the node
+  std::uint64_t to_node = 0;      // frames addressed to it (Rx) or sent to it (Tx)
+};
+
+// Classifies every id key and learns the periods of the periodic ones (CanReport::ids).
+void judge_ids(CanReport& r, const CanConfig& cfg, Nanos now) {
+  const auto& ids = r.snapshot.ids;
+  // Ids whose remote frames were seen: their data frames answer those requests.
+  std::set<std::tuple<std::uint8_t, std::uint32_t, bool>> asked;
+  for (const IdStats& s : ids) {
+    if (s.rtr) asked.emplace(s.bus, s.id, s.extended);
+  }
+  r.ids.resize(ids.size());
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    const IdStats& s = ids[i];
+    IdVerdict& v = r.ids[i];
+    if (s.direction == Direction::Rx) v.silence_ns = std::max<Nanos>(0, now - s.last_ns);
+    if (s.error) {
+      v.traffic = Traffic::Errors;
+    } else if (s.node == kNoNode) {
+      v.traffic = Traffic::Network;
+    } else if (s.direction == Direction::Tx) {
+      v.traffic = Traffic::Sent;
+    } else if ((s.flags & node_flags::kToNode) != 0) {
+      v.traffic = Traffic::ToNode;
+    } else if ((s.flags & (node_flags::kResponse | node_flags::kRequest)) != 0 ||
+               asked.contains({s.bus, s.id, s.extended})) {
+      v.traffic = Traffic::OnRequest;
     } else {
-      n.status.merge(t.never_seen_level, "not initialized: never seen");
+      const LearnRule& rule = cfg.thresholds_for(s.bus, s.node).learn;
+      if (s.gap_ns.count < rule.min_gaps) {
+        v.traffic = Traffic::Learning;
+      } else {
+        v.traffic = Traffic::Periodic;
+        v.period_ns = stat_value(s.gap_ns, rule.percentile);
+        const auto scaled = static_cast<Nanos>(rule.factor * static_cast<double>(v.period_ns));
+        v.limit_ns = std::max(rule.floor_ns, scaled);
+        v.overdue = v.silence_ns > v.limit_ns;
+      }
     }
   }
-  if (received) {
-    n.silence_ns = std::max<Nanos>(0, now - n.rx->last_ns);
-    if (t.not_responding_enabled && n.silence_ns > t.not_responding_after_ns) {
-      n.status.merge(t.not_responding_level,
-                     fmt::format("not responding: silent for {} (limit {})",
-                                 format_nanos(static_cast<double>(n.silence_ns)),
-                                 config::format_duration(t.not_responding_after_ns)));
+}
+
+NodeIds ids_of(const CanReport& r, std::optional<std::uint8_t> bus, std::uint32_t node) {
+  NodeIds n;
+  const auto& ids = r.snapshot.ids;
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    const IdStats& s = ids[i];
+    if (s.error || (bus && s.bus != *bus)) continue;
+    const IdVerdict& v = r.ids[i];
+    if (s.request() && asked_node(s) == node) {
+      n.last_request = std::max(n.last_request, s.last_ns);
+      n.requests += s.frames;
+    }
+    if (s.node != node) continue;
+    if (v.traffic == Traffic::ToNode || v.traffic == Traffic::Sent) n.to_node += s.frames;
+    if (v.traffic == Traffic::Periodic || v.traffic == Traffic::Learning ||
+        v.traffic == Traffic::OnRequest) {
+      n.from.push_back(i);
+      n.last_from = std::max(n.last_from, s.last_ns);
+      if (v.traffic == Traffic::OnRequest) n.last_answer = std::max(n.last_answer, s.last_ns);
+    }
+  }
+  return n;
+}
+
+void not_responding(NodeReport& n, std::string message) {
+  n.liveness = Liveness::NotResponding;
+  n.status.merge(n.thresholds.not_responding_level, std::move(message));
+}
+
+void builtin_checks(NodeReport& n, const CanReport& r, Nanos now) {
+  const NodeThresholds& t = n.thresholds;
+  const NodeIds ids = ids_of(r, n.bus, n.node);
+  n.to_node_frames = ids.to_node;
+  const bool heard = ids.last_from >= 0;
+  if (heard) n.silence_ns = std::max<Nanos>(0, now - ids.last_from);
+  // A request is answered by a later answer of the node (a response, an RTR answer).
+  const bool pending = ids.last_request >= 0 && ids.last_request > ids.last_answer;
+  if (pending) n.unanswered_ns = std::max<Nanos>(0, now - ids.last_request);
+  const bool unanswered = pending && n.unanswered_ns > t.answer_within_ns;
+
+  if (!heard) {
+    n.liveness = Liveness::NeverSeen;
+    if (n.expected && t.never_seen_enabled) {
+      if (ids.to_node > 0) {
+        n.status.merge(t.never_seen_level,
+                       fmt::format("not initialized: never answered ({} sent to it)",
+                                   plural(ids.to_node, "frame")));
+      } else {
+        n.status.merge(t.never_seen_level, "not initialized: never seen");
+      }
+    } else if (unanswered) {
+      n.status.merge(StatusLevel::Ok,
+                     fmt::format("never answered {} to it", plural(ids.requests, "request")));
+    }
+  } else if (!t.not_responding_enabled) {
+    n.liveness = Liveness::Responding;
+  } else if (t.not_responding_after_ns) {
+    n.silence_limit_ns = *t.not_responding_after_ns;
+    n.liveness = Liveness::Responding;
+    if (n.silence_ns > n.silence_limit_ns) {
+      not_responding(n,
+                     fmt::format("not responding: silent for {} (limit {})", duration(n.silence_ns),
+                                 config::format_duration(n.silence_limit_ns)));
+    }
+  } else {
+    // Learned: the largest limit of the node's periodic ids.
+    std::size_t learning = 0;
+    std::size_t answering = 0;
+    for (const std::size_t i : ids.from) {
+      const IdVerdict& v = r.ids[i];
+      if (v.traffic == Traffic::Learning) ++learning;
+      if (v.traffic == Traffic::OnRequest) ++answering;
+      if (v.traffic == Traffic::Periodic && v.limit_ns > n.silence_limit_ns) {
+        n.silence_limit_ns = v.limit_ns;
+        n.limit_id = static_cast<std::ptrdiff_t>(i);
+      }
+    }
+    n.limit_learned = n.limit_id >= 0;
+    if (n.limit_learned) {
+      n.liveness = Liveness::Responding;
+      if (n.silence_ns > n.silence_limit_ns) {
+        const IdStats& s = r.snapshot.ids[static_cast<std::size_t>(n.limit_id)];
+        const IdVerdict& v = r.ids[static_cast<std::size_t>(n.limit_id)];
+        const bool floor = v.limit_ns == t.learn.floor_ns;
+        not_responding(
+            n,
+            fmt::format("not responding: silent for {} (limit {}, learned: {} x {} gap {} of {}{})",
+                        duration(n.silence_ns), duration(n.silence_limit_ns),
+                        fmt::format("{:g}", t.learn.factor), to_string(t.learn.percentile),
+                        duration(v.period_ns), id_text(s), floor ? ", at the floor" : ""));
+      }
+    } else if (learning > 0) {
+      n.liveness = Liveness::Learning;
+      std::uint64_t most = 0;
+      for (const std::size_t i : ids.from) {
+        if (r.ids[i].traffic == Traffic::Learning) {
+          most = std::max(most, r.snapshot.ids[i].gap_ns.count);
+        }
+      }
+      n.status.merge(StatusLevel::Ok,
+                     fmt::format("learning its period: {} of {} gaps", most, t.learn.min_gaps));
+    } else if (answering > 0) {
+      n.liveness = Liveness::OnRequest;
+    }
+  }
+  if (heard && unanswered) {
+    const std::string what =
+        fmt::format("request unanswered for {} (limit {})", duration(n.unanswered_ns),
+                    config::format_duration(t.answer_within_ns));
+    if (n.liveness == Liveness::Responding && t.not_responding_enabled) {
+      n.status.merge(StatusLevel::Warn, "not answering: " + what);
+    } else if (t.not_responding_enabled && n.liveness != Liveness::NotResponding) {
+      not_responding(n, "not responding: " + what);
     }
   }
   check_limit(n.status, "read time", t.read_time, n.rx, true);
@@ -73,12 +232,19 @@ void builtin_checks(NodeReport& n, Nanos now) {
   check_limit(n.status, "tx gap", t.tx_gap, n.tx, false);
 }
 
-std::string plural(std::uint64_t n, std::string_view word) {
-  return fmt::format("{} {}{}", n, word, n == 1 ? "" : "s");
-}
-
 void overall(CanReport& r) {
   const SnifferTotals& t = r.snapshot.totals;
+  if (t.frames == 0) {
+    r.status.merge(StatusLevel::Warn, "no frames: nothing to judge");
+  } else if (t.accepted == 0) {
+    std::string why;
+    if (t.error_frames > 0) why = fmt::format("{}", plural(t.error_frames, "error frame"));
+    if (t.rejected > 0) {
+      why += fmt::format("{}{} rejected by the filter", why.empty() ? "" : ", ", t.rejected);
+    }
+    r.status.merge(StatusLevel::Warn,
+                   fmt::format("no valid frames: {} of {} seen ({})", "none", t.frames, why));
+  }
   for (const StatusLevel level : {StatusLevel::Stale, StatusLevel::Error, StatusLevel::Warn}) {
     std::vector<std::string> names;
     for (const NodeReport& n : r.nodes) {
@@ -94,15 +260,33 @@ void overall(CanReport& r) {
     r.status.merge(level,
                    fmt::format("{} {}: {}", plural(names.size(), "node"), to_string(level), list));
   }
+  if (const std::size_t learning = r.learning_count(); learning > 0) {
+    r.status.merge(StatusLevel::Ok,
+                   fmt::format("{} still learning {} period (not judged yet)",
+                               plural(learning, "node"), learning == 1 ? "its" : "their"));
+  }
   if (t.untracked_ids > 0) {
-    r.status.merge(StatusLevel::Warn,
-                   fmt::format("{} not counted per id: the sniffer's id table is full",
-                               plural(t.untracked_ids, "frame")));
+    r.status.merge(
+        StatusLevel::Warn,
+        fmt::format("{} not counted per id: more distinct ids than the sniffer's id "
+                    "table holds ({} per sniffer)",
+                    plural(t.untracked_ids, "frame"),
+                    r.snapshot.sniffers.empty() ? 0 : r.snapshot.sniffers.front().max_ids));
   }
   if (t.untracked_nodes > 0) {
+    r.status.merge(
+        StatusLevel::Warn,
+        fmt::format("{} not counted per node: more distinct nodes than the sniffer's "
+                    "node table holds ({} per sniffer)",
+                    plural(t.untracked_nodes, "frame"),
+                    r.snapshot.sniffers.empty() ? 0 : r.snapshot.sniffers.front().max_nodes));
+  }
+  const std::uint64_t lost = r.snapshot.unaggregated_id_records -
+                             std::min(r.snapshot.unaggregated_id_records, t.untracked_ids);
+  if (lost > 0) {
     r.status.merge(StatusLevel::Warn,
-                   fmt::format("{} not counted per node: the sniffer's node table is full",
-                               plural(t.untracked_nodes, "frame")));
+                   fmt::format("{} not timed per id: the aggregator holds {} ids at most",
+                               plural(lost, "record"), r.snapshot.max_ids));
   }
   if (t.error_frames > 0) {
     r.status.merge(StatusLevel::Warn, plural(t.error_frames, "error frame"));
@@ -115,6 +299,62 @@ void overall(CanReport& r) {
 }
 
 }  // namespace
+
+std::string_view to_string(Liveness l) noexcept {
+  switch (l) {
+    case Liveness::NoNode:
+      return "no node";
+    case Liveness::NeverSeen:
+      return "never seen";
+    case Liveness::Learning:
+      return "learning";
+    case Liveness::OnRequest:
+      return "on request";
+    case Liveness::Responding:
+      return "responding";
+    case Liveness::NotResponding:
+      return "not responding";
+  }
+  return "?";
+}
+
+std::string_view to_string(Traffic t) noexcept {
+  switch (t) {
+    case Traffic::Periodic:
+      return "periodic";
+    case Traffic::Learning:
+      return "learning";
+    case Traffic::OnRequest:
+      return "on request";
+    case Traffic::ToNode:
+      return "to node";
+    case Traffic::Network:
+      return "network";
+    case Traffic::Sent:
+      return "sent";
+    case Traffic::Errors:
+      return "errors";
+  }
+  return "?";
+}
+
+std::size_t CanReport::node_count() const noexcept {
+  return static_cast<std::size_t>(
+      std::count_if(nodes.begin(), nodes.end(), [](const NodeReport& n) { return n.is_node(); }));
+}
+
+std::size_t CanReport::ok_count() const noexcept {
+  return static_cast<std::size_t>(
+      std::count_if(nodes.begin(), nodes.end(), [](const NodeReport& n) {
+        return n.is_node() && n.status.ok() && n.liveness != Liveness::Learning;
+      }));
+}
+
+std::size_t CanReport::learning_count() const noexcept {
+  return static_cast<std::size_t>(std::count_if(
+      nodes.begin(), nodes.end(),
+      [](const NodeReport& n) { return n.liveness == Liveness::Learning && n.status.ok(); }));
+}
 
 const NodeReport* CanReport::find(std::uint8_t bus, std::uint32_t node) const noexcept {
   for (const NodeReport& n : nodes) {
@@ -171,6 +411,7 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
   r.time_ns = now;
   r.node_map = snapshot.sniffers.empty() ? cfg->node_map : snapshot.sniffers.front().node_map;
   r.snapshot = std::move(snapshot);
+  judge_ids(r, *cfg, now);
 
   std::map<std::pair<std::uint8_t, std::uint32_t>, NodeReport> seen;
   for (const NodeStats& s : r.snapshot.nodes) {
@@ -218,6 +459,11 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
   for (auto& [key, n] : seen) r.nodes.push_back(std::move(n));
   for (NodeReport& n : unseen) r.nodes.push_back(std::move(n));
   for (NodeReport& n : r.nodes) {
+    if (n.node == kNoNode) {
+      n.liveness = Liveness::NoNode;
+      n.name = "(no node)";
+      continue;
+    }
     const NodeConfig* named = nullptr;
     if (n.bus) {
       named = cfg->find_node(*n.bus, n.node);
@@ -237,10 +483,11 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
       if (member) n.groups.push_back(g.members.name);
     }
     n.thresholds = resolve(*cfg, n.bus, n.node);
-    builtin_checks(n, now);
+    builtin_checks(n, r, now);
   }
   for (const auto& [name, check] : checks) {
     for (NodeReport& n : r.nodes) {
+      if (!n.is_node()) continue;
       try {
         check(n, r, n.status);
       } catch (const std::exception& e) {

@@ -40,7 +40,9 @@ struct LogReplay::Impl {
                 SnifferOptions{.max_ids = options.max_ids,
                                .max_nodes = options.max_nodes,
                                .node_map = options.node_map}),
-        aggregator(registry, CanAggregatorOptions{.exact_percentiles = options.exact_percentiles}),
+        aggregator(registry, CanAggregatorOptions{.exact_percentiles = options.exact_percentiles,
+                                                  .max_ids = options.max_ids,
+                                                  .max_nodes = options.max_nodes}),
         supervisor(registry.ports(), aggregator,
                    SupervisorOptions{.period_ns = 100 * kNanosPerMilli,
                                      .batch = 256,
@@ -95,9 +97,19 @@ CanSnapshot LogReplay::snapshot(std::span<const GroupSpec> groups) {
   return impl_->aggregator.snapshot(groups);
 }
 
-CanReport LogReplay::report(const CanMonitor& monitor) {
+CanReport LogReplay::report(const CanMonitor& monitor) { return report(monitor, impl_->last); }
+
+CanReport LogReplay::report(const CanMonitor& monitor, Nanos now) {
   flush();
-  return monitor.evaluate(impl_->aggregator, impl_->last);
+  CanReport r = monitor.evaluate(impl_->aggregator, now);
+  std::uint64_t malformed = 0;
+  for (const ReplayFile& f : impl_->files) malformed += f.malformed;
+  if (impl_->frames == 0 && malformed > 0) {
+    r.status.merge(StatusLevel::Warn,
+                   fmt::format("no valid frame in the logs: {} malformed line{} skipped", malformed,
+                               malformed == 1 ? "" : "s"));
+  }
+  return r;
 }
 
 std::uint64_t LogReplay::frames() const noexcept { return impl_->frames; }

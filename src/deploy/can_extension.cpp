@@ -35,6 +35,7 @@ void CanExtension::contribute(ReportSet& reports) {
   const can::CanReport r = monitor_->evaluate(*statistics_, now);
   std::map<std::string, Report> groups;
   for (const auto& n : r.nodes) {
+    if (!n.is_node()) continue;  // the frames of no node (SYNC, NMT...) are not judged
     Report rep;
     rep.kind = ReportKind::CanNode;
     rep.name = fmt::format("can{}/{}", n.bus ? std::to_string(*n.bus) : std::string("*"), n.name);
@@ -46,16 +47,15 @@ void CanExtension::contribute(ReportSet& reports) {
       rep.latency_ns = n.rx->io_ns;  // read time
       rep.user_ns = n.rx->gap_ns;    // time between frames received
     }
-    if (!n.rx && !n.tx) {
-      rep.state_label = "never seen";
-    } else if (n.status.level() >= StatusLevel::Error && n.silence_ns > 0) {
-      rep.state_label = "not responding";
-    } else {
-      rep.state_label = "responding";
-    }
+    rep.state_label = std::string(can::to_string(n.liveness));
     rep.add("frames_rx", std::to_string(rx));
     rep.add("frames_tx", std::to_string(tx));
     if (n.silence_ns >= 0) rep.add("silence", format_nanos(static_cast<double>(n.silence_ns)));
+    if (n.silence_limit_ns >= 0) {
+      rep.add("silence_limit",
+              fmt::format("{} ({})", format_nanos(static_cast<double>(n.silence_limit_ns)),
+                          n.limit_learned ? "learned" : "configured"));
+    }
     if (n.rx) {
       rep.add("rx_gap", fmt::format("p50 {} max {}", format_nanos(double(n.rx->gap_ns.p50)),
                                     format_nanos(double(n.rx->gap_ns.max))));

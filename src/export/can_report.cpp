@@ -66,6 +66,24 @@ std::string format_id(std::uint32_t id, bool extended) {
   return extended ? fmt::format("{:08X}", id) : fmt::format("{:03X}", id);
 }
 
+// An id's function for people, with the direction of a request or an answer and its peer.
+std::string describe_function(NodeMapKind kind, const IdStats& s) {
+  if (s.error) return "error class";
+  std::string f = format_function(kind, s.function);
+  if (s.rtr) return f + " (remote request)";
+  if (kind == NodeMapKind::DroneCan && (s.flags & (node_flags::kRequest | node_flags::kResponse))) {
+    f += s.request() ? " request" : " response";
+    if (s.peer != kNoNode) f += fmt::format(" to {}", s.peer);
+  }
+  return f;
+}
+
+// "data", "RTR" or "error".
+std::string kind_of(const IdStats& s) {
+  if (s.error) return "error";
+  return s.rtr ? "RTR" : "data";
+}
+
 // Bus `bus` for people: `bus_names[bus]` when there is one, else the number.
 std::string bus_name(std::uint8_t bus, const std::vector<std::string>& bus_names) {
   if (bus < bus_names.size() && !bus_names[bus].empty()) return bus_names[bus];
@@ -77,78 +95,110 @@ std::string bus_name(std::uint8_t bus, const std::vector<std::string>& bus_names
 std::string format_can_report(const CanReport& r, const CanTextOptions& options) {
   std::string out;
   const SnifferTotals& t = r.snapshot.totals;
-  std::size_t ok = 0;
-  for (const NodeReport& n : r.nodes) ok += n.status.ok() ? 1 : 0;
-  out += fmt::format("CAN status: {} ({} frames, {} ids, {} nodes of which {} OK, node map {})\n",
-                     to_string(r.status.level()), t.frames, r.snapshot.ids.size(), r.nodes.size(),
-                     ok, to_string(r.node_map));
+  std::size_t ids_count = 0;
+  for (const IdStats& s : r.snapshot.ids) ids_count += s.error || s.rtr ? 0 : 1;
+  const std::size_t learning = r.learning_count();
+  out += fmt::format("CAN status: {} ({} frames, {} ids, {} nodes of which {} OK{}, node map {})\n",
+                     to_string(r.status.level()), t.frames, ids_count, r.node_count(), r.ok_count(),
+                     learning > 0 ? fmt::format(", {} learning", learning) : "",
+                     to_string(r.node_map));
   for (const StatusMessage& m : r.status.messages()) {
     out += fmt::format("  {}: {}\n", to_string(m.level), m.text);
   }
+  if (t.remote_frames > 0 || t.error_frames > 0) {
+    out += fmt::format("  frames: {} data, {} remote (RTR), {} error\n",
+                       t.accepted - std::min(t.accepted, t.remote_frames), t.remote_frames,
+                       t.error_frames);
+  }
 
+  // Units: one per column family, named in the headers: counts, I/O times in us, gaps,
+  // silences, periods and limits in ms.
   out += "\nSummary\n";
-  TextTable summary({"CATEGORY", "DIR", "NODES", "FRAMES", "RECORDS", "IO MEAN us", "IO MIN us",
-                     "IO MAX us", "GAP MEAN us", "GAP MIN us", "GAP MAX us"},
-                    {false, false, true, true, true, true, true, true, true, true, true});
+  TextTable summary({"CATEGORY", "DIR", "NODES", "FRAMES", "RTR", "RECORDS", "IO MEAN us",
+                     "IO MIN us", "IO MAX us", "GAP MEAN ms", "GAP MIN ms", "GAP MAX ms"},
+                    {false, false, true, true, true, true, true, true, true, true, true, true});
   for (const CategoryStats& c : r.snapshot.categories) {
     summary.add(
         {c.group ? "group " + c.name : c.name, std::string(to_string(c.direction)),
-         fmt::format("{}", c.nodes), fmt::format("{}", c.frames), fmt::format("{}", c.records),
+         fmt::format("{}", c.nodes), fmt::format("{}", c.frames),
+         fmt::format("{}", c.remote_frames), fmt::format("{}", c.records),
          us_or_dash(c.io_ns, c.io_ns.mean), us_or_dash(c.io_ns, static_cast<double>(c.io_ns.min)),
-         us_or_dash(c.io_ns, static_cast<double>(c.io_ns.max)), us_or_dash(c.gap_ns, c.gap_ns.mean),
-         us_or_dash(c.gap_ns, static_cast<double>(c.gap_ns.min)),
-         us_or_dash(c.gap_ns, static_cast<double>(c.gap_ns.max))});
+         us_or_dash(c.io_ns, static_cast<double>(c.io_ns.max)), ms_or_dash(c.gap_ns, c.gap_ns.mean),
+         ms_or_dash(c.gap_ns, static_cast<double>(c.gap_ns.min)),
+         ms_or_dash(c.gap_ns, static_cast<double>(c.gap_ns.max))});
   }
   out += summary.str();
 
   out += "\nNodes\n";
   TextTable nodes(
-      {"STATUS", "BUS", "NODE", "NAME", "DIR", "FRAMES", "RECORDS", "IDS", "GAP MIN ms",
-       "GAP p50 ms", "GAP MAX ms", "SILENCE ms", "MESSAGES"},
-      {false, false, true, false, false, true, true, true, true, true, true, true, false});
+      {"STATUS", "BUS", "NODE", "NAME", "DIR", "FRAMES", "RTR", "RECORDS", "IDS", "GAP MIN ms",
+       "GAP p50 ms", "GAP MAX ms", "SILENCE ms", "LIMIT ms", "LIVENESS", "MESSAGES"},
+      {false, false, true, false, false, true, true, true, true, true, true, true, true, true,
+       false, false});
   for (const NodeReport& n : r.nodes) {
+    const std::string status = n.liveness == Liveness::Learning && n.status.ok()
+                                   ? std::string("LEARNING")
+                                   : std::string(to_string(n.status.level()));
     const std::string bus = n.bus ? bus_name(*n.bus, options.bus_names) : "*";
     const std::string node = format_node(r.node_map, n.node);
     const std::string silence = n.silence_ns < 0 ? "-" : ms(static_cast<double>(n.silence_ns));
+    const std::string limit = n.silence_limit_ns < 0 ? "-"
+                                                     : ms(static_cast<double>(n.silence_limit_ns)) +
+                                                           (n.limit_learned ? "" : "*");
     const std::string name = n.named ? n.name : "-";  // else the NODE column says it
+    const std::string liveness(to_string(n.liveness));
     bool first = true;
     for (const auto* s : {&n.rx, &n.tx}) {
       if (!s->has_value()) continue;
       const NodeStats& x = **s;
-      nodes.add({std::string(to_string(n.status.level())), bus, node, name,
-                 std::string(to_string(x.direction)),
+      const bool rx = x.direction == Direction::Rx;
+      nodes.add({status, bus, node, name, std::string(to_string(x.direction)),
                  fmt::format("{}{}", x.frames, x.exact_count ? "" : "+"),
-                 fmt::format("{}", x.records), fmt::format("{}", x.ids),
-                 ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.min)),
+                 fmt::format("{}", x.remote_frames), fmt::format("{}", x.records),
+                 fmt::format("{}", x.ids), ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.min)),
                  ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.p50)),
-                 ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.max)),
-                 x.direction == Direction::Rx ? silence : "-", first ? messages_of(n.status) : ""});
+                 ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.max)), rx ? silence : "-",
+                 rx ? limit : "-", first ? liveness : "", first ? messages_of(n.status) : ""});
       first = false;
     }
     if (first) {
-      nodes.add({std::string(to_string(n.status.level())), bus, node, name, "-", "0", "0", "0", "-",
-                 "-", "-", "-", messages_of(n.status)});
+      nodes.add({status, bus, node, name, "-", "0", "0", "0", "0", "-", "-", "-", "-", limit,
+                 liveness, messages_of(n.status)});
     }
   }
   out += nodes.str();
+  if (std::any_of(r.nodes.begin(), r.nodes.end(), [](const NodeReport& n) {
+        return n.silence_limit_ns >= 0 && !n.limit_learned;
+      })) {
+    out += "(* a configured limit; the others are learned from each node's traffic)\n";
+  }
 
   if (options.ids) {
     out += "\nIds\n";
-    TextTable ids({"BUS", "ID", "NODE", "FUNCTION", "DIR", "FRAMES", "RECORDS", "GAP MIN ms",
-                   "GAP p50 ms", "GAP MAX ms", "GAP MEAN ms"},
-                  {false, false, true, false, false, true, true, true, true, true, true});
+    TextTable ids(
+        {"BUS", "ID", "NODE", "FUNCTION", "DIR", "FRAMES", "RECORDS", "GAP MIN ms", "GAP p50 ms",
+         "GAP MAX ms", "GAP MEAN ms", "KIND", "PERIOD ms", "LIMIT ms", "SILENCE ms", "TRAFFIC"},
+        {false, false, true, false, false, true, true, true, true, true, true, false, true, true,
+         true, false});
     bool approximate = false;
-    for (const IdStats& s : r.snapshot.ids) {
+    for (std::size_t i = 0; i < r.snapshot.ids.size(); ++i) {
+      const IdStats& s = r.snapshot.ids[i];
+      const IdVerdict v = i < r.ids.size() ? r.ids[i] : IdVerdict{};
       if (s.gap_ns.count > 0 && !s.gap_exact) approximate = true;
+      const auto opt_ms = [](Nanos x) {
+        return x < 0 ? std::string("-") : ms(static_cast<double>(x));
+      };
       ids.add({bus_name(s.bus, options.bus_names), format_id(s.id, s.extended),
-               format_node(r.node_map, s.node), format_function(r.node_map, s.function),
+               format_node(r.node_map, s.node), describe_function(r.node_map, s),
                std::string(to_string(s.direction)),
                fmt::format("{}{}", s.frames, s.exact_count ? "" : "+"),
                fmt::format("{}", s.records),
                ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.min)),
                ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.p50)),
                ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.max)),
-               ms_or_dash(s.gap_ns, s.gap_ns.mean)});
+               ms_or_dash(s.gap_ns, s.gap_ns.mean), kind_of(s), opt_ms(v.period_ns),
+               opt_ms(v.limit_ns), opt_ms(v.silence_ns),
+               std::string(to_string(v.traffic)) + (v.overdue ? " (overdue)" : "")});
     }
     out += ids.str();
     if (approximate) {
@@ -183,7 +233,8 @@ void write_status(JsonWriter& w, const Status& s) {
 void write_totals(JsonWriter& w, const SnifferTotals& t) {
   w.begin_object();
   w.field("frames", t.frames).field("rx", t.rx).field("tx", t.tx);
-  w.field("error_frames", t.error_frames).field("rejected", t.rejected);
+  w.field("error_frames", t.error_frames).field("remote_frames", t.remote_frames);
+  w.field("rejected", t.rejected);
   w.field("accepted", t.accepted).field("untracked_ids", t.untracked_ids);
   w.field("untracked_nodes", t.untracked_nodes).field("dropped", t.dropped);
   w.field("filter_changes", t.filter_changes);
@@ -192,7 +243,8 @@ void write_totals(JsonWriter& w, const SnifferTotals& t) {
 
 void write_node_stats(JsonWriter& w, const NodeStats& s) {
   w.begin_object();
-  w.field("frames", s.frames).field("exact_count", s.exact_count).field("records", s.records);
+  w.field("frames", s.frames).field("remote_frames", s.remote_frames);
+  w.field("exact_count", s.exact_count).field("records", s.records);
   w.field("ids", s.ids).field("first_ns", s.first_ns).field("last_ns", s.last_ns);
   w.key("io_ns");
   write_summary(w, s.io_ns);
@@ -200,6 +252,15 @@ void write_node_stats(JsonWriter& w, const NodeStats& s) {
   write_summary(w, s.gap_ns);
   w.field("gap_exact", s.gap_exact);
   w.end_object();
+}
+
+// `key: ns`, or `key: null` for a negative value (none).
+void optional_ns(JsonWriter& w, std::string_view key, Nanos ns) {
+  if (ns < 0) {
+    w.key(key).null();
+  } else {
+    w.field(key, ns);
+  }
 }
 
 void write_us(JsonWriter& w, const StatsSummary& s) {
@@ -222,14 +283,22 @@ void write_can_report_members(JsonWriter& w, const CanReport& r,
   w.field("node_map", to_string(r.node_map));
   write_status(w, r.status);
   w.field("records", r.snapshot.records);
+  w.field("node_count", r.node_count()).field("ok_count", r.ok_count());
+  w.field("learning_count", r.learning_count());
   w.key("totals");
   write_totals(w, r.snapshot.totals);
+  w.key("limits").begin_object();
+  w.field("max_ids", r.snapshot.max_ids).field("max_nodes", r.snapshot.max_nodes);
+  w.field("unaggregated_id_records", r.snapshot.unaggregated_id_records);
+  w.field("unaggregated_node_records", r.snapshot.unaggregated_node_records);
+  w.end_object();
 
   w.key("summary").begin_array();
   for (const CategoryStats& c : r.snapshot.categories) {
     w.begin_object();
     w.field("category", c.name).field("group", c.group).field("direction", to_string(c.direction));
-    w.field("nodes", c.nodes).field("frames", c.frames).field("records", c.records);
+    w.field("nodes", c.nodes).field("frames", c.frames).field("remote_frames", c.remote_frames);
+    w.field("records", c.records);
     w.key("io_us");
     write_us(w, c.io_ns);
     w.key("gap_us");
@@ -246,17 +315,32 @@ void write_can_report_members(JsonWriter& w, const CanReport& r,
     } else {
       w.key("bus").null().key("bus_name").null();
     }
-    w.field("node", n.node).field("name", n.name).field("named", n.named);
-    w.field("expected", n.expected);
+    if (n.is_node()) {
+      w.field("node", n.node);
+    } else {
+      w.key("node").null();
+    }
+    w.field("name", n.name).field("named", n.named);
+    w.field("expected", n.expected).field("liveness", to_string(n.liveness));
     w.key("groups").begin_array();
     for (const std::string& g : n.groups) w.value(g);
     w.end_array();
     write_status(w, n.status);
-    if (n.silence_ns >= 0) {
-      w.field("silence_ns", n.silence_ns);
+    optional_ns(w, "silence_ns", n.silence_ns);
+    optional_ns(w, "silence_limit_ns", n.silence_limit_ns);
+    if (n.silence_limit_ns < 0) {
+      w.key("limit").null();
     } else {
-      w.key("silence_ns").null();
+      w.field("limit", n.limit_learned ? "learned" : "configured");
     }
+    if (n.limit_id >= 0) {
+      const IdStats& s = r.snapshot.ids[static_cast<std::size_t>(n.limit_id)];
+      w.field("limit_id", format_id(s.id, s.extended));
+    } else {
+      w.key("limit_id").null();
+    }
+    w.field("to_node_frames", n.to_node_frames);
+    optional_ns(w, "unanswered_ns", n.unanswered_ns);
     w.key("rx");
     if (n.rx) {
       write_node_stats(w, *n.rx);
@@ -274,12 +358,33 @@ void write_can_report_members(JsonWriter& w, const CanReport& r,
   w.end_array();
 
   w.key("ids").begin_array();
-  for (const IdStats& s : r.snapshot.ids) {
+  for (std::size_t i = 0; i < r.snapshot.ids.size(); ++i) {
+    const IdStats& s = r.snapshot.ids[i];
+    const IdVerdict v = i < r.ids.size() ? r.ids[i] : IdVerdict{};
     w.begin_object();
     w.field("bus", s.bus).field("bus_name", bus_name(s.bus, bus_names));
     w.field("id", format_id(s.id, s.extended)).field("id_value", s.id);
-    w.field("extended", s.extended).field("direction", to_string(s.direction));
-    w.field("node", s.node).field("function", s.function);
+    w.field("extended", s.extended).field("kind", kind_of(s));
+    w.field("direction", to_string(s.direction));
+    if (s.node == kNoNode) {
+      w.key("node").null();
+    } else {
+      w.field("node", s.node);
+    }
+    w.field("function", s.function);
+    w.field("function_name", describe_function(r.node_map, s));
+    if (s.peer == kNoNode) {
+      w.key("peer").null();
+    } else {
+      w.field("peer", s.peer);
+    }
+    w.field("to_node", (s.flags & node_flags::kToNode) != 0);
+    w.field("request", s.request()).field("response", (s.flags & node_flags::kResponse) != 0);
+    w.field("traffic", to_string(v.traffic));
+    optional_ns(w, "period_ns", v.period_ns);
+    optional_ns(w, "silence_limit_ns", v.limit_ns);
+    optional_ns(w, "silence_ns", v.silence_ns);
+    w.field("overdue", v.overdue);
     w.field("frames", s.frames).field("exact_count", s.exact_count).field("records", s.records);
     w.field("first_ns", s.first_ns).field("last_ns", s.last_ns);
     w.key("io_ns");

@@ -59,7 +59,7 @@ groups:
   const NodeReport* wrist = r.find("wrist");
   REQUIRE(wrist != nullptr);
   CHECK(wrist->status.level() == StatusLevel::Error);
-  CHECK(has_message(wrist->status, "never answered (1 frames sent to it)"));
+  CHECK(has_message(wrist->status, "never answered (1 frame sent to it)"));
 
   CHECK(r.find("spare") == nullptr);  // not expected, not seen: not reported
   const NodeReport* hand = r.find(0, 4);
@@ -97,10 +97,29 @@ TEST_CASE("CAN check: not responding after its silence threshold, at the edge", 
         StatusLevel::Warn);
   const CanMonitor off(config_of("defaults: {not_responding: {enabled: false}}\n"));
   CHECK(off.evaluate(p.aggregator, last + 100 * kNanosPerSecond).nodes[0].status.ok());
-  // The built-in limit is 1 s.
+  // Without a configured limit it is learned: with 9 gaps (fewer than 16) the node is learning,
+  // never judged; with 20 gaps of 10 ms its limit is max(250 ms floor, 2 x 10 ms) = 250 ms.
   const CanMonitor builtin;
-  CHECK(builtin.evaluate(p.aggregator, last + kNanosPerSecond).nodes[0].status.ok());
-  CHECK_FALSE(builtin.evaluate(p.aggregator, last + kNanosPerSecond + 1).nodes[0].status.ok());
+  const CanReport learning = builtin.evaluate(p.aggregator, last + 100 * kNanosPerSecond);
+  CHECK(learning.nodes[0].liveness == Liveness::Learning);
+  CHECK(learning.nodes[0].status.ok());
+  CHECK(has_message(learning.nodes[0].status, "learning its period: 9 of 16 gaps"));
+  CHECK(learning.learning_count() == 1);
+  CHECK(learning.ok_count() == 0);
+  for (int i = 11; i <= 20; ++i) p.read(frame(0x181, i * 10 * kNanosPerMilli));
+  p.supervisor.step();
+  const Nanos end = 200 * kNanosPerMilli;
+  const CanReport learned = builtin.evaluate(p.aggregator, end + 250 * kNanosPerMilli);
+  CHECK(learned.nodes[0].liveness == Liveness::Responding);
+  CHECK(learned.nodes[0].limit_learned);
+  CHECK(learned.nodes[0].silence_limit_ns == 250 * kNanosPerMilli);
+  CHECK(learned.nodes[0].status.ok());
+  const CanReport stopped = builtin.evaluate(p.aggregator, end + 250 * kNanosPerMilli + 1);
+  CHECK(stopped.nodes[0].liveness == Liveness::NotResponding);
+  CHECK(stopped.nodes[0].status.level() == StatusLevel::Error);
+  CHECK(has_message(stopped.nodes[0].status,
+                    "not responding: silent for 250ms (limit 250ms, learned: 2 x p99 gap 10.0ms "
+                    "of 181, at the floor)"));
 }
 
 TEST_CASE("CAN check: read/write times and gaps above thresholds, at the edge", "[can][monitor]") {
@@ -183,10 +202,10 @@ TEST_CASE("CAN monitor: overall status, untracked frames and sampled timing", "[
   CHECK(has_message(r.status, "3 frames not counted per id"));
   CHECK(has_message(r.status, "1 error frame"));
   CHECK(has_message(r.status, "timing sampled: 6 records of 10 dropped"));
-  // The untracked id is still reported, from its records, marked as a lower bound.
-  const IdStats* id = r.snapshot.find_id(0, 0x102, false, Direction::Rx);
-  REQUIRE(id != nullptr);
-  CHECK_FALSE(id->exact_count);
+  // The untracked id is not aggregated either (memory stays bounded): its records are counted.
+  CHECK(r.snapshot.find_id(0, 0x102, false, Direction::Rx) == nullptr);
+  CHECK(r.snapshot.unaggregated_id_records == 1);  // of the 4 records that got through
+  CHECK(r.snapshot.find_id(0, 0x100, false, Direction::Rx)->frames == 4);
 }
 
 TEST_CASE("CAN monitor: custom checks and reloaded thresholds", "[can][monitor]") {

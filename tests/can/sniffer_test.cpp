@@ -170,7 +170,14 @@ TEST_CASE("Sniffer counts error frames apart", "[can][sniffer]") {
   CHECK(t.frames == 2);
   CHECK(t.error_frames == 1);
   CHECK(t.accepted == 1);
-  CHECK(sniffer.ids().size() == 1);
+  // Error frames are counted per error class in the id table, with no node and no record.
+  const auto ids = sniffer.ids();
+  REQUIRE(ids.size() == 2);
+  const auto err = std::find_if(ids.begin(), ids.end(), [](const IdEntry& e) { return e.error; });
+  REQUIRE(err != ids.end());
+  CHECK(err->id == 0x4);
+  CHECK(err->node == vigil::can::kNoNode);
+  CHECK(err->frames == 1);
   CHECK(drain_records(registry).size() == 1);
 }
 

@@ -45,9 +45,12 @@ struct ReplayOptions {
   FilterExpr filter{};                          ///< frames outside it are not supervised
   Direction default_direction = Direction::Rx;  ///< for log lines that carry none
   bool exact_percentiles = true;                ///< keep every gap: exact percentiles
-  std::size_t max_ids = 8192;                   ///< the sniffer's id table
-  std::size_t max_nodes = 4096;                 ///< the sniffer's node table
-  ReaderOptions reader{};                       ///< what the log readers do with bad lines
+  /// Id keys tracked (the sniffer's id table and the aggregator): frames of more distinct ids
+  /// are counted as untracked, so memory stays bounded whatever the log holds.
+  std::size_t max_ids = 8192;
+  /// Node keys tracked, likewise.
+  std::size_t max_nodes = 4096;
+  ReaderOptions reader{};  ///< what the log readers do with bad lines
 };
 
 /// What was read from one file.
@@ -63,6 +66,10 @@ struct ReplayFile {
 /**
  * A replay pipeline. Feed it frames (`feed`) or whole logs (`feed_files`), then ask for the
  * statistics or a monitor report at the log's last timestamp.
+ *
+ * Memory: the sniffer's tables (`max_ids`, `max_nodes`, about 100 bytes a key), about 200
+ * bytes per tracked key in the aggregator, and 16 bytes per frame for the exact gaps; frames
+ * of keys beyond the tables are counted (`untracked_ids`, `untracked_nodes`), not kept.
  *
  * @code
  * vigil::can::LogReplay replay({.node_map = vigil::can::NodeMap::j1939()});
@@ -98,8 +105,11 @@ class LogReplay {
 
   /// The statistics, with categories for `groups`.
   [[nodiscard]] CanSnapshot snapshot(std::span<const GroupSpec> groups = {});
-  /// The monitor's report at `last_ns()` (the log's end).
+  /// The monitor's report at `last_ns()` (the log's end). A replay without frames, or whose
+  /// lines were all malformed, is a WARN that says so.
   [[nodiscard]] CanReport report(const CanMonitor& monitor);
+  /// The monitor's report at `now` (on the log's clock), e.g. to judge a log while it is fed.
+  [[nodiscard]] CanReport report(const CanMonitor& monitor, Nanos now);
 
   /// Frames fed so far.
   [[nodiscard]] std::uint64_t frames() const noexcept;

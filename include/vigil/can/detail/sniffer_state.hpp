@@ -47,11 +47,13 @@ inline void bump(std::atomic<std::uint64_t>& c, std::uint64_t n = 1) noexcept {
 
 inline constexpr std::uint64_t kUsedBit = std::uint64_t{1} << 63;
 
-/// Table key of (bus, id, format, direction); never 0.
+/// Table key of (bus, id, format, direction, remote, error); never 0.
 [[nodiscard]] constexpr std::uint64_t id_key(std::uint8_t bus, std::uint32_t id, bool extended,
-                                             bool tx) noexcept {
-  return kUsedBit | (std::uint64_t{bus} << 40) | (std::uint64_t{tx} << 33) |
-         (std::uint64_t{extended} << 32) | id;
+                                             bool tx, bool rtr = false,
+                                             bool error = false) noexcept {
+  return kUsedBit | (std::uint64_t{bus} << 40) | (std::uint64_t{error} << 35) |
+         (std::uint64_t{rtr} << 34) | (std::uint64_t{tx} << 33) | (std::uint64_t{extended} << 32) |
+         id;
 }
 /// Table key of (bus, node, direction); never 0.
 [[nodiscard]] constexpr std::uint64_t node_key(std::uint8_t bus, std::uint32_t node,
@@ -65,6 +67,8 @@ struct IdCounter {
   std::atomic<std::uint64_t> key{0};  ///< 0: empty
   std::uint32_t node = 0;             ///< constant once published
   std::uint32_t function = 0;         ///< constant once published
+  std::uint32_t peer = kNoNode;       ///< constant once published
+  std::uint8_t flags = 0;             ///< constant once published
   std::atomic<std::uint64_t> frames{0};
   std::atomic<Nanos> first{0};
   std::atomic<Nanos> last{0};
@@ -74,6 +78,7 @@ struct IdCounter {
 struct NodeCounter {
   std::atomic<std::uint64_t> key{0};  ///< 0: empty
   std::atomic<std::uint64_t> frames{0};
+  std::atomic<std::uint64_t> remote{0};  ///< remote frames (RTR)
   std::atomic<Nanos> first{0};
   std::atomic<Nanos> last{0};
 };
@@ -195,6 +200,7 @@ class SnifferState {
     std::uint64_t epoch;  // the I/O thread's epoch right after the filter was unpublished
   };
   std::size_t reclaim_locked();
+  void count_error(const Frame& f, bool tx, Nanos end) noexcept;  // I/O thread
 
   const std::string name_;
   const NodeMap node_map_;
@@ -205,6 +211,7 @@ class SnifferState {
   alignas(64) std::atomic<std::uint64_t> frames_{0};
   std::atomic<std::uint64_t> tx_{0};
   std::atomic<std::uint64_t> error_frames_{0};
+  std::atomic<std::uint64_t> remote_frames_{0};
   std::atomic<std::uint64_t> rejected_{0};
   std::atomic<std::uint64_t> accepted_{0};
   std::atomic<std::uint64_t> untracked_ids_{0};
@@ -227,9 +234,10 @@ inline bool SnifferState::process(const Frame& f, Direction d, Nanos begin, Nano
   if (tx) bump(tx_);
   if (f.error) [[unlikely]] {
     bump(error_frames_);
+    count_error(f, tx, end);
     return false;
   }
-  const NodeAddress a = node_map_.map(f.id, f.extended);
+  const NodeAddress a = node_map_.map(f.id, f.extended, f.rtr);
 
   // Relaxed: only a hint. Null means accept-all and nothing to protect; a non-null hint is
   // reloaded inside the epoch guard below, and only that load is dereferenced.
@@ -250,6 +258,7 @@ inline bool SnifferState::process(const Frame& f, Direction d, Nanos begin, Nano
     }
   }
   bump(accepted_);
+  if (f.rtr) bump(remote_frames_);
 
   out.begin_ns = begin;
   out.end_ns = end;
@@ -265,6 +274,8 @@ inline bool SnifferState::process(const Frame& f, Direction d, Nanos begin, Nano
   out.extended = f.extended;
   out.rtr = f.rtr;
   out.fd = f.fd;
+  out.id_untracked = false;
+  out.node_untracked = false;
   const std::size_t n = std::min<std::size_t>(f.data_size(), out.data.size());
   if constexpr (std::endian::native == std::endian::little) {
     // One 8-byte load and a mask instead of a branch per byte; the bytes past the data are
@@ -278,15 +289,18 @@ inline bool SnifferState::process(const Frame& f, Direction d, Nanos begin, Nano
   }
 
   const auto [is, id_new] =
-      ids_.find_or_insert(id_key(f.bus, f.id, f.extended, tx), [&](IdCounter& s) noexcept {
+      ids_.find_or_insert(id_key(f.bus, f.id, f.extended, tx, f.rtr), [&](IdCounter& s) noexcept {
         s.node = a.node;
         s.function = a.function;
+        s.peer = a.peer;
+        s.flags = a.flags;
         s.frames.store(1, std::memory_order_relaxed);
         s.first.store(end, std::memory_order_relaxed);
         s.last.store(end, std::memory_order_relaxed);
       });
   if (is == nullptr) {
     bump(untracked_ids_);
+    out.id_untracked = true;
   } else if (id_new) {
     out.id_frames = 1;
   } else {
@@ -299,17 +313,37 @@ inline bool SnifferState::process(const Frame& f, Direction d, Nanos begin, Nano
   const auto [ns, node_new] =
       nodes_.find_or_insert(node_key(f.bus, a.node, tx), [&](NodeCounter& s) noexcept {
         s.frames.store(1, std::memory_order_relaxed);
+        s.remote.store(f.rtr ? 1 : 0, std::memory_order_relaxed);
         s.first.store(end, std::memory_order_relaxed);
         s.last.store(end, std::memory_order_relaxed);
       });
   if (ns == nullptr) {
     bump(untracked_nodes_);
+    out.node_untracked = true;
   } else if (!node_new) {
     out.node_gap_ns = end - ns->last.load(std::memory_order_relaxed);
     ns->last.store(end, std::memory_order_relaxed);
     bump(ns->frames);
+    if (f.rtr) bump(ns->remote);
   }
   return true;
+}
+
+inline void SnifferState::count_error(const Frame& f, bool tx, Nanos end) noexcept {
+  // Error frames have no node: one id key per (bus, error class, direction). A full table only
+  // loses this detail; `error_frames` stays exact.
+  const auto [es, inserted] =
+      ids_.find_or_insert(id_key(f.bus, f.id, true, tx, false, true), [&](IdCounter& s) noexcept {
+        s.node = kNoNode;
+        s.function = 0;
+        s.frames.store(1, std::memory_order_relaxed);
+        s.first.store(end, std::memory_order_relaxed);
+        s.last.store(end, std::memory_order_relaxed);
+      });
+  if (es != nullptr && !inserted) {
+    bump(es->frames);
+    es->last.store(end, std::memory_order_relaxed);
+  }
 }
 
 }  // namespace vigil::can::detail
