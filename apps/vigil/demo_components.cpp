@@ -8,8 +8,8 @@
 #include <stdexcept>
 #include <vector>
 
-#include "can_extension.hpp"
 #include "vigil/can/sniffer.hpp"
+#include "vigil/deploy/can_extension.hpp"
 #include "vigil/deploy/system.hpp"
 #include "vigil/platform/clock.hpp"
 
@@ -169,7 +169,7 @@ class CanIo : public Task<CanIo> {
         drives_(param<std::uint32_t>(c, "drives", 8)),
         silent_node_(param<std::uint32_t>(c, "silent_node", 5)),
         silent_after_ns_(param_duration(c, "silent_after", 3 * kNanosPerSecond)) {
-    auto* ext = c.system != nullptr ? c.system->extension<app::CanExtension>() : nullptr;
+    auto* ext = c.system != nullptr ? c.system->extension<deploy::CanExtension>() : nullptr;
     if (ext == nullptr) {
       throw std::runtime_error("demo.can_io needs a `can:` section in the deployment");
     }
@@ -232,7 +232,7 @@ void register_components() {
   f.add<Leaky>("demo.leaky", "fault: allocates every N cycles");
   f.add<Faulty>("demo.faulty", "fault: throws after a delay");
   f.add<CanIo>("demo.can_io", "CAN I/O with simulated CANopen drives (needs a `can:` section)");
-  app::register_can_extension();
+  deploy::register_can_extension();  // also done by linking vigil::deploy_can
 }
 
 const char* const kDemoDeployment =

@@ -55,8 +55,8 @@ int main(int argc, char** argv) {
   can_cmd->add_option("-c,--config", can.config, "CAN configuration (filters, groups, thresholds)")
       ->check(CLI::ExistingFile);
   can_cmd->add_flag("--json", can.json, "Print JSON instead of text");
-  can_cmd->add_option("--node-map", can.node_map, "identity, canopen or j1939")
-      ->check(CLI::IsMember({"identity", "canopen", "j1939"}));
+  can_cmd->add_option("--node-map", can.node_map, "identity, canopen, j1939 or dronecan")
+      ->check(CLI::IsMember({"identity", "canopen", "j1939", "dronecan"}));
 
   CLI11_PARSE(app, argc, argv);
 

@@ -25,7 +25,7 @@
 #include <vector>
 
 #include "support/bench_support.hpp"
-#include "vigil/can/candump.hpp"
+#include "vigil/can/log/candump.hpp"
 #if __has_include("vigil/can/sniffer.hpp")
 #include "vigil/can/can_statistics.hpp"
 #include "vigil/can/filter.hpp"

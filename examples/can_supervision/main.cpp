@@ -17,6 +17,7 @@
 #include "vigil/can/can_statistics.hpp"
 #include "vigil/can/sniffer.hpp"
 #include "vigil/exec/periodic_activity.hpp"
+#include "vigil/export/can_report.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/task/task.hpp"
 
@@ -141,11 +142,11 @@ int main(int argc, char** argv) {
     return 1;
   }
 
-  const can::CanTextOptions text{.ids = false, .bus_names = {"can0"}};
+  const vigil::exporter::CanTextOptions text{.ids = false, .bus_names = {"can0"}};
   const auto print = [&](const char* when) {
     if (json) return;
     const can::CanReport r = monitor.evaluate(statistics, vigil::platform::now_ns());
-    std::printf("--- %s\n%s\n", when, can::format_can_report(r, text).c_str());
+    std::printf("--- %s\n%s\n", when, vigil::exporter::format_can_report(r, text).c_str());
   };
   using namespace std::chrono_literals;
   std::this_thread::sleep_for(1s);
@@ -162,9 +163,10 @@ int main(int argc, char** argv) {
   supervisor.stop();  // one last full drain
   const can::CanReport r = monitor.evaluate(statistics, end);
   if (json) {
-    std::puts(can::can_report_json(r, 2, {"can0"}).c_str());
+    std::puts(vigil::exporter::can_report_json(r, 2, {"can0"}).c_str());
   } else {
-    std::printf("--- after 3 s\n%s", can::format_can_report(r, {.bus_names = {"can0"}}).c_str());
+    std::printf("--- after 3 s\n%s",
+                vigil::exporter::format_can_report(r, {.bus_names = {"can0"}}).c_str());
   }
   return 0;
 }

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <thread>
@@ -15,6 +16,7 @@
 #include "vigil/export/json_report.hpp"
 #include "vigil/export/text_report.hpp"
 #include "vigil/monitor/monitor.hpp"
+#include "vigil/monitor/threshold_file.hpp"
 #include "vigil/task/task.hpp"
 
 // The custom check. Any class with name() and run() satisfies vigil::Check.
@@ -63,12 +65,16 @@ int main(int argc, char** argv) {
   vigil::ComponentSupervisorLoop supervisor(vigil::default_registry(), aggregator);
   vigil::Monitor monitor(aggregator, {.period_ns = 500 * vigil::kNanosPerMilli});
   monitor.set_supervisor(&supervisor);
-  monitor.add_check<LatencyCheck>();  // the registration line
+  monitor.add_check<LatencyCheck>();         // the registration line
+  std::optional<vigil::ThresholdFile> file;  // watched: reloaded at each monitor cycle
   if (thresholds != nullptr) {
-    if (auto ok = monitor.watch_thresholds(thresholds); !ok) {
-      std::fprintf(stderr, "%s\n", vigil::config::to_string(ok.error()).c_str());
+    auto opened = vigil::ThresholdFile::open(thresholds);
+    if (!opened) {
+      std::fprintf(stderr, "%s\n", vigil::config::to_string(opened.error()).c_str());
       return 1;
     }
+    file.emplace(std::move(*opened));
+    file->attach(monitor);
   }
 
   Controller controller;

@@ -72,6 +72,11 @@ void ThresholdOverrides::apply_to(NodeThresholds& t) const {
   if (never_seen_level) t.never_seen_level = *never_seen_level;
   if (not_responding_enabled) t.not_responding_enabled = *not_responding_enabled;
   if (not_responding_after_ns) t.not_responding_after_ns = *not_responding_after_ns;
+  if (learn_percentile) t.learn.percentile = *learn_percentile;
+  if (learn_factor) t.learn.factor = *learn_factor;
+  if (learn_floor_ns) t.learn.floor_ns = *learn_floor_ns;
+  if (learn_min_gaps) t.learn.min_gaps = *learn_min_gaps;
+  if (answer_within_ns) t.answer_within_ns = *answer_within_ns;
   if (not_responding_level) t.not_responding_level = *not_responding_level;
   read_time.apply_to(t.read_time);
   write_time.apply_to(t.write_time);
@@ -111,10 +116,11 @@ const NodeConfig* CanConfig::find_node(std::uint8_t bus, std::uint32_t node) con
 
 namespace {
 
-constexpr std::array<cfg::EnumName<NodeMapKind>, 3> kNodeMaps{{
+constexpr std::array<cfg::EnumName<NodeMapKind>, 4> kNodeMaps{{
     {"identity", NodeMapKind::Identity},
     {"canopen", NodeMapKind::CanOpen},
     {"j1939", NodeMapKind::J1939},
+    {"dronecan", NodeMapKind::DroneCan},
 }};
 
 constexpr std::array<cfg::EnumName<StatusLevel>, 3> kLevels{{
@@ -300,9 +306,27 @@ ThresholdOverrides load_thresholds(const cfg::Node& n) {
     if (ns.has("level")) t.never_seen_level = ns.required_enum("level", kLevels);
   }
   if (const cfg::Node nr = n["not_responding"]; nr.defined()) {
-    nr.reject_unknown_keys({"enabled", "after", "level"});
+    nr.reject_unknown_keys({"enabled", "after", "level", "percentile", "factor", "floor",
+                            "min_gaps", "answer_within"});
     if (nr.has("enabled")) t.not_responding_enabled = nr.required<bool>("enabled");
-    if (nr.has("after")) t.not_responding_after_ns = nr.required_duration("after", cfg::positive());
+    if (const cfg::Node after = nr["after"]; after.defined()) {
+      if (after.is_scalar() && after.get<std::string>() == "learned") {
+        t.not_responding_after_ns = std::optional<Nanos>{};
+      } else {
+        t.not_responding_after_ns =
+            std::optional<Nanos>{nr.required_duration("after", cfg::positive())};
+      }
+    }
+    if (nr.has("percentile")) t.learn_percentile = nr.required_enum("percentile", kStats);
+    if (nr.has("factor")) t.learn_factor = nr.required<double>("factor", cfg::in_range(1.0, 100.0));
+    if (nr.has("floor")) t.learn_floor_ns = nr.required_duration("floor", cfg::non_negative());
+    if (nr.has("min_gaps")) {
+      t.learn_min_gaps =
+          nr.required<std::uint32_t>("min_gaps", cfg::in_range<std::uint32_t>(1, 1000000));
+    }
+    if (nr.has("answer_within")) {
+      t.answer_within_ns = nr.required_duration("answer_within", cfg::positive());
+    }
     if (nr.has("level")) t.not_responding_level = nr.required_enum("level", kLevels);
   }
   t.read_time = load_limit(n["read_time"]);

@@ -4,11 +4,11 @@
 
 #include <algorithm>
 #include <map>
+#include <set>
+#include <tuple>
 #include <utility>
 
-#include "can/can_json.hpp"
 #include "vigil/config/units.hpp"
-#include "vigil/export/json_writer.hpp"
 #include "vigil/monitor/report.hpp"
 
 namespace vigil::can {
@@ -48,25 +48,182 @@ void check_limit(Status& s, std::string_view what, const Limit& l,
   }
 }
 
-void builtin_checks(NodeReport& n, Nanos now) {
-  const NodeThresholds& t = n.thresholds;
-  const bool received = n.rx && n.rx->frames > 0;
-  if (n.expected && !received && t.never_seen_enabled) {
-    if (n.tx && n.tx->frames > 0) {
-      n.status.merge(
-          t.never_seen_level,
-          fmt::format("not initialized: never answered ({} frames sent to it)", n.tx->frames));
+std::string plural(std::uint64_t n, std::string_view word) {
+  return fmt::format("{} {}{}", n, word, n == 1 ? "" : "s");
+}
+
+std::string duration(Nanos ns) { return format_nanos(static_cast<double>(ns)); }
+
+std::string id_text(const IdStats& s) {
+  return s.extended ? fmt::format("{:08X}", s.id) : fmt::format("{:03X}", s.id);
+}
+
+// The node a request asks: the addressee of a frame "to the node", else the peer.
+std::uint32_t asked_node(const IdStats& s) {
+  return (s.flags & node_flags::kToNode) != 0 ? s.node : s.peer;
+}
+
+// Where the ids of one (bus, node) are, and what the monitor learns from them.
+struct NodeIds {
+  std::vector<std::size_t> from;  // Rx data ids the node sent
+  Nanos last_from = -1;           // latest of them
+  Nanos last_answer = -1;         // latest answer among them
+  Nanos last_request = -1;        // latest request to the node (any direction)
+  std::uint64_t requests = 0;     // frames of requests to the node
+  std::uint64_t to_node = 0;      // frames addressed to it (Rx) or sent to it (Tx)
+};
+
+// Classifies every id key and learns the periods of the periodic ones (CanReport::ids).
+void judge_ids(CanReport& r, const CanConfig& cfg, Nanos now) {
+  const auto& ids = r.snapshot.ids;
+  // Ids whose remote frames were seen: their data frames answer those requests.
+  std::set<std::tuple<std::uint8_t, std::uint32_t, bool>> asked;
+  for (const IdStats& s : ids) {
+    if (s.rtr) asked.emplace(s.bus, s.id, s.extended);
+  }
+  r.ids.resize(ids.size());
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    const IdStats& s = ids[i];
+    IdVerdict& v = r.ids[i];
+    if (s.direction == Direction::Rx) v.silence_ns = std::max<Nanos>(0, now - s.last_ns);
+    if (s.error) {
+      v.traffic = Traffic::Errors;
+    } else if (s.node == kNoNode) {
+      v.traffic = Traffic::Network;
+    } else if (s.direction == Direction::Tx) {
+      v.traffic = Traffic::Sent;
+    } else if ((s.flags & node_flags::kToNode) != 0) {
+      v.traffic = Traffic::ToNode;
+    } else if ((s.flags & (node_flags::kResponse | node_flags::kRequest)) != 0 ||
+               asked.contains({s.bus, s.id, s.extended})) {
+      v.traffic = Traffic::OnRequest;
     } else {
-      n.status.merge(t.never_seen_level, "not initialized: never seen");
+      const LearnRule& rule = cfg.thresholds_for(s.bus, s.node).learn;
+      if (s.gap_ns.count < rule.min_gaps) {
+        v.traffic = Traffic::Learning;
+      } else {
+        v.traffic = Traffic::Periodic;
+        v.period_ns = stat_value(s.gap_ns, rule.percentile);
+        const auto scaled = static_cast<Nanos>(rule.factor * static_cast<double>(v.period_ns));
+        v.limit_ns = std::max(rule.floor_ns, scaled);
+        v.overdue = v.silence_ns > v.limit_ns;
+      }
     }
   }
-  if (received) {
-    n.silence_ns = std::max<Nanos>(0, now - n.rx->last_ns);
-    if (t.not_responding_enabled && n.silence_ns > t.not_responding_after_ns) {
-      n.status.merge(t.not_responding_level,
-                     fmt::format("not responding: silent for {} (limit {})",
-                                 format_nanos(static_cast<double>(n.silence_ns)),
-                                 config::format_duration(t.not_responding_after_ns)));
+}
+
+NodeIds ids_of(const CanReport& r, std::optional<std::uint8_t> bus, std::uint32_t node) {
+  NodeIds n;
+  const auto& ids = r.snapshot.ids;
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    const IdStats& s = ids[i];
+    if (s.error || (bus && s.bus != *bus)) continue;
+    const IdVerdict& v = r.ids[i];
+    if (s.request() && asked_node(s) == node) {
+      n.last_request = std::max(n.last_request, s.last_ns);
+      n.requests += s.frames;
+    }
+    if (s.node != node) continue;
+    if (v.traffic == Traffic::ToNode || v.traffic == Traffic::Sent) n.to_node += s.frames;
+    if (v.traffic == Traffic::Periodic || v.traffic == Traffic::Learning ||
+        v.traffic == Traffic::OnRequest) {
+      n.from.push_back(i);
+      n.last_from = std::max(n.last_from, s.last_ns);
+      if (v.traffic == Traffic::OnRequest) n.last_answer = std::max(n.last_answer, s.last_ns);
+    }
+  }
+  return n;
+}
+
+void not_responding(NodeReport& n, std::string message) {
+  n.liveness = Liveness::NotResponding;
+  n.status.merge(n.thresholds.not_responding_level, std::move(message));
+}
+
+void builtin_checks(NodeReport& n, const CanReport& r, Nanos now) {
+  const NodeThresholds& t = n.thresholds;
+  const NodeIds ids = ids_of(r, n.bus, n.node);
+  n.to_node_frames = ids.to_node;
+  const bool heard = ids.last_from >= 0;
+  if (heard) n.silence_ns = std::max<Nanos>(0, now - ids.last_from);
+  // A request is answered by a later answer of the node (a response, an RTR answer).
+  const bool pending = ids.last_request >= 0 && ids.last_request > ids.last_answer;
+  if (pending) n.unanswered_ns = std::max<Nanos>(0, now - ids.last_request);
+  const bool unanswered = pending && n.unanswered_ns > t.answer_within_ns;
+
+  if (!heard) {
+    n.liveness = Liveness::NeverSeen;
+    if (n.expected && t.never_seen_enabled) {
+      if (ids.to_node > 0) {
+        n.status.merge(t.never_seen_level,
+                       fmt::format("not initialized: never answered ({} sent to it)",
+                                   plural(ids.to_node, "frame")));
+      } else {
+        n.status.merge(t.never_seen_level, "not initialized: never seen");
+      }
+    } else if (unanswered) {
+      n.status.merge(StatusLevel::Ok,
+                     fmt::format("never answered {} to it", plural(ids.requests, "request")));
+    }
+  } else if (!t.not_responding_enabled) {
+    n.liveness = Liveness::Responding;
+  } else if (t.not_responding_after_ns) {
+    n.silence_limit_ns = *t.not_responding_after_ns;
+    n.liveness = Liveness::Responding;
+    if (n.silence_ns > n.silence_limit_ns) {
+      not_responding(n,
+                     fmt::format("not responding: silent for {} (limit {})", duration(n.silence_ns),
+                                 config::format_duration(n.silence_limit_ns)));
+    }
+  } else {
+    // Learned: the largest limit of the node's periodic ids.
+    std::size_t learning = 0;
+    std::size_t answering = 0;
+    for (const std::size_t i : ids.from) {
+      const IdVerdict& v = r.ids[i];
+      if (v.traffic == Traffic::Learning) ++learning;
+      if (v.traffic == Traffic::OnRequest) ++answering;
+      if (v.traffic == Traffic::Periodic && v.limit_ns > n.silence_limit_ns) {
+        n.silence_limit_ns = v.limit_ns;
+        n.limit_id = static_cast<std::ptrdiff_t>(i);
+      }
+    }
+    n.limit_learned = n.limit_id >= 0;
+    if (n.limit_learned) {
+      n.liveness = Liveness::Responding;
+      if (n.silence_ns > n.silence_limit_ns) {
+        const IdStats& s = r.snapshot.ids[static_cast<std::size_t>(n.limit_id)];
+        const IdVerdict& v = r.ids[static_cast<std::size_t>(n.limit_id)];
+        const bool floor = v.limit_ns == t.learn.floor_ns;
+        not_responding(
+            n,
+            fmt::format("not responding: silent for {} (limit {}, learned: {} x {} gap {} of {}{})",
+                        duration(n.silence_ns), duration(n.silence_limit_ns),
+                        fmt::format("{:g}", t.learn.factor), to_string(t.learn.percentile),
+                        duration(v.period_ns), id_text(s), floor ? ", at the floor" : ""));
+      }
+    } else if (learning > 0) {
+      n.liveness = Liveness::Learning;
+      std::uint64_t most = 0;
+      for (const std::size_t i : ids.from) {
+        if (r.ids[i].traffic == Traffic::Learning) {
+          most = std::max(most, r.snapshot.ids[i].gap_ns.count);
+        }
+      }
+      n.status.merge(StatusLevel::Ok,
+                     fmt::format("learning its period: {} of {} gaps", most, t.learn.min_gaps));
+    } else if (answering > 0) {
+      n.liveness = Liveness::OnRequest;
+    }
+  }
+  if (heard && unanswered) {
+    const std::string what =
+        fmt::format("request unanswered for {} (limit {})", duration(n.unanswered_ns),
+                    config::format_duration(t.answer_within_ns));
+    if (n.liveness == Liveness::Responding && t.not_responding_enabled) {
+      n.status.merge(StatusLevel::Warn, "not answering: " + what);
+    } else if (t.not_responding_enabled && n.liveness != Liveness::NotResponding) {
+      not_responding(n, "not responding: " + what);
     }
   }
   check_limit(n.status, "read time", t.read_time, n.rx, true);
@@ -75,12 +232,19 @@ void builtin_checks(NodeReport& n, Nanos now) {
   check_limit(n.status, "tx gap", t.tx_gap, n.tx, false);
 }
 
-std::string plural(std::uint64_t n, std::string_view word) {
-  return fmt::format("{} {}{}", n, word, n == 1 ? "" : "s");
-}
-
 void overall(CanReport& r) {
   const SnifferTotals& t = r.snapshot.totals;
+  if (t.frames == 0) {
+    r.status.merge(StatusLevel::Warn, "no frames: nothing to judge");
+  } else if (t.accepted == 0) {
+    std::string why;
+    if (t.error_frames > 0) why = fmt::format("{}", plural(t.error_frames, "error frame"));
+    if (t.rejected > 0) {
+      why += fmt::format("{}{} rejected by the filter", why.empty() ? "" : ", ", t.rejected);
+    }
+    r.status.merge(StatusLevel::Warn,
+                   fmt::format("no valid frames: {} of {} seen ({})", "none", t.frames, why));
+  }
   for (const StatusLevel level : {StatusLevel::Stale, StatusLevel::Error, StatusLevel::Warn}) {
     std::vector<std::string> names;
     for (const NodeReport& n : r.nodes) {
@@ -96,15 +260,33 @@ void overall(CanReport& r) {
     r.status.merge(level,
                    fmt::format("{} {}: {}", plural(names.size(), "node"), to_string(level), list));
   }
+  if (const std::size_t learning = r.learning_count(); learning > 0) {
+    r.status.merge(StatusLevel::Ok,
+                   fmt::format("{} still learning {} period (not judged yet)",
+                               plural(learning, "node"), learning == 1 ? "its" : "their"));
+  }
   if (t.untracked_ids > 0) {
-    r.status.merge(StatusLevel::Warn,
-                   fmt::format("{} not counted per id: the sniffer's id table is full",
-                               plural(t.untracked_ids, "frame")));
+    r.status.merge(
+        StatusLevel::Warn,
+        fmt::format("{} not counted per id: more distinct ids than the sniffer's id "
+                    "table holds ({} per sniffer)",
+                    plural(t.untracked_ids, "frame"),
+                    r.snapshot.sniffers.empty() ? 0 : r.snapshot.sniffers.front().max_ids));
   }
   if (t.untracked_nodes > 0) {
+    r.status.merge(
+        StatusLevel::Warn,
+        fmt::format("{} not counted per node: more distinct nodes than the sniffer's "
+                    "node table holds ({} per sniffer)",
+                    plural(t.untracked_nodes, "frame"),
+                    r.snapshot.sniffers.empty() ? 0 : r.snapshot.sniffers.front().max_nodes));
+  }
+  const std::uint64_t lost = r.snapshot.unaggregated_id_records -
+                             std::min(r.snapshot.unaggregated_id_records, t.untracked_ids);
+  if (lost > 0) {
     r.status.merge(StatusLevel::Warn,
-                   fmt::format("{} not counted per node: the sniffer's node table is full",
-                               plural(t.untracked_nodes, "frame")));
+                   fmt::format("{} not timed per id: the aggregator holds {} ids at most",
+                               plural(lost, "record"), r.snapshot.max_ids));
   }
   if (t.error_frames > 0) {
     r.status.merge(StatusLevel::Warn, plural(t.error_frames, "error frame"));
@@ -117,6 +299,62 @@ void overall(CanReport& r) {
 }
 
 }  // namespace
+
+std::string_view to_string(Liveness l) noexcept {
+  switch (l) {
+    case Liveness::NoNode:
+      return "no node";
+    case Liveness::NeverSeen:
+      return "never seen";
+    case Liveness::Learning:
+      return "learning";
+    case Liveness::OnRequest:
+      return "on request";
+    case Liveness::Responding:
+      return "responding";
+    case Liveness::NotResponding:
+      return "not responding";
+  }
+  return "?";
+}
+
+std::string_view to_string(Traffic t) noexcept {
+  switch (t) {
+    case Traffic::Periodic:
+      return "periodic";
+    case Traffic::Learning:
+      return "learning";
+    case Traffic::OnRequest:
+      return "on request";
+    case Traffic::ToNode:
+      return "to node";
+    case Traffic::Network:
+      return "network";
+    case Traffic::Sent:
+      return "sent";
+    case Traffic::Errors:
+      return "errors";
+  }
+  return "?";
+}
+
+std::size_t CanReport::node_count() const noexcept {
+  return static_cast<std::size_t>(
+      std::count_if(nodes.begin(), nodes.end(), [](const NodeReport& n) { return n.is_node(); }));
+}
+
+std::size_t CanReport::ok_count() const noexcept {
+  return static_cast<std::size_t>(
+      std::count_if(nodes.begin(), nodes.end(), [](const NodeReport& n) {
+        return n.is_node() && n.status.ok() && n.liveness != Liveness::Learning;
+      }));
+}
+
+std::size_t CanReport::learning_count() const noexcept {
+  return static_cast<std::size_t>(std::count_if(
+      nodes.begin(), nodes.end(),
+      [](const NodeReport& n) { return n.liveness == Liveness::Learning && n.status.ok(); }));
+}
 
 const NodeReport* CanReport::find(std::uint8_t bus, std::uint32_t node) const noexcept {
   for (const NodeReport& n : nodes) {
@@ -173,6 +411,7 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
   r.time_ns = now;
   r.node_map = snapshot.sniffers.empty() ? cfg->node_map : snapshot.sniffers.front().node_map;
   r.snapshot = std::move(snapshot);
+  judge_ids(r, *cfg, now);
 
   std::map<std::pair<std::uint8_t, std::uint32_t>, NodeReport> seen;
   for (const NodeStats& s : r.snapshot.nodes) {
@@ -220,6 +459,11 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
   for (auto& [key, n] : seen) r.nodes.push_back(std::move(n));
   for (NodeReport& n : unseen) r.nodes.push_back(std::move(n));
   for (NodeReport& n : r.nodes) {
+    if (n.node == kNoNode) {
+      n.liveness = Liveness::NoNode;
+      n.name = "(no node)";
+      continue;
+    }
     const NodeConfig* named = nullptr;
     if (n.bus) {
       named = cfg->find_node(*n.bus, n.node);
@@ -239,10 +483,11 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
       if (member) n.groups.push_back(g.members.name);
     }
     n.thresholds = resolve(*cfg, n.bus, n.node);
-    builtin_checks(n, now);
+    builtin_checks(n, r, now);
   }
   for (const auto& [name, check] : checks) {
     for (NodeReport& n : r.nodes) {
+      if (!n.is_node()) continue;
       try {
         check(n, r, n.status);
       } catch (const std::exception& e) {
@@ -254,315 +499,6 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
   }
   overall(r);
   return r;
-}
-
-// ---------------------------------------------------------------------------------------------
-// Text
-
-namespace {
-
-// Columns separated by two spaces, numbers right-aligned, the last column not padded.
-class TextTable {
- public:
-  TextTable(std::vector<std::string> header, std::vector<bool> right) : right_(std::move(right)) {
-    rows_.push_back(std::move(header));
-  }
-  void add(std::vector<std::string> row) { rows_.push_back(std::move(row)); }
-  [[nodiscard]] std::string str() const {
-    std::vector<std::size_t> width(rows_.front().size(), 0);
-    for (const auto& row : rows_) {
-      for (std::size_t i = 0; i < row.size() && i < width.size(); ++i) {
-        width[i] = std::max(width[i], row[i].size());
-      }
-    }
-    std::string out;
-    for (const auto& row : rows_) {
-      std::string line;
-      for (std::size_t i = 0; i < row.size(); ++i) {
-        if (i > 0) line += "  ";
-        const bool last = i + 1 == row.size();
-        const std::size_t pad = width[i] - std::min(width[i], row[i].size());
-        if (i < right_.size() && right_[i]) line.append(pad, ' ');
-        line += row[i];
-        if (!last && !(i < right_.size() && right_[i])) line.append(pad, ' ');
-      }
-      while (!line.empty() && line.back() == ' ') line.pop_back();
-      out += line;
-      out += '\n';
-    }
-    return out;
-  }
-
- private:
-  std::vector<bool> right_;
-  std::vector<std::vector<std::string>> rows_;
-};
-
-std::string us(double ns) { return fmt::format("{:.3f}", ns / 1e3); }
-std::string ms(double ns) { return fmt::format("{:.3f}", ns / 1e6); }
-std::string us_or_dash(const StatsSummary& s, double ns) { return s.count == 0 ? "-" : us(ns); }
-std::string ms_or_dash(const StatsSummary& s, double ns) { return s.count == 0 ? "-" : ms(ns); }
-
-std::string messages_of(const Status& s) { return s.summary("; "); }
-
-}  // namespace
-
-namespace detail {
-
-std::string format_id(std::uint32_t id, bool extended) {
-  return extended ? fmt::format("{:08X}", id) : fmt::format("{:03X}", id);
-}
-
-std::string bus_name(std::uint8_t bus, const std::vector<std::string>& bus_names) {
-  if (bus < bus_names.size() && !bus_names[bus].empty()) return bus_names[bus];
-  return fmt::format("{}", bus);
-}
-
-}  // namespace detail
-
-std::string format_can_report(const CanReport& r, const CanTextOptions& options) {
-  std::string out;
-  const SnifferTotals& t = r.snapshot.totals;
-  std::size_t ok = 0;
-  for (const NodeReport& n : r.nodes) ok += n.status.ok() ? 1 : 0;
-  out += fmt::format("CAN status: {} ({} frames, {} ids, {} nodes of which {} OK, node map {})\n",
-                     to_string(r.status.level()), t.frames, r.snapshot.ids.size(), r.nodes.size(),
-                     ok, to_string(r.node_map));
-  for (const StatusMessage& m : r.status.messages()) {
-    out += fmt::format("  {}: {}\n", to_string(m.level), m.text);
-  }
-
-  out += "\nSummary\n";
-  TextTable summary({"CATEGORY", "DIR", "NODES", "FRAMES", "RECORDS", "IO MEAN us", "IO MIN us",
-                     "IO MAX us", "GAP MEAN us", "GAP MIN us", "GAP MAX us"},
-                    {false, false, true, true, true, true, true, true, true, true, true});
-  for (const CategoryStats& c : r.snapshot.categories) {
-    summary.add(
-        {c.group ? "group " + c.name : c.name, std::string(to_string(c.direction)),
-         fmt::format("{}", c.nodes), fmt::format("{}", c.frames), fmt::format("{}", c.records),
-         us_or_dash(c.io_ns, c.io_ns.mean), us_or_dash(c.io_ns, static_cast<double>(c.io_ns.min)),
-         us_or_dash(c.io_ns, static_cast<double>(c.io_ns.max)), us_or_dash(c.gap_ns, c.gap_ns.mean),
-         us_or_dash(c.gap_ns, static_cast<double>(c.gap_ns.min)),
-         us_or_dash(c.gap_ns, static_cast<double>(c.gap_ns.max))});
-  }
-  out += summary.str();
-
-  out += "\nNodes\n";
-  TextTable nodes(
-      {"STATUS", "BUS", "NODE", "NAME", "DIR", "FRAMES", "RECORDS", "IDS", "GAP MIN ms",
-       "GAP p50 ms", "GAP MAX ms", "SILENCE ms", "MESSAGES"},
-      {false, false, true, false, false, true, true, true, true, true, true, true, false});
-  for (const NodeReport& n : r.nodes) {
-    const std::string bus = n.bus ? detail::bus_name(*n.bus, options.bus_names) : "*";
-    const std::string node = format_node(r.node_map, n.node);
-    const std::string silence = n.silence_ns < 0 ? "-" : ms(static_cast<double>(n.silence_ns));
-    const std::string name = n.named ? n.name : "-";  // else the NODE column says it
-    bool first = true;
-    for (const auto* s : {&n.rx, &n.tx}) {
-      if (!s->has_value()) continue;
-      const NodeStats& x = **s;
-      nodes.add({std::string(to_string(n.status.level())), bus, node, name,
-                 std::string(to_string(x.direction)),
-                 fmt::format("{}{}", x.frames, x.exact_count ? "" : "+"),
-                 fmt::format("{}", x.records), fmt::format("{}", x.ids),
-                 ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.min)),
-                 ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.p50)),
-                 ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.max)),
-                 x.direction == Direction::Rx ? silence : "-", first ? messages_of(n.status) : ""});
-      first = false;
-    }
-    if (first) {
-      nodes.add({std::string(to_string(n.status.level())), bus, node, name, "-", "0", "0", "0", "-",
-                 "-", "-", "-", messages_of(n.status)});
-    }
-  }
-  out += nodes.str();
-
-  if (options.ids) {
-    out += "\nIds\n";
-    TextTable ids({"BUS", "ID", "NODE", "FUNCTION", "DIR", "FRAMES", "RECORDS", "GAP MIN ms",
-                   "GAP p50 ms", "GAP MAX ms", "GAP MEAN ms"},
-                  {false, false, true, false, false, true, true, true, true, true, true});
-    bool approximate = false;
-    for (const IdStats& s : r.snapshot.ids) {
-      if (s.gap_ns.count > 0 && !s.gap_exact) approximate = true;
-      ids.add({detail::bus_name(s.bus, options.bus_names), detail::format_id(s.id, s.extended),
-               format_node(r.node_map, s.node), format_function(r.node_map, s.function),
-               std::string(to_string(s.direction)),
-               fmt::format("{}{}", s.frames, s.exact_count ? "" : "+"),
-               fmt::format("{}", s.records),
-               ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.min)),
-               ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.p50)),
-               ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.max)),
-               ms_or_dash(s.gap_ns, s.gap_ns.mean)});
-    }
-    out += ids.str();
-    if (approximate) {
-      out += "(gap percentiles are upper bounds within 3.1%; min, max and mean are exact)\n";
-    }
-  }
-  return out;
-}
-
-// ---------------------------------------------------------------------------------------------
-// JSON
-
-namespace {
-
-void write_summary(JsonWriter& w, const StatsSummary& s) {
-  w.begin_object();
-  w.field("count", s.count).field("min", s.min).field("max", s.max).field("mean", s.mean);
-  w.field("ewma", s.ewma).field("last", s.last);
-  w.field("p50", s.p50).field("p90", s.p90).field("p99", s.p99).field("p999", s.p999);
-  w.end_object();
-}
-
-void write_status(JsonWriter& w, const Status& s) {
-  w.field("status", to_string(s.level()));
-  w.key("messages").begin_array();
-  for (const StatusMessage& m : s.messages()) {
-    w.begin_object().field("level", to_string(m.level)).field("text", m.text).end_object();
-  }
-  w.end_array();
-}
-
-void write_totals(JsonWriter& w, const SnifferTotals& t) {
-  w.begin_object();
-  w.field("frames", t.frames).field("rx", t.rx).field("tx", t.tx);
-  w.field("error_frames", t.error_frames).field("rejected", t.rejected);
-  w.field("accepted", t.accepted).field("untracked_ids", t.untracked_ids);
-  w.field("untracked_nodes", t.untracked_nodes).field("dropped", t.dropped);
-  w.field("filter_changes", t.filter_changes);
-  w.end_object();
-}
-
-void write_node_stats(JsonWriter& w, const NodeStats& s) {
-  w.begin_object();
-  w.field("frames", s.frames).field("exact_count", s.exact_count).field("records", s.records);
-  w.field("ids", s.ids).field("first_ns", s.first_ns).field("last_ns", s.last_ns);
-  w.key("io_ns");
-  write_summary(w, s.io_ns);
-  w.key("gap_ns");
-  write_summary(w, s.gap_ns);
-  w.field("gap_exact", s.gap_exact);
-  w.end_object();
-}
-
-void write_us(JsonWriter& w, const StatsSummary& s) {
-  w.begin_object();
-  if (s.count == 0) {
-    w.key("mean").null().key("min").null().key("max").null();
-  } else {
-    w.field("mean", s.mean / 1e3);
-    w.field("min", static_cast<double>(s.min) / 1e3);
-    w.field("max", static_cast<double>(s.max) / 1e3);
-  }
-  w.end_object();
-}
-
-}  // namespace
-
-namespace detail {
-
-void write_report_members(JsonWriter& w, const CanReport& r,
-                          const std::vector<std::string>& bus_names) {
-  w.field("time_ns", r.time_ns);
-  w.field("node_map", to_string(r.node_map));
-  write_status(w, r.status);
-  w.field("records", r.snapshot.records);
-  w.key("totals");
-  write_totals(w, r.snapshot.totals);
-
-  w.key("summary").begin_array();
-  for (const CategoryStats& c : r.snapshot.categories) {
-    w.begin_object();
-    w.field("category", c.name).field("group", c.group).field("direction", to_string(c.direction));
-    w.field("nodes", c.nodes).field("frames", c.frames).field("records", c.records);
-    w.key("io_us");
-    write_us(w, c.io_ns);
-    w.key("gap_us");
-    write_us(w, c.gap_ns);
-    w.end_object();
-  }
-  w.end_array();
-
-  w.key("nodes").begin_array();
-  for (const NodeReport& n : r.nodes) {
-    w.begin_object();
-    if (n.bus) {
-      w.field("bus", *n.bus).field("bus_name", bus_name(*n.bus, bus_names));
-    } else {
-      w.key("bus").null().key("bus_name").null();
-    }
-    w.field("node", n.node).field("name", n.name).field("named", n.named);
-    w.field("expected", n.expected);
-    w.key("groups").begin_array();
-    for (const std::string& g : n.groups) w.value(g);
-    w.end_array();
-    write_status(w, n.status);
-    if (n.silence_ns >= 0) {
-      w.field("silence_ns", n.silence_ns);
-    } else {
-      w.key("silence_ns").null();
-    }
-    w.key("rx");
-    if (n.rx) {
-      write_node_stats(w, *n.rx);
-    } else {
-      w.null();
-    }
-    w.key("tx");
-    if (n.tx) {
-      write_node_stats(w, *n.tx);
-    } else {
-      w.null();
-    }
-    w.end_object();
-  }
-  w.end_array();
-
-  w.key("ids").begin_array();
-  for (const IdStats& s : r.snapshot.ids) {
-    w.begin_object();
-    w.field("bus", s.bus).field("bus_name", bus_name(s.bus, bus_names));
-    w.field("id", format_id(s.id, s.extended)).field("id_value", s.id);
-    w.field("extended", s.extended).field("direction", to_string(s.direction));
-    w.field("node", s.node).field("function", s.function);
-    w.field("frames", s.frames).field("exact_count", s.exact_count).field("records", s.records);
-    w.field("first_ns", s.first_ns).field("last_ns", s.last_ns);
-    w.key("io_ns");
-    write_summary(w, s.io_ns);
-    w.key("gap_ns");
-    write_summary(w, s.gap_ns);
-    w.field("gap_exact", s.gap_exact);
-    w.end_object();
-  }
-  w.end_array();
-
-  w.key("sniffers").begin_array();
-  for (const SnifferInfo& s : r.snapshot.sniffers) {
-    w.begin_object();
-    w.field("port_id", s.port_id).field("name", s.name).field("alive", s.alive);
-    w.field("node_map", to_string(s.node_map)).field("filter", s.filter);
-    w.field("ids", s.ids).field("max_ids", s.max_ids).field("nodes", s.nodes);
-    w.field("max_nodes", s.max_nodes).field("port_capacity", s.port_capacity);
-    w.key("totals");
-    write_totals(w, s.totals);
-    w.end_object();
-  }
-  w.end_array();
-}
-
-}  // namespace detail
-
-std::string can_report_json(const CanReport& report, int indent,
-                            const std::vector<std::string>& bus_names) {
-  JsonWriter w(indent);
-  w.begin_object();
-  w.field("schema", 1);
-  detail::write_report_members(w, report, bus_names);
-  w.end_object();
-  return w.take();
 }
 
 }  // namespace vigil::can

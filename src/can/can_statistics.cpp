@@ -1,6 +1,7 @@
 #include "vigil/can/can_statistics.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <mutex>
 #include <tuple>
 #include <unordered_map>
@@ -27,12 +28,12 @@ const NodeStats* CanSnapshot::find_node(std::uint8_t bus, std::uint32_t node,
   return it != nodes.end() && key(*it) == want ? &*it : nullptr;
 }
 
-const IdStats* CanSnapshot::find_id(std::uint8_t bus, std::uint32_t id, bool extended,
-                                    Direction d) const noexcept {
+const IdStats* CanSnapshot::find_id(std::uint8_t bus, std::uint32_t id, bool extended, Direction d,
+                                    bool rtr) const noexcept {
   const auto key = [](const IdStats& s) {
-    return std::make_tuple(s.bus, s.id, s.extended, static_cast<int>(s.direction));
+    return std::make_tuple(s.bus, s.id, s.extended, static_cast<int>(s.direction), s.error, s.rtr);
   };
-  const auto want = std::make_tuple(bus, id, extended, static_cast<int>(d));
+  const auto want = std::make_tuple(bus, id, extended, static_cast<int>(d), false, rtr);
   const auto it = std::lower_bound(ids.begin(), ids.end(), want,
                                    [&](const IdStats& s, const auto& w) { return key(s) < w; });
   return it != ids.end() && key(*it) == want ? &*it : nullptr;
@@ -99,31 +100,101 @@ Counted sum(const std::vector<Contribution>& from) {
   return c;
 }
 
-// Timing of one key, fed by records.
+// Count, min, max, exact sum, last and EWMA of a stream: RunningStats without the histogram
+// (exact mode keeps the samples themselves for percentiles).
+struct Scalars {
+  std::uint64_t count = 0;
+  Nanos first = 0;
+  Nanos last = 0;
+  Nanos min = 0;
+  Nanos max = 0;
+  vigil::detail::WideSum sum;
+  double ewma = 0;
+
+  void add(Nanos v, double weight) {
+    if (count == 0) {
+      first = min = max = v;
+      ewma = static_cast<double>(v);
+    } else {
+      min = std::min(min, v);
+      max = std::max(max, v);
+      ewma += weight * (static_cast<double>(v) - ewma);
+    }
+    ++count;
+    last = v;
+    sum.add(v);
+  }
+  // As RunningStats::merge: `other`'s samples after ours.
+  void merge(const Scalars& other, double weight) {
+    if (other.count == 0) return;
+    if (count == 0) {
+      *this = other;
+      return;
+    }
+    const double decay = std::pow(1.0 - weight, static_cast<double>(other.count));
+    ewma = other.ewma + decay * (ewma - static_cast<double>(other.first));
+    count += other.count;
+    last = other.last;
+    min = std::min(min, other.min);
+    max = std::max(max, other.max);
+    sum.add(other.sum);
+  }
+  [[nodiscard]] StatsSummary summary() const {
+    StatsSummary s;
+    if (count == 0) return s;
+    s.count = count;
+    s.last = last;
+    s.min = min;
+    s.max = max;
+    s.mean = sum.to_double() / static_cast<double>(count);
+    s.ewma = ewma;
+    return s;
+  }
+};
+
+// Timing of one key, fed by records: histograms (live) or every gap (exact mode).
 struct Timing {
   std::uint64_t records = 0;
   Nanos first_record = 0;
   Nanos last_record = 0;
-  RunningStats io;
-  RunningStats gap;
-  std::vector<Nanos> exact_gaps;  // exact_percentiles only
+  std::unique_ptr<RunningStats> io;   // live mode
+  std::unique_ptr<RunningStats> gap;  // live mode
+  Scalars io_exact;                   // exact mode
+  Scalars gap_exact;                  // exact mode
+  std::vector<Nanos> gaps;            // exact mode: every gap
 
-  void add(const FrameRecord& r, Nanos gap_ns, bool exact) {
+  void init(bool exact, double weight) {
+    if (exact) return;
+    io = std::make_unique<RunningStats>();
+    gap = std::make_unique<RunningStats>();
+    static_cast<void>(io->set_ewma_weight(weight));
+    static_cast<void>(gap->set_ewma_weight(weight));
+  }
+
+  void add(const FrameRecord& r, Nanos gap_ns, double weight) {
     if (records == 0) first_record = r.end_ns;
     ++records;
     last_record = std::max(last_record, r.end_ns);
-    io.add(r.io_ns());
+    if (io) {
+      io->add(r.io_ns());
+      if (gap_ns >= 0) gap->add(gap_ns);
+      return;
+    }
+    io_exact.add(r.io_ns(), weight);
     if (gap_ns >= 0) {
-      gap.add(gap_ns);
-      if (exact) exact_gaps.push_back(gap_ns);
+      gap_exact.add(gap_ns, weight);
+      gaps.push_back(gap_ns);
     }
   }
 
-  StatsSummary gap_summary(bool exact, bool& is_exact) {
-    StatsSummary s = gap.summary();
+  [[nodiscard]] StatsSummary io_summary() const { return io ? io->summary() : io_exact.summary(); }
+
+  [[nodiscard]] StatsSummary gap_summary(bool& is_exact) {
     is_exact = false;
-    if (exact && !exact_gaps.empty()) {
-      const StatsSummary e = exact_summary(exact_gaps);
+    if (gap) return gap->summary();
+    StatsSummary s = gap_exact.summary();
+    if (!gaps.empty()) {
+      const StatsSummary e = exact_summary(gaps);
       s.p50 = e.p50;
       s.p90 = e.p90;
       s.p99 = e.p99;
@@ -134,24 +205,39 @@ struct Timing {
   }
 };
 
-struct IdSlot {
+// The constant description of an id key.
+struct IdKey {
   std::uint8_t bus = 0;
   std::uint32_t id = 0;
   bool extended = false;
+  bool rtr = false;
+  bool error = false;
   Direction direction = Direction::Rx;
   std::uint32_t node = 0;
   std::uint32_t function = 0;
+  std::uint32_t peer = kNoNode;
+  std::uint8_t flags = 0;
+};
+
+struct IdAccumulator {
+  IdKey key;
   std::vector<Contribution> from;
   Timing timing;
   std::uint8_t last_length = 0;
   std::array<std::uint8_t, 8> last_data{};
 };
 
-struct NodeSlot {
+// The constant description of a node key.
+struct NodeKey {
   std::uint8_t bus = 0;
   std::uint32_t node = 0;
   Direction direction = Direction::Rx;
+};
+
+struct NodeAccumulator {
+  NodeKey key;
   std::vector<Contribution> from;
+  std::vector<std::pair<std::uint32_t, std::uint64_t>> remote;  // per sniffer: remote frames
   Timing timing;
 };
 
@@ -167,12 +253,54 @@ void add_totals(SnifferTotals& a, const SnifferTotals& b) {
   a.rx += b.rx;
   a.tx += b.tx;
   a.error_frames += b.error_frames;
+  a.remote_frames += b.remote_frames;
   a.rejected += b.rejected;
   a.accepted += b.accepted;
   a.untracked_ids += b.untracked_ids;
   a.untracked_nodes += b.untracked_nodes;
   a.dropped += b.dropped;
   a.filter_changes += b.filter_changes;
+}
+
+// Accumulators by 64-bit key, at most `max` of them; a one-entry cache for runs of one key.
+template <class Acc>
+class KeyedAccumulators {
+ public:
+  explicit KeyedAccumulators(std::size_t max) : max_(max) {}
+
+  // The accumulator of `key`, made by `make()` when new; null when the map is full.
+  template <class Make>
+  Acc* find_or_make(std::uint64_t key, Make&& make) {
+    if (key == cached_key_ && cached_ != nullptr) return cached_;
+    auto it = map_.find(key);
+    if (it == map_.end()) {
+      if (map_.size() >= max_) return nullptr;
+      it = map_.emplace(key, make()).first;
+    }
+    cached_key_ = key;
+    cached_ = it->second.get();
+    return cached_;
+  }
+
+  [[nodiscard]] std::size_t size() const noexcept { return map_.size(); }
+  [[nodiscard]] std::size_t max() const noexcept { return max_; }
+  template <class F>
+  void for_each(F&& f) {
+    for (auto& [key, p] : map_) f(key, *p);
+  }
+
+ private:
+  std::size_t max_;
+  std::unordered_map<std::uint64_t, std::unique_ptr<Acc>> map_;
+  std::uint64_t cached_key_ = 0;
+  Acc* cached_ = nullptr;
+};
+
+std::uint64_t key_of(const IdKey& k) {
+  return detail::id_key(k.bus, k.id, k.extended, is_tx(k.direction), k.rtr, k.error);
+}
+std::uint64_t key_of(const NodeKey& k) {
+  return detail::node_key(k.bus, k.node, is_tx(k.direction));
 }
 
 }  // namespace
@@ -183,21 +311,20 @@ struct CanAggregator::Impl {
 
   mutable std::mutex mutex;           // guards everything below
   std::vector<SnifferSlot> sniffers;  // by port id
-  std::unordered_map<std::uint64_t, std::unique_ptr<IdSlot>> ids;
-  std::unordered_map<std::uint64_t, std::unique_ptr<NodeSlot>> nodes;
+  KeyedAccumulators<IdAccumulator> ids;
+  KeyedAccumulators<NodeAccumulator> nodes;
   std::uint64_t records = 0;
+  std::uint64_t unaggregated_id_records = 0;
+  std::uint64_t unaggregated_node_records = 0;
   std::uint64_t cycles = 0;
 
   // Supervisor thread only.
   SnifferSlot* current = nullptr;
-  std::uint64_t cached_id_key = 0;
-  IdSlot* cached_id = nullptr;
-  std::uint64_t cached_node_key = 0;
-  NodeSlot* cached_node = nullptr;
   std::vector<IdEntry> id_scratch;
   std::vector<NodeEntry> node_scratch;
 
-  Impl(CanRegistry& r, CanAggregatorOptions o) : registry(r), options(o) {}
+  Impl(CanRegistry& r, CanAggregatorOptions o)
+      : registry(r), options(o), ids(o.max_ids), nodes(o.max_nodes) {}
 
   SnifferSlot* slot_of(std::uint32_t port) {
     for (SnifferSlot& s : sniffers) {
@@ -206,46 +333,22 @@ struct CanAggregator::Impl {
     return nullptr;
   }
 
-  RunningStats fresh() const {
-    RunningStats s;
-    static_cast<void>(s.set_ewma_weight(options.ewma_weight));
-    return s;
+  IdAccumulator* id_acc(const IdKey& k) {
+    return ids.find_or_make(key_of(k), [&] {
+      auto p = std::make_unique<IdAccumulator>();
+      p->key = k;
+      p->timing.init(options.exact_percentiles, options.ewma_weight);
+      return p;
+    });
   }
 
-  IdSlot& id_slot(std::uint64_t key, std::uint8_t bus, std::uint32_t id, bool extended, Direction d,
-                  std::uint32_t node, std::uint32_t function) {
-    if (key == cached_id_key && cached_id != nullptr) return *cached_id;
-    auto& p = ids[key];
-    if (!p) {
-      p = std::make_unique<IdSlot>();
-      p->bus = bus;
-      p->id = id;
-      p->extended = extended;
-      p->direction = d;
-      p->node = node;
-      p->function = function;
-      p->timing.io = fresh();
-      p->timing.gap = fresh();
-    }
-    cached_id_key = key;
-    cached_id = p.get();
-    return *p;
-  }
-
-  NodeSlot& node_slot(std::uint64_t key, std::uint8_t bus, std::uint32_t node, Direction d) {
-    if (key == cached_node_key && cached_node != nullptr) return *cached_node;
-    auto& p = nodes[key];
-    if (!p) {
-      p = std::make_unique<NodeSlot>();
-      p->bus = bus;
-      p->node = node;
-      p->direction = d;
-      p->timing.io = fresh();
-      p->timing.gap = fresh();
-    }
-    cached_node_key = key;
-    cached_node = p.get();
-    return *p;
+  NodeAccumulator* node_acc(const NodeKey& k) {
+    return nodes.find_or_make(key_of(k), [&] {
+      auto p = std::make_unique<NodeAccumulator>();
+      p->key = k;
+      p->timing.init(options.exact_percentiles, options.ewma_weight);
+      return p;
+    });
   }
 
   // Reads one sniffer's tables and counters into the statistics (lock held).
@@ -257,16 +360,26 @@ struct CanAggregator::Impl {
     id_scratch.clear();
     st.read_ids(id_scratch);
     for (const IdEntry& e : id_scratch) {
-      IdSlot& slot = id_slot(detail::id_key(e.bus, e.id, e.extended, is_tx(e.direction)), e.bus,
-                             e.id, e.extended, e.direction, e.node, e.function);
-      contribute(slot.from, port, e.frames, e.first_ns, e.last_ns);
+      const IdKey k{e.bus,       e.id,   e.extended, e.rtr,  e.error,
+                    e.direction, e.node, e.function, e.peer, e.flags};
+      IdAccumulator* a = id_acc(k);
+      if (a == nullptr) continue;
+      a->key = k;  // the table is authoritative (a record may have made the key first)
+      contribute(a->from, port, e.frames, e.first_ns, e.last_ns);
     }
     node_scratch.clear();
     st.read_nodes(node_scratch);
     for (const NodeEntry& e : node_scratch) {
-      NodeSlot& slot = node_slot(detail::node_key(e.bus, e.node, is_tx(e.direction)), e.bus, e.node,
-                                 e.direction);
-      contribute(slot.from, port, e.frames, e.first_ns, e.last_ns);
+      NodeAccumulator* a = node_acc(NodeKey{e.bus, e.node, e.direction});
+      if (a == nullptr) continue;
+      contribute(a->from, port, e.frames, e.first_ns, e.last_ns);
+      auto it = std::find_if(a->remote.begin(), a->remote.end(),
+                             [&](const auto& r) { return r.first == port; });
+      if (it == a->remote.end()) {
+        a->remote.emplace_back(port, e.remote_frames);
+      } else {
+        it->second = e.remote_frames;
+      }
     }
     const std::uint64_t dropped = s.info.totals.dropped;
     s.info.totals = st.totals();
@@ -317,16 +430,29 @@ void CanAggregator::begin(const Entry& e) {
 
 void CanAggregator::on(const Entry& /*e*/, const FrameRecord& r) {
   Impl& m = *impl_;
-  const bool exact = m.options.exact_percentiles;
-  IdSlot& id = m.id_slot(detail::id_key(r.bus, r.id, r.extended, is_tx(r.direction)), r.bus, r.id,
-                         r.extended, r.direction, r.node, r.function);
-  id.timing.add(r, r.id_gap_ns, exact);
-  id.last_length = r.length;
-  id.last_data = r.data;
-  NodeSlot& node =
-      m.node_slot(detail::node_key(r.bus, r.node, is_tx(r.direction)), r.bus, r.node, r.direction);
-  node.timing.add(r, r.node_gap_ns, exact);
   ++m.records;
+  // Only keys the sniffer tracks are aggregated: memory stays bounded by its tables (and ours).
+  IdAccumulator* id = nullptr;
+  if (!r.id_untracked) {
+    // Peer and flags come with the table entry, read at the end of this batch (before any
+    // snapshot can see the key).
+    id = m.id_acc(
+        IdKey{r.bus, r.id, r.extended, r.rtr, false, r.direction, r.node, r.function, kNoNode, 0});
+  }
+  if (id != nullptr) {
+    id->timing.add(r, r.id_gap_ns, m.options.ewma_weight);
+    id->last_length = r.length;
+    id->last_data = r.data;
+  } else {
+    ++m.unaggregated_id_records;
+  }
+  NodeAccumulator* node =
+      r.node_untracked ? nullptr : m.node_acc(NodeKey{r.bus, r.node, r.direction});
+  if (node != nullptr) {
+    node->timing.add(r, r.node_gap_ns, m.options.ewma_weight);
+  } else {
+    ++m.unaggregated_node_records;
+  }
 }
 
 void CanAggregator::end(const Entry& /*e*/, const PortDrain& d) {
@@ -352,103 +478,136 @@ std::uint64_t CanAggregator::cycles() const {
 CanSnapshot CanAggregator::snapshot(std::span<const GroupSpec> groups) const {
   Impl& m = *impl_;
   std::lock_guard lock(m.mutex);
-  const bool exact = m.options.exact_percentiles;
+  const double weight = m.options.ewma_weight;
   CanSnapshot snap;
   snap.cycle = m.cycles;
   snap.records = m.records;
+  snap.unaggregated_id_records = m.unaggregated_id_records;
+  snap.unaggregated_node_records = m.unaggregated_node_records;
+  snap.max_ids = m.ids.max();
+  snap.max_nodes = m.nodes.max();
   for (const SnifferSlot& s : m.sniffers) {
     snap.sniffers.push_back(s.info);
     add_totals(snap.totals, s.info.totals);
   }
 
   snap.ids.reserve(m.ids.size());
-  for (auto& [key, p] : m.ids) {
-    IdSlot& slot = *p;
+  m.ids.for_each([&](std::uint64_t, IdAccumulator& a) {
     IdStats s;
-    s.bus = slot.bus;
-    s.id = slot.id;
-    s.extended = slot.extended;
-    s.direction = slot.direction;
-    s.node = slot.node;
-    s.function = slot.function;
-    const Counted c = sum(slot.from);
+    s.bus = a.key.bus;
+    s.id = a.key.id;
+    s.extended = a.key.extended;
+    s.rtr = a.key.rtr;
+    s.error = a.key.error;
+    s.direction = a.key.direction;
+    s.node = a.key.node;
+    s.function = a.key.function;
+    s.peer = a.key.peer;
+    s.flags = a.key.flags;
+    const Counted c = sum(a.from);
     s.exact_count = c.any;
-    s.frames = c.any ? c.frames : slot.timing.records;
-    s.first_ns = c.any ? c.first : slot.timing.first_record;
-    s.last_ns = c.any ? c.last : slot.timing.last_record;
-    s.records = slot.timing.records;
-    s.io_ns = slot.timing.io.summary();
-    s.gap_ns = slot.timing.gap_summary(exact, s.gap_exact);
-    s.last_length = slot.last_length;
-    s.last_data = slot.last_data;
+    s.frames = c.any ? c.frames : a.timing.records;
+    s.first_ns = c.any ? c.first : a.timing.first_record;
+    s.last_ns = c.any ? c.last : a.timing.last_record;
+    s.records = a.timing.records;
+    s.io_ns = a.timing.io_summary();
+    s.gap_ns = a.timing.gap_summary(s.gap_exact);
+    s.last_length = a.last_length;
+    s.last_data = a.last_data;
     snap.ids.push_back(s);
-  }
+  });
   std::sort(snap.ids.begin(), snap.ids.end(), [](const IdStats& a, const IdStats& b) {
-    return std::make_tuple(a.bus, a.id, a.extended, static_cast<int>(a.direction)) <
-           std::make_tuple(b.bus, b.id, b.extended, static_cast<int>(b.direction));
+    return std::make_tuple(a.bus, a.id, a.extended, static_cast<int>(a.direction), a.error, a.rtr) <
+           std::make_tuple(b.bus, b.id, b.extended, static_cast<int>(b.direction), b.error, b.rtr);
   });
 
-  // Distinct ids per (bus, node, direction).
+  // Distinct ids (data frames) per (bus, node, direction).
   std::unordered_map<std::uint64_t, std::size_t> ids_of_node;
-  for (const IdStats& s : snap.ids)
-    ++ids_of_node[detail::node_key(s.bus, s.node, is_tx(s.direction))];
-
-  std::vector<const NodeSlot*> node_slots;
-  node_slots.reserve(m.nodes.size());
-  snap.nodes.reserve(m.nodes.size());
-  for (auto& [key, p] : m.nodes) {
-    NodeSlot& slot = *p;
-    NodeStats s;
-    s.bus = slot.bus;
-    s.node = slot.node;
-    s.direction = slot.direction;
-    const Counted c = sum(slot.from);
-    s.exact_count = c.any;
-    s.frames = c.any ? c.frames : slot.timing.records;
-    s.first_ns = c.any ? c.first : slot.timing.first_record;
-    s.last_ns = c.any ? c.last : slot.timing.last_record;
-    s.records = slot.timing.records;
-    s.ids = ids_of_node[key];
-    s.io_ns = slot.timing.io.summary();
-    s.gap_ns = slot.timing.gap_summary(exact, s.gap_exact);
-    snap.nodes.push_back(s);
-    node_slots.push_back(&slot);
+  for (const IdStats& s : snap.ids) {
+    if (!s.error && !s.rtr) ++ids_of_node[detail::node_key(s.bus, s.node, is_tx(s.direction))];
   }
+
+  std::vector<NodeAccumulator*> members;
+  members.reserve(m.nodes.size());
+  snap.nodes.reserve(m.nodes.size());
+  m.nodes.for_each([&](std::uint64_t key, NodeAccumulator& a) {
+    NodeStats s;
+    s.bus = a.key.bus;
+    s.node = a.key.node;
+    s.direction = a.key.direction;
+    const Counted c = sum(a.from);
+    s.exact_count = c.any;
+    s.frames = c.any ? c.frames : a.timing.records;
+    for (const auto& [port, n] : a.remote) s.remote_frames += n;
+    s.first_ns = c.any ? c.first : a.timing.first_record;
+    s.last_ns = c.any ? c.last : a.timing.last_record;
+    s.records = a.timing.records;
+    s.ids = ids_of_node[key];
+    s.io_ns = a.timing.io_summary();
+    s.gap_ns = a.timing.gap_summary(s.gap_exact);
+    snap.nodes.push_back(s);
+    members.push_back(&a);
+  });
   std::sort(snap.nodes.begin(), snap.nodes.end(), [](const NodeStats& a, const NodeStats& b) {
     return std::make_tuple(a.bus, a.node, static_cast<int>(a.direction)) <
            std::make_tuple(b.bus, b.node, static_cast<int>(b.direction));
   });
 
-  // Categories: merge the members' statistics.
+  // Categories: merge the members' statistics (histograms live, samples in exact mode).
+  const bool exact = m.options.exact_percentiles;
   const auto category = [&](std::string name, bool group, Direction d, auto&& member) {
     CategoryStats c;
     c.name = std::move(name);
     c.group = group;
     c.direction = d;
-    RunningStats io = m.fresh();
-    RunningStats gap = m.fresh();
-    for (const NodeSlot* slot : node_slots) {
-      if (slot->direction != d || !member(*slot)) continue;
-      const Counted counted = sum(slot->from);
-      const std::uint64_t frames = counted.any ? counted.frames : slot->timing.records;
+    RunningStats io;
+    RunningStats gap;
+    static_cast<void>(io.set_ewma_weight(weight));
+    static_cast<void>(gap.set_ewma_weight(weight));
+    Scalars io_exact;
+    Scalars gap_exact;
+    std::vector<Nanos> gaps;
+    for (const NodeAccumulator* a : members) {
+      if (a->key.direction != d || !member(a->key)) continue;
+      const Counted counted = sum(a->from);
+      const std::uint64_t frames = counted.any ? counted.frames : a->timing.records;
       if (frames == 0) continue;
       ++c.nodes;
       c.frames += frames;
-      c.records += slot->timing.records;
-      c.last_ns = std::max(c.last_ns, counted.any ? counted.last : slot->timing.last_record);
-      io.merge(slot->timing.io);
-      gap.merge(slot->timing.gap);
+      for (const auto& [port, n] : a->remote) c.remote_frames += n;
+      c.records += a->timing.records;
+      c.last_ns = std::max(c.last_ns, counted.any ? counted.last : a->timing.last_record);
+      if (exact) {
+        io_exact.merge(a->timing.io_exact, weight);
+        gap_exact.merge(a->timing.gap_exact, weight);
+        gaps.insert(gaps.end(), a->timing.gaps.begin(), a->timing.gaps.end());
+      } else {
+        io.merge(*a->timing.io);
+        gap.merge(*a->timing.gap);
+      }
     }
-    c.io_ns = io.summary();
-    c.gap_ns = gap.summary();
+    if (exact) {
+      c.io_ns = io_exact.summary();
+      c.gap_ns = gap_exact.summary();
+      const StatsSummary e = exact_summary(gaps);
+      c.gap_ns.p50 = e.p50;
+      c.gap_ns.p90 = e.p90;
+      c.gap_ns.p99 = e.p99;
+      c.gap_ns.p999 = e.p999;
+    } else {
+      c.io_ns = io.summary();
+      c.gap_ns = gap.summary();
+    }
     return c;
   };
   for (const Direction d : {Direction::Rx, Direction::Tx}) {
-    CategoryStats c = category("all", false, d, [](const NodeSlot&) { return true; });
+    CategoryStats c = category("all", false, d, [](const NodeKey&) { return true; });
     if (c.frames > 0) snap.categories.push_back(std::move(c));
   }
   for (const GroupSpec& g : groups) {
-    const auto member = [&](const NodeSlot& s) { return g.contains(s.bus, s.node); };
+    const auto member = [&](const NodeKey& k) {
+      return k.node != kNoNode && g.contains(k.bus, k.node);
+    };
     CategoryStats rx = category(g.name, true, Direction::Rx, member);
     CategoryStats tx = category(g.name, true, Direction::Tx, member);
     const bool none = rx.frames == 0 && tx.frames == 0;

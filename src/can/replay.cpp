@@ -4,16 +4,11 @@
 
 #include <algorithm>
 #include <cctype>
-#include <limits>
-#include <ostream>
 #include <variant>
 
-#include "can/can_json.hpp"
-#include "vigil/can/candump.hpp"
+#include "vigil/can/log/candump.hpp"
+#include "vigil/can/log/trc.hpp"
 #include "vigil/can/sniffer.hpp"
-#include "vigil/can/trc.hpp"
-#include "vigil/config/error.hpp"
-#include "vigil/export/json_writer.hpp"
 
 namespace vigil::can {
 
@@ -45,7 +40,9 @@ struct LogReplay::Impl {
                 SnifferOptions{.max_ids = options.max_ids,
                                .max_nodes = options.max_nodes,
                                .node_map = options.node_map}),
-        aggregator(registry, CanAggregatorOptions{.exact_percentiles = options.exact_percentiles}),
+        aggregator(registry, CanAggregatorOptions{.exact_percentiles = options.exact_percentiles,
+                                                  .max_ids = options.max_ids,
+                                                  .max_nodes = options.max_nodes}),
         supervisor(registry.ports(), aggregator,
                    SupervisorOptions{.period_ns = 100 * kNanosPerMilli,
                                      .batch = 256,
@@ -100,9 +97,19 @@ CanSnapshot LogReplay::snapshot(std::span<const GroupSpec> groups) {
   return impl_->aggregator.snapshot(groups);
 }
 
-CanReport LogReplay::report(const CanMonitor& monitor) {
+CanReport LogReplay::report(const CanMonitor& monitor) { return report(monitor, impl_->last); }
+
+CanReport LogReplay::report(const CanMonitor& monitor, Nanos now) {
   flush();
-  return monitor.evaluate(impl_->aggregator, impl_->last);
+  CanReport r = monitor.evaluate(impl_->aggregator, now);
+  std::uint64_t malformed = 0;
+  for (const ReplayFile& f : impl_->files) malformed += f.malformed;
+  if (impl_->frames == 0 && malformed > 0) {
+    r.status.merge(StatusLevel::Warn,
+                   fmt::format("no valid frame in the logs: {} malformed line{} skipped", malformed,
+                               malformed == 1 ? "" : "s"));
+  }
+  return r;
 }
 
 std::uint64_t LogReplay::frames() const noexcept { return impl_->frames; }
@@ -221,116 +228,6 @@ expected<void, Error> LogReplay::feed_files(std::span<const std::filesystem::pat
   for (const Source& s : sources) finish_file(s, m.files[s.file]);
   m.flush();
   return {};
-}
-
-// ---------------------------------------------------------------------------------------------
-// vigil can-stats
-
-namespace {
-
-// A log timestamp as candump writes it: seconds with 6 decimals (9 when not whole µs).
-std::string timestamp_text(Nanos t) {
-  const Nanos s = t / kNanosPerSecond;
-  const Nanos ns = t % kNanosPerSecond;
-  if (ns % 1000 == 0) return fmt::format("{}.{:06}", s, ns / 1000);
-  return fmt::format("{}.{:09}", s, ns);
-}
-
-void print_warnings(const LogReplay& replay, std::ostream& err) {
-  for (const ReplayFile& f : replay.files()) {
-    if (f.malformed == 0) continue;
-    err << fmt::format("vigil can-stats: warning: {}: {} malformed line{} skipped\n",
-                       f.path.string(), f.malformed, f.malformed == 1 ? "" : "s");
-    for (std::size_t i = 0; i < f.errors.size() && i < 10; ++i) {
-      err << "  " << f.errors[i].to_string() << '\n';
-    }
-  }
-}
-
-}  // namespace
-
-int run_can_stats(const CanStatsOptions& options, std::ostream& out, std::ostream& err) {
-  if (options.files.empty()) {
-    err << "vigil can-stats: no log file given\n"
-           "usage: vigil can-stats FILE... [--config FILE] [--json] "
-           "[--node-map identity|canopen|j1939]\n";
-    return 2;
-  }
-  CanConfig config;
-  if (options.config) {
-    auto loaded = load_can_config_file(*options.config);
-    if (!loaded) {
-      err << config::to_string(loaded.error()) << '\n';
-      return 1;
-    }
-    config = std::move(*loaded);
-  }
-  if (options.node_map) config.node_map = *options.node_map;
-
-  ReplayOptions ro;
-  ro.node_map = NodeMap::of(config.node_map);
-  ro.filter = config.filter;
-  ro.default_direction = options.default_direction;
-  ro.exact_percentiles = true;
-  LogReplay replay(ro);
-  if (auto r = replay.feed_files(options.files, options.format); !r) {
-    print_warnings(replay, err);
-    err << "vigil can-stats: " << r.error().message << '\n';
-    return 1;
-  }
-  print_warnings(replay, err);
-
-  const CanMonitor monitor(config);
-  const CanReport report = replay.report(monitor);
-  const Nanos duration = replay.last_ns() - replay.first_ns();
-
-  if (options.json) {
-    JsonWriter w(2);
-    w.begin_object();
-    w.field("schema", 1).field("tool", "vigil can-stats");
-    w.key("files").begin_array();
-    for (const ReplayFile& f : replay.files()) {
-      w.begin_object();
-      w.field("path", f.path.string()).field("format", to_string(f.format));
-      w.field("frames", f.frames).field("malformed", f.malformed).field("skipped", f.skipped);
-      w.end_object();
-    }
-    w.end_array();
-    w.key("buses").begin_array();
-    for (const std::string& b : replay.bus_names()) w.value(b);
-    w.end_array();
-    w.field("frames", replay.frames());
-    w.field("first_timestamp_ns", replay.first_ns()).field("last_timestamp_ns", replay.last_ns());
-    w.field("duration_ns", duration);
-    detail::write_report_members(w, report, replay.bus_names());
-    w.end_object();
-    out << w.str() << '\n';
-    return 0;
-  }
-
-  out << fmt::format("vigil can-stats: {} file{}, {} frames, {} to {} ({:.6f} s)\n",
-                     replay.files().size(), replay.files().size() == 1 ? "" : "s", replay.frames(),
-                     timestamp_text(replay.first_ns()), timestamp_text(replay.last_ns()),
-                     static_cast<double>(duration) / 1e9);
-  for (const ReplayFile& f : replay.files()) {
-    out << fmt::format("  {}: {}, {} frames", f.path.string(), to_string(f.format), f.frames);
-    if (f.malformed > 0) out << fmt::format(", {} malformed lines skipped", f.malformed);
-    if (f.skipped > 0) out << fmt::format(", {} status records", f.skipped);
-    out << '\n';
-  }
-  std::string buses;
-  for (std::size_t i = 0; i < replay.bus_names().size(); ++i) {
-    if (i > 0) buses += ", ";
-    buses += fmt::format("{} = {}", i, replay.bus_names()[i]);
-  }
-  if (!buses.empty()) out << "  buses: " << buses << '\n';
-  if (options.config) out << "  config: " << options.config->string() << '\n';
-  out << '\n';
-  CanTextOptions text;
-  text.ids = options.ids;
-  text.bus_names = replay.bus_names();
-  out << format_can_report(report, text);
-  return 0;
 }
 
 }  // namespace vigil::can

@@ -78,6 +78,7 @@ SnifferTotals SnifferState::totals() const noexcept {
   t.tx = tx_.load(std::memory_order_relaxed);
   t.rx = t.frames >= t.tx ? t.frames - t.tx : 0;
   t.error_frames = error_frames_.load(std::memory_order_relaxed);
+  t.remote_frames = remote_frames_.load(std::memory_order_relaxed);
   t.rejected = rejected_.load(std::memory_order_relaxed);
   t.accepted = accepted_.load(std::memory_order_relaxed);
   t.untracked_ids = untracked_ids_.load(std::memory_order_relaxed);
@@ -87,14 +88,18 @@ SnifferTotals SnifferState::totals() const noexcept {
 }
 
 void SnifferState::read_ids(std::vector<IdEntry>& out) const {
-  ids_.for_each([&](std::uint64_t k, const IdSlot& s) {
+  ids_.for_each([&](std::uint64_t k, const IdCounter& s) {
     IdEntry e;
     e.bus = key_bus(k);
     e.id = static_cast<std::uint32_t>(k & 0xFFFFFFFFU);
     e.extended = ((k >> 32) & 1U) != 0;
     e.direction = ((k >> 33) & 1U) != 0 ? Direction::Tx : Direction::Rx;
+    e.rtr = ((k >> 34) & 1U) != 0;
+    e.error = ((k >> 35) & 1U) != 0;
     e.node = s.node;
     e.function = s.function;
+    e.peer = s.peer;
+    e.flags = s.flags;
     e.frames = s.frames.load(std::memory_order_relaxed);
     e.first_ns = s.first.load(std::memory_order_relaxed);
     e.last_ns = s.last.load(std::memory_order_relaxed);
@@ -103,12 +108,13 @@ void SnifferState::read_ids(std::vector<IdEntry>& out) const {
 }
 
 void SnifferState::read_nodes(std::vector<NodeEntry>& out) const {
-  nodes_.for_each([&](std::uint64_t k, const NodeSlot& s) {
+  nodes_.for_each([&](std::uint64_t k, const NodeCounter& s) {
     NodeEntry e;
     e.bus = key_bus(k);
     e.node = static_cast<std::uint32_t>(k & 0xFFFFFFFFU);
     e.direction = ((k >> 32) & 1U) != 0 ? Direction::Tx : Direction::Rx;
     e.frames = s.frames.load(std::memory_order_relaxed);
+    e.remote_frames = s.remote.load(std::memory_order_relaxed);
     e.first_ns = s.first.load(std::memory_order_relaxed);
     e.last_ns = s.last.load(std::memory_order_relaxed);
     out.push_back(e);

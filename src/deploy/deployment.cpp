@@ -2,9 +2,13 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <iterator>
 #include <set>
+#include <span>
 
 #include "vigil/config/load.hpp"
+#include "vigil/deploy/extension.hpp"
 
 namespace vigil::deploy {
 
@@ -105,7 +109,30 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
     root.error("a deployment is a mapping with activities, components, supervision, outputs");
     return root.finish(std::move(d));
   }
-  root.reject_unknown_keys({"name", "activities", "components", "supervision", "outputs", "can"});
+  // Top-level keys: the built-in ones, then the sections of registered extensions.
+  constexpr std::string_view kBuiltIn[] = {"name", "activities", "components", "supervision",
+                                           "outputs"};
+  const std::vector<std::string> registered = registered_extensions();
+  std::vector<std::string_view> allowed(std::begin(kBuiltIn), std::end(kBuiltIn));
+  allowed.insert(allowed.end(), registered.begin(), registered.end());
+  for (const auto& [key, value] : root.entries()) {
+    if (std::find(allowed.begin(), allowed.end(), key) != allowed.end()) {
+      if (std::find(std::begin(kBuiltIn), std::end(kBuiltIn), key) == std::end(kBuiltIn)) {
+        d.extensions.push_back({key, value});
+      }
+      continue;
+    }
+    if (const auto near = config::closest_match(key, std::span<const std::string_view>(allowed))) {
+      value.error(fmt::format("unknown key '{}'; did you mean '{}'?", key, *near));
+    } else {
+      value.error(fmt::format(
+          "unknown section '{}': not a deployment key ({}) and no extension handles it in this "
+          "program (registered: {}); link the library that provides it (e.g. vigil::deploy_can)",
+          key, fmt::join(kBuiltIn, ", "),
+          registered.empty() ? std::string("none")
+                             : fmt::format("{}", fmt::join(registered, ", "))));
+    }
+  }
   d.name = root.optional<std::string>("name", "vigil", config::non_empty());
 
   std::set<std::string, std::less<>> activity_names;
@@ -173,7 +200,6 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
     o.reject_unknown_keys({"json"});
     if (o.has("json")) d.outputs.json = o.required<std::string>("json", config::non_empty());
   }
-  d.can = root["can"];
   return root.finish(std::move(d));
 }
 

@@ -3,26 +3,8 @@
 #include <fmt/format.h>
 
 #include <exception>
-#include <mutex>
 
 namespace vigil::deploy {
-
-namespace {
-struct ExtensionRegistry {
-  std::mutex mutex;
-  std::map<std::string, ExtensionMaker, std::less<>> makers;
-};
-ExtensionRegistry& extensions() {
-  static ExtensionRegistry r;
-  return r;
-}
-}  // namespace
-
-void register_extension(std::string section, ExtensionMaker maker) {
-  auto& r = extensions();
-  std::lock_guard lock(r.mutex);
-  r.makers[std::move(section)] = std::move(maker);
-}
 
 System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
   aggregator_ = std::make_unique<ComponentAggregator>(
@@ -44,26 +26,25 @@ expected<std::unique_ptr<System>, config::ConfigErrors> System::create(
   const config::Node& root = sys->spec_.root;
 
   if (sys->spec_.supervision.thresholds_file) {
-    if (auto r = sys->monitor_->watch_thresholds(*sys->spec_.supervision.thresholds_file); !r) {
-      return vigil::unexpected(r.error());
-    }
+    // The file was validated by the loader; it may have changed since, so load it again and
+    // watch it: the monitor polls it at each cycle.
+    auto file = ThresholdFile::open(*sys->spec_.supervision.thresholds_file);
+    if (!file) return vigil::unexpected(file.error());
+    sys->thresholds_file_.emplace(std::move(*file));
+    sys->thresholds_file_->attach(*sys->monitor_);
   }
 
   // Extensions first: components may use them (a CAN I/O component needs its sniffer).
-  if (sys->spec_.can.defined()) {
-    ExtensionMaker maker;
-    {
-      auto& r = extensions();
-      std::lock_guard lock(r.mutex);
-      if (auto it = r.makers.find("can"); it != r.makers.end()) maker = it->second;
-    }
+  for (const ExtensionSection& section : sys->spec_.extensions) {
+    const ExtensionMaker maker = find_extension(section.name);
     if (!maker) {
-      sys->spec_.can.error("this program has no CAN support linked in (section 'can')");
-    } else {
-      auto ext = maker(sys->spec_.can, *sys);
-      if (!ext) return vigil::unexpected(ext.error());
-      sys->extensions_.push_back(std::move(*ext));
+      section.node.error(
+          fmt::format("no extension is registered for section '{}' in this program", section.name));
+      continue;
     }
+    auto ext = maker(section.node, *sys);
+    if (!ext) return vigil::unexpected(ext.error());
+    sys->extensions_.push_back(std::move(*ext));
   }
 
   for (const ComponentSpec& c : sys->spec_.components) {

@@ -10,7 +10,6 @@
 #include <optional>
 #include <unordered_map>
 
-#include "vigil/config/reloadable.hpp"
 #include "vigil/monitor/checks/builtin.hpp"
 #include "vigil/platform/thread.hpp"
 #include "vigil/platform/thread_stats.hpp"
@@ -103,20 +102,20 @@ struct Monitor::Impl {
   std::uint64_t cycle = 0;
   RunningStats step_time;
 
-  // Configuration. reload_mutex serialises reloads (file I/O) and is never taken by readers;
-  // config_mutex guards the three fields below and is held only to copy or swap them.
-  std::mutex reload_mutex;
+  std::vector<std::pair<std::uint64_t, CycleHook>> hooks;  // guarded by step_mutex
+
+  // Configuration: config_mutex guards the fields below and is held only to copy or swap them.
   mutable std::mutex config_mutex;
   std::shared_ptr<const ThresholdSet> thresholds;
-  std::shared_ptr<config::Reloadable<ThresholdSet>> reloadable;
+  std::uint64_t generation = 0;
   config::ConfigErrors errors;
 
   mutable std::mutex latest_mutex;  // guards latest; held for one copy
   ReportSet latest;
 
-  std::mutex subscribers_mutex;  // guards subscribers and next_id; never held during a call
+  std::mutex subscribers_mutex;  // guards subscribers; never held during a call
   std::vector<std::pair<std::uint64_t, Callback>> subscribers;
-  std::uint64_t next_id = 1;
+  std::atomic<std::uint64_t> next_id{1};  // ids of subscribers and cycle hooks
 
   // The thread. thread_mutex serialises start() and stop().
   std::mutex thread_mutex;
@@ -126,38 +125,6 @@ struct Monitor::Impl {
   platform::Thread thread;
   std::atomic<bool> running{false};
   std::atomic<int> thread_tid{0};
-
-  // After a reload attempt of `rl`, publishes its value or records its errors.
-  void settle(const config::Reloadable<ThresholdSet>& rl, bool ok) {
-    std::lock_guard lock(config_mutex);
-    if (ok) {
-      thresholds = rl.current();
-      errors.clear();
-    } else {
-      errors = rl.last_errors();
-    }
-  }
-
-  std::shared_ptr<config::Reloadable<ThresholdSet>> watched() const {
-    std::lock_guard lock(config_mutex);
-    return reloadable;
-  }
-
-  void poll() {
-    std::lock_guard lock(reload_mutex);
-    const auto rl = watched();
-    if (!rl) return;
-    switch (rl->poll()) {
-      case config::ReloadStatus::Unchanged:
-        return;
-      case config::ReloadStatus::Reloaded:
-        settle(*rl, true);
-        return;
-      case config::ReloadStatus::Failed:
-        settle(*rl, false);
-        return;
-    }
-  }
 
   std::shared_ptr<const ThresholdSet> current_thresholds() const {
     std::lock_guard lock(config_mutex);
@@ -234,17 +201,17 @@ struct Monitor::Impl {
         if (auto s = platform::read_thread_stats(tid)) r.thread = std::move(*s);
       }
     }
-    std::uint64_t generation = 0;
+    std::uint64_t gen = 0;
     config::ConfigErrors errs;
     {
       std::lock_guard lock(config_mutex);
-      if (reloadable) generation = reloadable->generation();
+      gen = generation;
       errs = errors;
     }
     r.add("components", std::to_string(components));
     r.add("checks", std::to_string(checks.size()));
     r.add("thresholds", th.source.empty() ? std::string("built-in") : th.source);
-    r.add("thresholds_generation", std::to_string(generation));
+    r.add("thresholds_generation", std::to_string(gen));
     for (const auto& e : errs) {
       r.merge(StatusLevel::Warn, "thresholds not reloaded (previous ones kept): " + e.to_string());
     }
@@ -304,10 +271,15 @@ std::vector<std::string> Monitor::check_names() const {
 }
 
 void Monitor::set_thresholds(ThresholdSet thresholds) {
-  std::lock_guard reload(impl_->reload_mutex);
+  set_thresholds(std::make_shared<const ThresholdSet>(std::move(thresholds)), 0);
+}
+
+void Monitor::set_thresholds(std::shared_ptr<const ThresholdSet> thresholds,
+                             std::uint64_t generation) {
+  if (!thresholds) return;
   std::lock_guard lock(impl_->config_mutex);
-  impl_->reloadable.reset();
-  impl_->thresholds = std::make_shared<const ThresholdSet>(std::move(thresholds));
+  impl_->thresholds = std::move(thresholds);
+  impl_->generation = generation;
   impl_->errors.clear();
 }
 
@@ -315,29 +287,14 @@ std::shared_ptr<const ThresholdSet> Monitor::thresholds() const {
   return impl_->current_thresholds();
 }
 
-expected<void, config::ConfigErrors> Monitor::watch_thresholds(const std::filesystem::path& path) {
-  std::lock_guard reload(impl_->reload_mutex);
-  auto rl = config::Reloadable<ThresholdSet>::open(
-      path, [](const config::Node& root) { return load_thresholds(root); });
-  if (!rl) return vigil::unexpected<config::ConfigErrors>(std::move(rl.error()));
-  auto shared = std::make_shared<config::Reloadable<ThresholdSet>>(std::move(*rl));
+std::uint64_t Monitor::thresholds_generation() const {
   std::lock_guard lock(impl_->config_mutex);
-  impl_->thresholds = shared->current();
-  impl_->reloadable = std::move(shared);
-  impl_->errors.clear();
-  return {};
+  return impl_->generation;
 }
 
-expected<std::uint64_t, config::ConfigErrors> Monitor::reload_thresholds() {
-  std::lock_guard reload(impl_->reload_mutex);
-  const auto rl = impl_->watched();
-  if (!rl) {
-    return vigil::unexpected<config::ConfigErrors>(config::ConfigErrors{
-        config::ConfigError{"", 0, 0, "", "no threshold file is watched (watch_thresholds)"}});
-  }
-  auto result = rl->reload();
-  impl_->settle(*rl, result.has_value());
-  return result;
+void Monitor::set_threshold_errors(config::ConfigErrors errors) {
+  std::lock_guard lock(impl_->config_mutex);
+  impl_->errors = std::move(errors);
 }
 
 config::ConfigErrors Monitor::threshold_errors() const {
@@ -345,16 +302,29 @@ config::ConfigErrors Monitor::threshold_errors() const {
   return impl_->errors;
 }
 
-std::uint64_t Monitor::thresholds_generation() const {
-  const auto rl = impl_->watched();
-  return rl ? rl->generation() : 0;
+std::uint64_t Monitor::add_cycle_hook(CycleHook hook) {
+  const std::uint64_t id = impl_->next_id.fetch_add(1);
+  std::lock_guard lock(impl_->step_mutex);
+  impl_->hooks.emplace_back(id, std::move(hook));
+  return id;
+}
+
+void Monitor::remove_cycle_hook(std::uint64_t id) {
+  std::lock_guard lock(impl_->step_mutex);
+  std::erase_if(impl_->hooks, [&](const auto& h) { return h.first == id; });
 }
 
 ReportSet Monitor::step() {
   Impl& m = *impl_;
   std::lock_guard lock(m.step_mutex);
   const Nanos t0 = m.options.clock.now();
-  if (m.options.poll_thresholds) m.poll();
+  for (auto& [id, hook] : m.hooks) {
+    // A hook's failure must not stop the monitor or the other hooks.
+    try {
+      hook();
+    } catch (...) {
+    }
+  }
   const std::shared_ptr<const ThresholdSet> th = m.current_thresholds();
   const std::vector<ComponentSnapshot> snaps = m.aggregator.snapshot();
 
@@ -479,8 +449,8 @@ std::vector<Report> Monitor::reports() const {
 }
 
 std::uint64_t Monitor::subscribe(Callback callback) {
+  const std::uint64_t id = impl_->next_id.fetch_add(1);
   std::lock_guard lock(impl_->subscribers_mutex);
-  const std::uint64_t id = impl_->next_id++;
   impl_->subscribers.emplace_back(id, std::move(callback));
   return id;
 }

@@ -41,7 +41,12 @@ TEST_CASE("CAN config: an empty file gives the defaults", "[can][config]") {
   CHECK(c.groups.empty());
   const NodeThresholds t = c.thresholds_for(0, 1);
   CHECK(t.never_seen_enabled);
-  CHECK(t.not_responding_after_ns == vigil::kNanosPerSecond);
+  CHECK_FALSE(t.not_responding_after_ns.has_value());  // learned from each node's traffic
+  CHECK(t.learn.percentile == LimitStat::P99);
+  CHECK(t.learn.factor == 2.0);
+  CHECK(t.learn.floor_ns == 250 * vigil::kNanosPerMilli);
+  CHECK(t.learn.min_gaps == 16);
+  CHECK(t.answer_within_ns == vigil::kNanosPerSecond);
   CHECK_FALSE(t.rx_gap.enabled());
   CHECK(ok("filter: {}\n").filter.accepts_all());
   CHECK(ok("filter:\n").filter.accepts_all());
@@ -129,7 +134,7 @@ groups:
   for (const std::string& line : e) UNSCOPED_INFO(line);
   REQUIRE(e.size() == 10);
   CHECK(e[0] ==
-        "can.yaml:1:11: node_map: 'canopn' is not one of identity, canopen, j1939; "
+        "can.yaml:1:11: node_map: 'canopn' is not one of identity, canopen, j1939, dronecan; "
         "did you mean 'canopen'?");
   CHECK(e[1] == "can.yaml:3:18: defaults.rx_gap.warn: must not be above error (10ms)");
   CHECK(e[2].rfind("can.yaml:4:21: defaults.read_time.warn: '5 parsecs' has an unknown unit", 0) ==

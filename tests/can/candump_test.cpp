@@ -1,4 +1,4 @@
-#include "vigil/can/candump.hpp"
+#include "vigil/can/log/candump.hpp"
 
 #include <array>
 #include <catch2/catch.hpp>

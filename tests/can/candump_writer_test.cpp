@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "vigil/can/candump.hpp"
+#include "vigil/can/log/candump.hpp"
 
 using vigil::can::CandumpReader;
 using vigil::can::Direction;

@@ -17,18 +17,87 @@ TEST_CASE("Identity mapping: the node is the identifier", "[can][node_map]") {
   CHECK(NodeMap::of(NodeMapKind::User).kind() == NodeMapKind::Identity);
 }
 
-TEST_CASE("CANopen mapping: node-ID in the low 7 bits, function code above", "[can][node_map]") {
+TEST_CASE("CANopen mapping: CiA 301's predefined connection set", "[can][node_map]") {
+  using namespace vigil::can::canopen;
+  using vigil::can::kNoNode;
+  namespace flags = vigil::can::node_flags;
   constexpr NodeMap m = NodeMap::canopen();
-  STATIC_REQUIRE(m.map(0x18B, false) == NodeAddress{11, 3});  // TPDO1 of node 11
-  CHECK(m.map(0x60B, false) == NodeAddress{11, 12});          // RSDO to node 11
-  CHECK(m.map(0x58B, false) == NodeAddress{11, 11});          // TSDO from node 11
-  CHECK(m.map(0x70B, false) == NodeAddress{11, 14});          // heartbeat of node 11
-  CHECK(m.map(0x000, false) == NodeAddress{0, 0});            // NMT
-  CHECK(m.map(0x080, false) == NodeAddress{0, 1});            // SYNC
-  CHECK(m.map(0x7FF, false) == NodeAddress{0x7F, 15});
-  CHECK(format_function(NodeMapKind::CanOpen, 3) == "TPDO1");
-  CHECK(format_function(NodeMapKind::CanOpen, 14) == "NMT error control");
+  // Services of a node: from it, or addressed to it.
+  STATIC_REQUIRE(m.map(0x18B, false) == NodeAddress{11, kTpdo1});  // TPDO1 of node 11
+  CHECK(m.map(0x08B, false) == NodeAddress{11, kEmcy});            // EMCY of node 11
+  CHECK(m.map(0x48B, false) == NodeAddress{11, kTpdo4});
+  CHECK(m.map(0x20B, false) == NodeAddress{11, kRpdo1, kNoNode, flags::kToNode});
+  CHECK(m.map(0x50B, false) == NodeAddress{11, kRpdo4, kNoNode, flags::kToNode});
+  CHECK(m.map(0x60B, false) ==
+        NodeAddress{11, kSdoRx, kNoNode, flags::kToNode | flags::kRequest});  // SDO request
+  CHECK(m.map(0x58B, false) == NodeAddress{11, kSdoTx, kNoNode, flags::kResponse});
+  CHECK(m.map(0x70B, false) == NodeAddress{11, kErrorControl});  // heartbeat of node 11
+  CHECK(m.map(0x77F, false) == NodeAddress{127, kErrorControl});
+  // A remote frame on 0x70B is node guarding: a request to node 11.
+  CHECK(m.map(0x70B, false, true) ==
+        NodeAddress{11, kErrorControl, kNoNode, flags::kToNode | flags::kRequest});
+  // Services of the network: no node.
+  CHECK(m.map(0x000, false) == NodeAddress{kNoNode, kNmt});
+  CHECK(m.map(0x080, false) == NodeAddress{kNoNode, kSync});
+  CHECK(m.map(0x100, false) == NodeAddress{kNoNode, kTime});
+  CHECK(m.map(0x7E4, false) == NodeAddress{kNoNode, kLssResponse});
+  CHECK(m.map(0x7E5, false) == NodeAddress{kNoNode, kLssRequest});
+  // Outside the set: "other", no node and no function it does not have.
+  for (const std::uint32_t id : {0x001U, 0x07FU, 0x101U, 0x17FU, 0x180U, 0x200U, 0x580U, 0x600U,
+                                 0x680U, 0x6FFU, 0x700U, 0x780U, 0x7E3U, 0x7E6U, 0x7FFU}) {
+    INFO(id);
+    CHECK(m.map(id, false) == NodeAddress{kNoNode, kOther});
+  }
+  CHECK(m.map(0x18B, true) == NodeAddress{kNoNode, kOther});  // 29-bit: not CANopen
+  CHECK(m.map(0x70B, false, true).request());
+  CHECK(format_function(NodeMapKind::CanOpen, kTpdo1) == "TPDO1");
+  CHECK(format_function(NodeMapKind::CanOpen, kErrorControl) == "NMT error control");
+  CHECK(format_function(NodeMapKind::CanOpen, kSdoTx) == "SDO response");
+  CHECK(format_function(NodeMapKind::CanOpen, kSync) == "SYNC");
+  CHECK(format_function(NodeMapKind::CanOpen, kEmcy) == "EMCY");
+  CHECK(format_function(NodeMapKind::CanOpen, kOther) == "other");
   CHECK(format_node(NodeMapKind::CanOpen, 11) == "11");
+  CHECK(format_node(NodeMapKind::CanOpen, kNoNode) == "-");
+}
+
+TEST_CASE("DroneCAN mapping: messages, services, anonymous frames", "[can][node_map][dronecan]") {
+  namespace dc = vigil::can::dronecan;
+  namespace flags = vigil::can::node_flags;
+  using vigil::can::kNoNode;
+  constexpr NodeMap m = NodeMap::dronecan();
+  // uavcan.protocol.NodeStatus (341) from node 10, priority 16.
+  constexpr std::uint32_t status = dc::message_id(16, 341, 10);
+  STATIC_REQUIRE(status == 0x1001550A);
+  STATIC_REQUIRE(m.map(status, true) == NodeAddress{10, 341});
+  constexpr auto d = dc::decode(status);
+  STATIC_REQUIRE(!d.service && d.type_id == 341 && d.source == 10 && d.priority == 16);
+  // esc.Status (1034) from ESC node 20.
+  CHECK(m.map(dc::message_id(24, 1034, 20), true) == NodeAddress{20, 1034});
+  // GetNodeInfo (service 1): request from 10 to 20, response from 20 to 10.
+  const std::uint32_t req = dc::service_id(30, 1, true, 20, 10);
+  const std::uint32_t resp = dc::service_id(30, 1, false, 10, 20);
+  CHECK(req == 0x1E01948A);  // priority 30, service 1, request, to 20, service bit, from 10
+  const auto rd = dc::decode(req);
+  CHECK(rd.service);
+  CHECK(rd.request);
+  CHECK(rd.type_id == 1);
+  CHECK(rd.destination == 20);
+  CHECK(rd.source == 10);
+  CHECK(m.map(req, true) == NodeAddress{10, dc::kService | 1, 20, flags::kRequest});
+  CHECK(m.map(resp, true) == NodeAddress{20, dc::kService | 1, 10, flags::kResponse});
+  // Anonymous message (source 0): no node.
+  const std::uint32_t anon = (24U << 24) | (0x1234U << 10) | (1U << 8);
+  CHECK(dc::decode(anon).anonymous);
+  CHECK(dc::decode(anon).discriminator == 0x1234);
+  CHECK(m.map(anon, true) == NodeAddress{kNoNode, dc::kAnonymous | 1});
+  // 11-bit ids are not DroneCAN.
+  CHECK(m.map(0x123, false) == NodeAddress{kNoNode, dc::kOther});
+  CHECK(format_function(NodeMapKind::DroneCan, 341) == "341 NodeStatus");
+  CHECK(format_function(NodeMapKind::DroneCan, 1034) == "1034 esc.Status");
+  CHECK(format_function(NodeMapKind::DroneCan, dc::kService | 1) == "service 1 GetNodeInfo");
+  CHECK(format_function(NodeMapKind::DroneCan, 20007) == "message 20007");
+  CHECK(format_node(NodeMapKind::DroneCan, 20) == "20");
+  CHECK(vigil::can::parse_node_map_kind("dronecan") == NodeMapKind::DroneCan);
 }
 
 TEST_CASE("J1939 decoding: PDU2 broadcast puts PS in the PGN", "[can][node_map][j1939]") {

@@ -111,11 +111,11 @@ TEST_CASE("Sniffer's table is fixed: overflow is counted exactly, never blocks",
 }
 
 TEST_CASE("TrackTable: power-of-two slots, bounded probes, insert-only", "[can][sniffer]") {
-  detail::TrackTable<detail::NodeSlot> table(100);
+  detail::TrackTable<detail::NodeCounter> table(100);
   CHECK(table.slot_count() == 512);  // >= 4 x 100
   CHECK(table.max_entries() == 100);
   int inits = 0;
-  const auto init = [&](detail::NodeSlot&) noexcept { ++inits; };
+  const auto init = [&](detail::NodeCounter&) noexcept { ++inits; };
   for (std::uint32_t k = 0; k < 100; ++k) {
     const auto [slot, inserted] = table.find_or_insert(detail::node_key(0, k, false), init);
     REQUIRE(slot != nullptr);
@@ -128,9 +128,9 @@ TEST_CASE("TrackTable: power-of-two slots, bounded probes, insert-only", "[can][
   CHECK(table.find_or_insert(detail::node_key(0, 1000, false), init).first == nullptr);  // full
   CHECK(inits == 100);
   std::size_t seen = 0;
-  table.for_each([&](std::uint64_t, const detail::NodeSlot&) { ++seen; });
+  table.for_each([&](std::uint64_t, const detail::NodeCounter&) { ++seen; });
   CHECK(seen == 100);
-  detail::TrackTable<detail::NodeSlot> none(0);
+  detail::TrackTable<detail::NodeCounter> none(0);
   CHECK(none.find_or_insert(detail::node_key(0, 1, false), init).first == nullptr);
 }
 
@@ -170,7 +170,14 @@ TEST_CASE("Sniffer counts error frames apart", "[can][sniffer]") {
   CHECK(t.frames == 2);
   CHECK(t.error_frames == 1);
   CHECK(t.accepted == 1);
-  CHECK(sniffer.ids().size() == 1);
+  // Error frames are counted per error class in the id table, with no node and no record.
+  const auto ids = sniffer.ids();
+  REQUIRE(ids.size() == 2);
+  const auto err = std::find_if(ids.begin(), ids.end(), [](const IdEntry& e) { return e.error; });
+  REQUIRE(err != ids.end());
+  CHECK(err->id == 0x4);
+  CHECK(err->node == vigil::can::kNoNode);
+  CHECK(err->frames == 1);
   CHECK(drain_records(registry).size() == 1);
 }
 

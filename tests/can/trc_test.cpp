@@ -1,4 +1,4 @@
-#include "vigil/can/trc.hpp"
+#include "vigil/can/log/trc.hpp"
 
 #include <array>
 #include <catch2/catch.hpp>

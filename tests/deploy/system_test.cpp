@@ -1,6 +1,8 @@
 #include "vigil/deploy/system.hpp"
 
 #include <catch2/catch.hpp>
+#include <filesystem>
+#include <fstream>
 #include <thread>
 
 #include "vigil/task/task.hpp"
@@ -99,4 +101,47 @@ supervision: {lock_memory: false}
   CHECK_THAT(r.error().message, Catch::Contains("component 'bad' did not configure"));
   CHECK_FALSE(sys->running());
   for (const auto& e : events()) CHECK(e.rfind("start", 0) != 0);
+}
+
+TEST_CASE("The System watches a thresholds file: a good edit applies, a bad one is reported",
+          "[deploy][system][thresholds]") {
+  const auto dir = std::filesystem::temp_directory_path() / "vigil_system_thresholds";
+  std::filesystem::create_directories(dir);
+  const auto path = dir / "limits.yaml";
+  const auto write = [&](const char* text) {
+    std::ofstream(path) << text;
+    // A new modification time even on file systems with coarse stamps.
+    std::filesystem::last_write_time(
+        path, std::filesystem::last_write_time(path) + std::chrono::seconds(1));
+  };
+  write("defaults:\n  overrun: {near_fraction: 0.9}\n");
+  auto spec = load_deployment_string(R"(
+activities: [{name: a, period: 2ms}]
+components: [{name: one, type: test.recorder, activity: a}]
+supervision: {lock_memory: false, thresholds: )" +
+                                         path.string() + "}\n",
+                                     "s.yaml", factory());
+  REQUIRE(spec.has_value());
+  auto sys = System::create(std::move(*spec), factory());
+  REQUIRE(sys.has_value());
+  ThresholdFile* file = (*sys)->thresholds_file();
+  REQUIRE(file != nullptr);
+  Monitor& monitor = (*sys)->monitor();
+  CHECK(monitor.thresholds()->defaults.overrun.near_fraction == Approx(0.9));
+
+  write("defaults:\n  overrun: {near_fraction: 0.5}\n");
+  ReportSet r = (*sys)->step_monitor();  // the monitor's cycle polls the file
+  CHECK(monitor.thresholds()->defaults.overrun.near_fraction == Approx(0.5));
+  CHECK(*r.find("vigil.monitor")->value("thresholds_generation") == "2");
+
+  write("defaults:\n  overrun: {near_fraction: 5}\n");
+  r = (*sys)->step_monitor();
+  CHECK(monitor.thresholds()->defaults.overrun.near_fraction == Approx(0.5));  // kept
+  const Report* self = r.find("vigil.monitor");
+  REQUIRE(self != nullptr);
+  CHECK(self->status.level() == StatusLevel::Warn);
+  CHECK_THAT(self->status.summary(), Catch::Contains("thresholds not reloaded (previous ones "
+                                                     "kept): " +
+                                                     path.string() + ":2:28:"));
+  std::filesystem::remove_all(dir);
 }

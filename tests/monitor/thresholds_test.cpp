@@ -11,6 +11,7 @@
 #include "monitor/harness.hpp"
 #include "vigil/config/error.hpp"
 #include "vigil/config/load.hpp"
+#include "vigil/monitor/threshold_file.hpp"
 
 using namespace vigil;
 namespace fs = std::filesystem;
@@ -219,7 +220,9 @@ TEST_CASE("Monitor thresholds reload: good, bad (previous kept, error reported),
   TempFile file("thresholds.yaml");
   file.write("defaults:\n  overrun: {near_fraction: 0.9}\n");
   Harness h;
-  REQUIRE(h.monitor.watch_thresholds(file.path()));
+  auto watched = ThresholdFile::open(file.path());
+  REQUIRE(watched.has_value());
+  watched->attach(h.monitor);
   CHECK(h.monitor.thresholds_generation() == 1);
   CHECK(h.monitor.thresholds()->source == file.path().string());
 
@@ -230,14 +233,14 @@ TEST_CASE("Monitor thresholds reload: good, bad (previous kept, error reported),
 
   SECTION("explicit reload") {
     file.write("defaults:\n  overrun: {near_fraction: 0.5}\n");
-    auto g = h.monitor.reload_thresholds();
+    auto g = watched->reload();
     REQUIRE(g.has_value());
     CHECK(*g == 2);
     CHECK(h.monitor.thresholds()->defaults.overrun.near_fraction == 0.5);
     CHECK(h.step().find("c")->status.level() == StatusLevel::Warn);
 
     file.write("defaults:\n  overrun: {near_fraction: 5}\n");
-    auto bad = h.monitor.reload_thresholds();
+    auto bad = watched->reload();
     REQUIRE_FALSE(bad.has_value());
     CHECK(bad.error().at(0).to_string() ==
           file.path().string() +
@@ -255,7 +258,7 @@ TEST_CASE("Monitor thresholds reload: good, bad (previous kept, error reported),
                                file.path().string() + ":2:28:"));
 
     file.write("defaults:\n  overrun: {near_fraction: 0.95}\n");
-    REQUIRE(h.monitor.reload_thresholds());
+    REQUIRE(watched->reload());
     CHECK(h.monitor.threshold_errors().empty());
     const ReportSet fixed = h.step();
     CHECK(fixed.find("c")->status.ok());
@@ -274,10 +277,14 @@ TEST_CASE("Monitor thresholds reload: good, bad (previous kept, error reported),
     CHECK(h.monitor.threshold_errors().size() == 1);
     CHECK(h.monitor.thresholds()->defaults.overrun.near_fraction == 0.55);
   }
-  SECTION("set_thresholds replaces the file's thresholds and stops watching it") {
+  SECTION("detached, the file no longer changes the monitor's thresholds") {
+    watched->detach();
+    file.write("defaults:\n  overrun: {near_fraction: 0.55}\n");
+    CHECK(h.step().find("c")->status.ok());
+    CHECK(h.monitor.thresholds_generation() == 1);
     h.monitor.set_thresholds(ThresholdSet{});
     CHECK(h.monitor.thresholds_generation() == 0);
-    CHECK_FALSE(h.monitor.reload_thresholds().has_value());
+    CHECK(h.monitor.thresholds()->source.empty());
   }
 }
 
@@ -286,7 +293,7 @@ TEST_CASE("A bad first file is refused and the thresholds in use are kept",
   TempFile file("bad.yaml");
   file.write("defaults:\n  overrn: {}\n");
   test::Harness h;
-  auto r = h.monitor.watch_thresholds(file.path());
+  auto r = ThresholdFile::open(file.path());
   REQUIRE_FALSE(r.has_value());
   CHECK(r.error().at(0).line == 2);
   CHECK(r.error().at(0).column == 3);
@@ -299,7 +306,9 @@ TEST_CASE("Thresholds reload while the monitor thread runs",
   TempFile file("live.yaml");
   file.write("defaults:\n  overrun: {near_fraction: 0.9}\n");
   test::Harness h(MonitorOptions{.period_ns = kNanosPerMilli});
-  REQUIRE(h.monitor.watch_thresholds(file.path()));
+  auto watched = ThresholdFile::open(file.path());
+  REQUIRE(watched.has_value());
+  watched->attach(h.monitor);
   test::PeriodicProbe c(h, "c", kNanosPerMilli);
   c.probe.work_ns = 600 * kNanosPerMicro;
   for (int i = 0; i < 20; ++i) h.cycle(c.activity);
@@ -328,15 +337,15 @@ TEST_CASE("Thresholds reload while the monitor thread runs",
   for (int round = 0; round < 5; ++round) {
     // Good, then bad: the bad file never replaces the good thresholds.
     file.write("defaults:\n  overrun: {near_fraction: 0.5}\n");
-    REQUIRE(h.monitor.reload_thresholds());
+    REQUIRE(watched->reload());
     file.write("defaults:\n  overrun: {near_fraction: -1}\n");
-    CHECK_FALSE(h.monitor.reload_thresholds().has_value());
+    CHECK_FALSE(watched->reload().has_value());
     CHECK(h.monitor.thresholds()->defaults.overrun.near_fraction == 0.5);
     REQUIRE(wait_cycles(2));  // the thread also polls the (bad) file: same result
     CHECK(h.monitor.thresholds()->defaults.overrun.near_fraction == 0.5);
     CHECK_FALSE(h.monitor.threshold_errors().empty());
     file.write("defaults:\n  overrun: {near_fraction: 0.9}\n");
-    REQUIRE(h.monitor.reload_thresholds());
+    REQUIRE(watched->reload());
     REQUIRE(wait_cycles(2));
   }
   CHECK(warn_cycles.load() > 0);

@@ -4,13 +4,13 @@
 /// monitor (defaults, per group, per node), named nodes and groups; and their YAML loaders.
 ///
 /// ```yaml
-/// node_map: canopen                  # identity (default) | canopen | j1939
+/// node_map: canopen                  # identity (default) | canopen | j1939 | dronecan
 /// filter:                            # default: every frame
 ///   all:
 ///     - bus: 0
 ///     - any: [{ids: [0x181, 0x182]}, {id_range: [0x200, 0x27F]}]
 /// defaults:                          # thresholds for every node
-///   not_responding: {after: 100ms}
+///   not_responding: {after: 100ms}   # default: learned from each node's traffic
 ///   rx_gap: {warn: 15ms, error: 50ms, stat: max}
 /// nodes:
 ///   left_shoulder: {node: 11, bus: 0}
@@ -75,12 +75,29 @@ struct Limit {
   [[nodiscard]] bool enabled() const noexcept { return warn.has_value() || error.has_value(); }
 };
 
+/// How a silence limit is learned from a node's own traffic, when none is configured
+/// (docs/guide/can-supervision.md, "Learned deadlines"): once an id from the node has
+/// `min_gaps` gaps, its period is the `percentile` of its gaps and its limit
+/// max(`floor`, `factor` x period); the node's limit is the largest of its periodic ids' limits.
+struct LearnRule {
+  LimitStat percentile = LimitStat::P99;  ///< which statistic of the gaps is the period
+  double factor = 2.0;                    ///< the limit is this many periods (CiA 301: 1.5-2)
+  Nanos floor_ns = 250 * kNanosPerMilli;  ///< and at least this
+  std::uint32_t min_gaps = 16;            ///< gaps an id needs before its period is learned
+};
+
 /// The thresholds the CAN monitor applies to one node, after layering.
 struct NodeThresholds {
   bool never_seen_enabled = true;                     ///< check "not initialized"
   StatusLevel never_seen_level = StatusLevel::Error;  ///< level when an expected node is unseen
   bool not_responding_enabled = true;                 ///< check "not responding"
-  Nanos not_responding_after_ns = kNanosPerSecond;    ///< silence (no Rx) that counts as such
+  /// Silence (no frame from the node) that counts as "not responding"; empty: learned with
+  /// `learn` from the node's own traffic (the default). A configured limit always wins.
+  std::optional<Nanos> not_responding_after_ns;
+  LearnRule learn;  ///< how the limit is learned
+  /// A request to the node (SDO, RTR, service request) unanswered for longer than this is a
+  /// fault: "not responding" when nothing else shows the node alive, WARN otherwise.
+  Nanos answer_within_ns = kNanosPerSecond;
   StatusLevel not_responding_level = StatusLevel::Error;
   Limit read_time;   ///< time spent reading a frame from the node (Rx I/O time)
   Limit write_time;  ///< time spent writing a frame to the node (Tx I/O time)
@@ -104,7 +121,13 @@ struct ThresholdOverrides {
   std::optional<bool> never_seen_enabled;
   std::optional<StatusLevel> never_seen_level;
   std::optional<bool> not_responding_enabled;
-  std::optional<Nanos> not_responding_after_ns;
+  /// Set in this layer: a fixed limit, or empty for "learned".
+  std::optional<std::optional<Nanos>> not_responding_after_ns;
+  std::optional<LimitStat> learn_percentile;
+  std::optional<double> learn_factor;
+  std::optional<Nanos> learn_floor_ns;
+  std::optional<std::uint32_t> learn_min_gaps;
+  std::optional<Nanos> answer_within_ns;
   std::optional<StatusLevel> not_responding_level;
   LimitOverride read_time;
   LimitOverride write_time;

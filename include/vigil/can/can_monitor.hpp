@@ -2,33 +2,42 @@
 /// @file
 /// `CanMonitor`: judges every CAN node from the CAN aggregator's statistics and the thresholds
 /// of a `CanConfig`, and `CanReport`, what it produces: one status per node, an overall status,
-/// and the summary table (category, frames, records, mean/min/max I/O time, mean/min/max gap),
-/// printable as text or JSON.
+/// and the statistics judged. The export module prints it as text or JSON
+/// (vigil/export/can_report.hpp).
 ///
 /// The checks, per node (bus, node), in this order:
 ///  1. never seen ("not initialized"): an expected node (named in `nodes:` or listed in a
-///     group's `nodes:`) from which no frame was ever received;
-///  2. not responding: a node that was received from, but not for longer than
-///     `not_responding.after` (now - last Rx frame, from the sniffer's exact table);
+///     group's `nodes:`) from which no frame ever came;
+///  2. not responding: a node that sent frames, then stayed silent (now - its latest frame,
+///     from the sniffers' exact tables) for longer than its limit: `not_responding.after` when
+///     configured, else the limit learned from its own traffic (`LearnRule`): per id, once it
+///     has `min_gaps` gaps, max(floor, factor x percentile of its gaps); the node's limit is the
+///     largest over its periodic ids. Until one of its ids is learned the node is "learning"
+///     (not judged); a node that only answers requests (SDO responses, RTR answers, DroneCAN
+///     service responses) is "on request": silent while nobody asks is no fault, a request
+///     unanswered for longer than `answer_within` is;
 ///  3. read time, write time, Rx gap, Tx gap: the chosen statistic (`stat`, max by default) of
 ///     the distribution above `warn` / `error` (strictly above: equal passes);
 ///  4. custom checks added with `add_check`.
 /// Liveness and counts come from the sniffers' tables, so they are exact even when the ports
-/// dropped records; timing checks use the records that arrived.
+/// dropped records; timing checks and learned periods use the records that arrived. Replay
+/// and live supervision apply the same rules.
 ///
-/// Overall status: the worst node status, plus WARN for frames the sniffers could not track
-/// (table full) and for error frames; dropped records are reported as an OK message (timing is
-/// sampled, counts are not).
+/// Overall status: the worst node status, plus WARN when no frame (or no valid frame) was seen,
+/// for frames the sniffers could not track (table full) and for error frames; dropped records
+/// and learning nodes are reported as OK messages.
 ///
-/// Threads: `evaluate` and the formatters from any non-RT thread; `set_config` and `add_check`
-/// are thread-safe against `evaluate`. Not RT-safe (allocates).
+/// Threads: `evaluate` from any non-RT thread; `set_config` and `add_check` are thread-safe
+/// against `evaluate`. Not RT-safe (allocates).
 
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "vigil/can/can_config.hpp"
@@ -37,6 +46,42 @@
 #include "vigil/platform/clock.hpp"
 
 namespace vigil::can {
+
+/// How a node's liveness stands.
+enum class Liveness : std::uint8_t {
+  NoNode,         ///< the frames that belong to no node (never judged)
+  NeverSeen,      ///< no frame came from it (only, perhaps, frames to it)
+  Learning,       ///< frames came from it, but none of its ids has its period learned yet
+  OnRequest,      ///< it only answers requests: not judged by silence
+  Responding,     ///< within its silence limit
+  NotResponding,  ///< silent beyond its limit, or a request to it went unanswered
+};
+
+/// "no node", "never seen", "learning", "on request", "responding", "not responding".
+[[nodiscard]] std::string_view to_string(Liveness l) noexcept;
+
+/// What an id key's frames are, for liveness.
+enum class Traffic : std::uint8_t {
+  Periodic,   ///< from its node on its own; period learned (`IdVerdict::period_ns`)
+  Learning,   ///< from its node on its own; fewer gaps than `min_gaps` so far
+  OnRequest,  ///< from its node, answering requests (responses, RTR answers)
+  ToNode,     ///< addressed to its node (requests, commands such as CANopen RPDOs)
+  Network,    ///< belongs to no node (NMT, SYNC, TIME, LSS, "other", anonymous)
+  Sent,       ///< sent by the supervising side itself (direction Tx)
+  Errors,     ///< error frames
+};
+
+/// "periodic", "learning", "on request", "to node", "network", "sent", "errors".
+[[nodiscard]] std::string_view to_string(Traffic t) noexcept;
+
+/// What the monitor says about one id key (same order as `CanSnapshot::ids`).
+struct IdVerdict {
+  Traffic traffic = Traffic::Network;
+  Nanos period_ns = -1;   ///< learned period (Periodic), else -1
+  Nanos limit_ns = -1;    ///< learned silence limit (Periodic), else -1
+  Nanos silence_ns = -1;  ///< now - latest frame (Rx keys), else -1
+  bool overdue = false;   ///< a periodic id silent beyond its own limit (information only)
+};
 
 /// What the monitor says about one node (both directions).
 struct NodeReport {
@@ -48,9 +93,20 @@ struct NodeReport {
   std::vector<std::string> groups;  ///< groups it belongs to, in configuration order
   std::optional<NodeStats> rx;      ///< frames received from the node, if any
   std::optional<NodeStats> tx;      ///< frames sent to the node, if any
-  Nanos silence_ns = -1;            ///< now - latest Rx frame; -1 when never received from
-  NodeThresholds thresholds;        ///< as resolved for this node
+  Nanos silence_ns = -1;            ///< now - latest frame from it; -1 when none came
+  Liveness liveness = Liveness::NeverSeen;
+  Nanos silence_limit_ns = -1;  ///< the limit judged against; -1 when none applies
+  bool limit_learned = false;   ///< the limit was learned (else configured)
+  /// Index in `CanReport::snapshot.ids` of the id whose learned limit is the node's; -1 when
+  /// none (configured, or not learned).
+  std::ptrdiff_t limit_id = -1;
+  std::uint64_t to_node_frames = 0;  ///< frames addressed to it (or sent to it, Tx)
+  Nanos unanswered_ns = -1;          ///< age of the latest request to it not answered yet; -1: none
+  NodeThresholds thresholds;         ///< as resolved for this node
   Status status;
+
+  /// A node of the mapping (not the frames of no node).
+  [[nodiscard]] bool is_node() const noexcept { return liveness != Liveness::NoNode; }
 };
 
 /// One monitor evaluation.
@@ -59,7 +115,13 @@ struct CanReport {
   NodeMapKind node_map = NodeMapKind::Identity;
   Status status;                  ///< overall (see the file comment)
   CanSnapshot snapshot;           ///< the statistics judged (ids, nodes, categories, totals)
+  std::vector<IdVerdict> ids;     ///< one per `snapshot.ids`, same order
   std::vector<NodeReport> nodes;  ///< by bus, then node; never-seen any-bus nodes last
+
+  /// Nodes counted (the "no node" rows excluded), and of them those OK and those learning.
+  [[nodiscard]] std::size_t node_count() const noexcept;
+  [[nodiscard]] std::size_t ok_count() const noexcept;
+  [[nodiscard]] std::size_t learning_count() const noexcept;
 
   /// The report of (bus, node), or null. O(n).
   [[nodiscard]] const NodeReport* find(std::uint8_t bus, std::uint32_t node) const noexcept;
@@ -77,7 +139,7 @@ using CanNodeCheck =
  * @code
  * vigil::can::CanMonitor monitor(*vigil::can::load_can_config_file("can.yaml"));
  * vigil::can::CanReport r = monitor.evaluate(aggregator, vigil::platform::now_ns());
- * std::fputs(vigil::can::format_can_report(r).c_str(), stdout);
+ * std::fputs(vigil::exporter::format_can_report(r).c_str(), stdout);  // vigil/export
  * @endcode
  */
 class CanMonitor {
@@ -107,21 +169,5 @@ class CanMonitor {
   std::shared_ptr<const CanConfig> config_;
   std::vector<std::pair<std::string, CanNodeCheck>> checks_;
 };
-
-/// Options of the text form.
-struct CanTextOptions {
-  bool ids = true;                       ///< append the per-id table
-  std::vector<std::string> bus_names{};  ///< name of bus i (e.g. candump's interfaces); else i
-};
-
-/// The report for people: status line, summary table (I/O and gap times in µs), node table,
-/// optionally the id table (gaps in ms). Ends with a newline.
-[[nodiscard]] std::string format_can_report(const CanReport& report,
-                                            const CanTextOptions& options = {});
-
-/// The report as one JSON object (schema in docs/guide/can-supervision.md); `indent` as
-/// `JsonWriter`. `bus_names` names buses as in the text form.
-[[nodiscard]] std::string can_report_json(const CanReport& report, int indent = 0,
-                                          const std::vector<std::string>& bus_names = {});
 
 }  // namespace vigil::can

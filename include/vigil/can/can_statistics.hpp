@@ -16,8 +16,13 @@
 ///    a group's gap distribution is that of its nodes' gaps, not the gap between any two frames.
 ///
 /// Percentiles have `RunningStats`' bounded error (< 2^-5, upper bound). For offline replay,
-/// `CanAggregatorOptions::exact_percentiles` keeps every gap so that the snapshot's gap
-/// percentiles are exact (memory grows with the frames; min, max and mean are always exact).
+/// `CanAggregatorOptions::exact_percentiles` keeps every gap instead of histograms, so that the
+/// snapshot's gap percentiles are exact (min, max and mean are always exact).
+///
+/// Memory is bounded: at most `max_ids` id keys and `max_nodes` node keys are aggregated (a
+/// record whose key the sniffer's table could not hold, or that finds the aggregator full, is
+/// counted, not aggregated). A key costs about 19 KB with histograms (live), about 200 bytes
+/// in exact mode, plus 8 bytes per gap (16 per frame: its id's and its node's) in exact mode.
 ///
 /// Design: the supervisor thread is the only writer. One mutex guards the statistics; the
 /// supervisor holds it while it applies one port's batch (begin .. end) and a reader while it
@@ -58,14 +63,21 @@ struct GroupSpec {
   [[nodiscard]] bool contains(std::uint8_t bus_index, std::uint32_t node) const noexcept;
 };
 
-/// Statistics of one (bus, id, direction).
+/// Statistics of one id key: (bus, id, format, direction), data, remote (RTR) or error frames.
 struct IdStats {
   std::uint8_t bus = 0;
-  std::uint32_t id = 0;
+  std::uint32_t id = 0;  ///< identifier; the error class for error frames
   bool extended = false;
+  bool rtr = false;    ///< the remote frames (RTR) of this id
+  bool error = false;  ///< the error frames of this error class (no node, no timing)
   Direction direction = Direction::Rx;
-  std::uint32_t node = 0;        ///< mapped node
+  std::uint32_t node = 0;        ///< mapped node (`kNoNode`: none)
   std::uint32_t function = 0;    ///< mapped function
+  std::uint32_t peer = kNoNode;  ///< mapped peer (e.g. a DroneCAN service's destination)
+  std::uint8_t flags = 0;        ///< mapped `node_flags` (to the node, request, response)
+
+  /// A request (an SDO request, a remote frame, a DroneCAN service request).
+  [[nodiscard]] bool request() const noexcept { return (flags & node_flags::kRequest) != 0; }
   std::uint64_t frames = 0;      ///< exact when `exact_count`, else the records received
   bool exact_count = true;       ///< false when the sniffer's id table had no room for it
   Nanos first_ns = 0;            ///< first frame (exact when `exact_count`)
@@ -83,15 +95,16 @@ struct NodeStats {
   std::uint8_t bus = 0;
   std::uint32_t node = 0;
   Direction direction = Direction::Rx;
-  std::uint64_t frames = 0;   ///< exact when `exact_count` (messages in or out)
-  bool exact_count = true;    ///< false when the sniffer's node table had no room for it
-  Nanos first_ns = 0;         ///< first frame
-  Nanos last_ns = 0;          ///< latest frame (liveness)
-  std::uint64_t records = 0;  ///< timing records received
-  std::size_t ids = 0;        ///< distinct identifiers seen for this node and direction
-  StatsSummary io_ns;         ///< time spent reading (Rx) or writing (Tx)
-  StatsSummary gap_ns;        ///< time between consecutive frames from (Rx) / to (Tx) the node
-  bool gap_exact = false;     ///< gap percentiles are exact (exact_percentiles)
+  std::uint64_t frames = 0;         ///< exact when `exact_count` (messages in or out)
+  std::uint64_t remote_frames = 0;  ///< of which remote frames (RTR)
+  bool exact_count = true;          ///< false when the sniffer's node table had no room for it
+  Nanos first_ns = 0;               ///< first frame
+  Nanos last_ns = 0;                ///< latest frame (liveness)
+  std::uint64_t records = 0;        ///< timing records received
+  std::size_t ids = 0;              ///< distinct identifiers seen for this node and direction
+  StatsSummary io_ns;               ///< time spent reading (Rx) or writing (Tx)
+  StatsSummary gap_ns;     ///< time between consecutive frames from (Rx) / to (Tx) the node
+  bool gap_exact = false;  ///< gap percentiles are exact (exact_percentiles)
 };
 
 /// One row of the summary table: every node ("all"), or a group, in one direction.
@@ -99,12 +112,13 @@ struct CategoryStats {
   std::string name;  ///< "all" or the group's name
   bool group = false;
   Direction direction = Direction::Rx;
-  std::size_t nodes = 0;      ///< member nodes with frames in this direction
-  std::uint64_t frames = 0;   ///< sum over the members
-  std::uint64_t records = 0;  ///< sum over the members
-  Nanos last_ns = 0;          ///< latest frame of any member
-  StatsSummary io_ns;         ///< the members' I/O times, merged
-  StatsSummary gap_ns;        ///< the members' gaps, merged
+  std::size_t nodes = 0;            ///< member nodes with frames in this direction
+  std::uint64_t frames = 0;         ///< sum over the members
+  std::uint64_t remote_frames = 0;  ///< sum over the members
+  std::uint64_t records = 0;        ///< sum over the members
+  Nanos last_ns = 0;                ///< latest frame of any member
+  StatsSummary io_ns;               ///< the members' I/O times, merged
+  StatsSummary gap_ns;              ///< the members' gaps, merged
 };
 
 /// What the aggregator knows about one sniffer.
@@ -124,11 +138,17 @@ struct SnifferInfo {
 
 /// Everything the aggregator knows at one moment. Plain values: copy freely.
 struct CanSnapshot {
-  std::uint64_t cycle = 0;            ///< supervisor cycles applied so far
-  std::uint64_t records = 0;          ///< timing records aggregated so far
+  std::uint64_t cycle = 0;    ///< supervisor cycles applied so far
+  std::uint64_t records = 0;  ///< timing records aggregated so far
+  /// Records not aggregated per id / per node: their key was untracked by the sniffer, or the
+  /// aggregator held `max_ids` / `max_nodes` keys already.
+  std::uint64_t unaggregated_id_records = 0;
+  std::uint64_t unaggregated_node_records = 0;
+  std::size_t max_ids = 0;            ///< the aggregator's id keys at most
+  std::size_t max_nodes = 0;          ///< the aggregator's node keys at most
   SnifferTotals totals;               ///< summed over every sniffer seen
   std::vector<SnifferInfo> sniffers;  ///< by port id
-  std::vector<IdStats> ids;           ///< by bus, id, format, direction
+  std::vector<IdStats> ids;           ///< by bus, id, format, direction, error, remote
   std::vector<NodeStats> nodes;       ///< by bus, node, direction
   /// "all" Rx then Tx, then each group Rx then Tx (groups in the order given). Rows without
   /// frames are left out, except one (Rx) row for a group that has none at all.
@@ -137,16 +157,21 @@ struct CanSnapshot {
   /// The node's statistics, or null. O(log n).
   [[nodiscard]] const NodeStats* find_node(std::uint8_t bus, std::uint32_t node,
                                            Direction d) const noexcept;
-  /// The id's statistics, or null. O(log n).
+  /// The statistics of the id's data frames (remote frames: `rtr`), or null. O(log n).
   [[nodiscard]] const IdStats* find_id(std::uint8_t bus, std::uint32_t id, bool extended,
-                                       Direction d) const noexcept;
+                                       Direction d, bool rtr = false) const noexcept;
 };
 
 /// Options of the aggregator.
 struct CanAggregatorOptions {
   /// Keep every gap sample so that gap percentiles are exact (offline replay: memory grows by
-  /// 16 bytes per frame). Live supervision leaves it off: percentiles within 2^-5.
+  /// 16 bytes per frame; no histograms, and no I/O-time percentiles). Live supervision leaves it
+  /// off: percentiles within 2^-5.
   bool exact_percentiles = false;
+  /// Id keys aggregated at most (records of more are counted in `unaggregated_id_records`).
+  std::size_t max_ids = 8192;
+  /// Node keys aggregated at most (records of more: `unaggregated_node_records`).
+  std::size_t max_nodes = 4096;
   /// Weight of the newest sample in the EWMAs (0 < w <= 1).
   double ewma_weight = RunningStats::kDefaultEwmaWeight;
 };

@@ -1,8 +1,8 @@
 #pragma once
 /// @file
 /// Offline replay of CAN logs through the live pipeline (sniffer -> CAN supervisor -> CAN
-/// aggregator -> CAN monitor), with the logs' timestamps as the clock, and `run_can_stats`, the
-/// body of the `vigil can-stats` command.
+/// aggregator -> CAN monitor), with the logs' timestamps as the clock: what `vigil can-stats`
+/// runs (the export module prints it: vigil/export/can_report.hpp).
 ///
 /// A replay feeds each frame to a real `Sniffer` with begin = end = the frame's timestamp and
 /// steps the supervisor whenever the sniffer's port could be full, so nothing is dropped; the
@@ -14,7 +14,6 @@
 
 #include <cstdint>
 #include <filesystem>
-#include <iosfwd>
 #include <memory>
 #include <optional>
 #include <span>
@@ -26,7 +25,7 @@
 #include "vigil/can/can_statistics.hpp"
 #include "vigil/can/filter.hpp"
 #include "vigil/can/frame.hpp"
-#include "vigil/can/log_reader.hpp"
+#include "vigil/can/log/reader.hpp"
 #include "vigil/can/node_map.hpp"
 #include "vigil/error.hpp"
 #include "vigil/expected.hpp"
@@ -46,9 +45,12 @@ struct ReplayOptions {
   FilterExpr filter{};                          ///< frames outside it are not supervised
   Direction default_direction = Direction::Rx;  ///< for log lines that carry none
   bool exact_percentiles = true;                ///< keep every gap: exact percentiles
-  std::size_t max_ids = 8192;                   ///< the sniffer's id table
-  std::size_t max_nodes = 4096;                 ///< the sniffer's node table
-  ReaderOptions reader{};                       ///< what the log readers do with bad lines
+  /// Id keys tracked (the sniffer's id table and the aggregator): frames of more distinct ids
+  /// are counted as untracked, so memory stays bounded whatever the log holds.
+  std::size_t max_ids = 8192;
+  /// Node keys tracked, likewise.
+  std::size_t max_nodes = 4096;
+  ReaderOptions reader{};  ///< what the log readers do with bad lines
 };
 
 /// What was read from one file.
@@ -64,6 +66,10 @@ struct ReplayFile {
 /**
  * A replay pipeline. Feed it frames (`feed`) or whole logs (`feed_files`), then ask for the
  * statistics or a monitor report at the log's last timestamp.
+ *
+ * Memory: the sniffer's tables (`max_ids`, `max_nodes`, about 100 bytes a key), about 200
+ * bytes per tracked key in the aggregator, and 16 bytes per frame for the exact gaps; frames
+ * of keys beyond the tables are counted (`untracked_ids`, `untracked_nodes`), not kept.
  *
  * @code
  * vigil::can::LogReplay replay({.node_map = vigil::can::NodeMap::j1939()});
@@ -99,8 +105,11 @@ class LogReplay {
 
   /// The statistics, with categories for `groups`.
   [[nodiscard]] CanSnapshot snapshot(std::span<const GroupSpec> groups = {});
-  /// The monitor's report at `last_ns()` (the log's end).
+  /// The monitor's report at `last_ns()` (the log's end). A replay without frames, or whose
+  /// lines were all malformed, is a WARN that says so.
   [[nodiscard]] CanReport report(const CanMonitor& monitor);
+  /// The monitor's report at `now` (on the log's clock), e.g. to judge a log while it is fed.
+  [[nodiscard]] CanReport report(const CanMonitor& monitor, Nanos now);
 
   /// Frames fed so far.
   [[nodiscard]] std::uint64_t frames() const noexcept;
@@ -128,29 +137,5 @@ class LogReplay {
 
 /// "candump" or "trc" ("auto" for Auto).
 [[nodiscard]] std::string_view to_string(LogFormat f) noexcept;
-
-/// Options of `vigil can-stats` (one field per command-line option).
-struct CanStatsOptions {
-  std::vector<std::filesystem::path> files{};     ///< FILE...: candump logs or PEAK traces
-  std::optional<std::filesystem::path> config{};  ///< --config FILE: a CAN configuration
-  bool json = false;                              ///< --json: one JSON object instead of text
-  std::optional<NodeMapKind> node_map{};          ///< --node-map: overrides the configuration's
-  LogFormat format = LogFormat::Auto;             ///< --format auto|candump|trc
-  Direction default_direction = Direction::Rx;    ///< --direction rx|tx: for lines without one
-  bool ids = true;                                ///< per-id table in the text output
-};
-
-/**
- * `vigil can-stats FILE... [--config FILE] [--json] [--node-map identity|canopen|j1939]`:
- * replays the logs through the sniffer -> supervisor -> monitor pipeline (log timestamps as the
- * clock, exact percentiles) and prints to `out` the files read, the summary table, each node's
- * status and statistics and each id's statistics, as text or JSON. Warnings (malformed lines,
- * first 10 of each file) and errors go to `err`.
- *
- * Returns 0 when every file was read, 1 when a file or the configuration could not be read (or
- * a malformed line with OnMalformed::Stop), 2 when no file was given. The monitor's verdict does
- * not change the exit code: it is in the output.
- */
-int run_can_stats(const CanStatsOptions& options, std::ostream& out, std::ostream& err);
 
 }  // namespace vigil::can

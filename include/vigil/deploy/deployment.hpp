@@ -16,10 +16,14 @@
 ///   ewma_weight: 0.05
 ///   thresholds: {defaults: {overrun: {near_fraction: 0.9}}}   # or a file name
 /// outputs: {json: final.json}
+/// can: {node_map: canopen}        # a section of a registered extension
+/// (vigil/deploy/extension.hpp)
 /// ```
 ///
 /// Loading checks everything it can before anything runs: unknown keys, types, ranges, unknown
 /// component types (with a suggestion), references to undefined activities, duplicate names.
+/// A top-level key that is none of the above is accepted only when an extension is registered
+/// under its name; its content is validated by that extension when the System is built.
 /// Not RT-safe.
 
 #include <filesystem>
@@ -69,6 +73,12 @@ struct OutputSpec {
   std::optional<std::filesystem::path> json;  ///< final reports (the monitor's JSON schema)
 };
 
+/// A top-level section handled by an extension (e.g. `can:`), unparsed.
+struct ExtensionSection {
+  std::string name;   ///< the key, e.g. "can"
+  config::Node node;  ///< its value
+};
+
 /// A parsed, validated deployment.
 struct DeploymentSpec {
   std::string name = "vigil";
@@ -76,8 +86,8 @@ struct DeploymentSpec {
   std::vector<ComponentSpec> components;
   SupervisionSpec supervision;
   OutputSpec outputs;
-  /// Sections handled by extensions (e.g. `can:`), unparsed.
-  config::Node can;
+  /// Sections handled by registered extensions (e.g. `can:`), in file order, unparsed.
+  std::vector<ExtensionSection> extensions;
   /// The document (keeps the nodes valid; component parameters report into it).
   config::Node root;
 };

@@ -15,41 +15,19 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "vigil/deploy/deployment.hpp"
+#include "vigil/deploy/extension.hpp"
 #include "vigil/error.hpp"
 #include "vigil/monitor/monitor.hpp"
+#include "vigil/monitor/threshold_file.hpp"
 #include "vigil/platform/memory.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 
 namespace vigil::deploy {
-
-class System;
-
-/// A service that lives with the system (e.g. CAN supervision), configured by a top-level
-/// section of the deployment file.
-class Extension {
- public:
-  virtual ~Extension() = default;
-  /// Called after the supervisor and monitor started, before any component is configured.
-  virtual expected<void, Error> start() { return {}; }
-  /// Called when the system begins to stop, before any component stops (e.g. to judge
-  /// liveness as of that moment rather than after the shutdown's own delays).
-  virtual void stopping() {}
-  /// Called after the components stopped.
-  virtual void stop() {}
-  /// Adds the extension's reports (e.g. one per CAN node) to a monitor cycle's reports.
-  virtual void contribute(ReportSet& /*reports*/) {}
-};
-
-/// Makes an extension from its deployment section.
-using ExtensionMaker = std::function<expected<std::unique_ptr<Extension>, config::ConfigErrors>(
-    const config::Node& section, System& system)>;
-
-/// Extensions by the name of their top-level section. Register before loading deployments.
-void register_extension(std::string section, ExtensionMaker maker);
 
 class System {
  public:
@@ -87,6 +65,12 @@ class System {
   [[nodiscard]] ComponentAggregator& aggregator() noexcept { return *aggregator_; }
   [[nodiscard]] ComponentSupervisorLoop& supervisor() noexcept { return *supervisor_; }
   [[nodiscard]] Monitor& monitor() noexcept { return *monitor_; }
+  /// The watched thresholds file (`supervision: {thresholds: FILE}`), or null when the
+  /// thresholds are embedded. The monitor polls it at each cycle; `reload()` it to apply an edit
+  /// at once.
+  [[nodiscard]] ThresholdFile* thresholds_file() noexcept {
+    return thresholds_file_ ? &*thresholds_file_ : nullptr;
+  }
   /// The component named `name`, or null.
   [[nodiscard]] TaskCore* component(std::string_view name) const noexcept;
   /// The first extension of type E, or null.
@@ -112,6 +96,7 @@ class System {
   std::unique_ptr<ComponentAggregator> aggregator_;
   std::unique_ptr<ComponentSupervisorLoop> supervisor_;
   std::unique_ptr<Monitor> monitor_;
+  std::optional<ThresholdFile> thresholds_file_;  // after monitor_: detached before it dies
   std::vector<std::unique_ptr<Extension>> extensions_;
   std::vector<Slot> slots_;
   std::vector<std::string> log_;

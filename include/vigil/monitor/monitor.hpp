@@ -5,18 +5,18 @@
 /// ("vigil.monitor").
 ///
 /// Design: a non-RT thread of its own (`start()`/`stop()`, SCHED_OTHER), or `step()` called from
-/// a loop you own. A cycle: (1) polls the threshold file if one is watched; (2) copies the
-/// aggregator's snapshots; (3) per component, computes the recent window from the counters it
-/// kept at earlier cycles, the silence since the latest cycle, the tasks sharing its thread and
-/// the thread's OS counters, and runs the checks; (4) publishes the ReportSet under a mutex held
-/// only for the swap, then calls the subscribers. The monitor never touches the RT side: it reads
-/// the aggregator (which the supervisor fills) and configuration, nothing else.
+/// a loop you own. A cycle: (1) runs the cycle hooks (e.g. a `ThresholdFile` polling its file,
+/// vigil/monitor/threshold_file.hpp); (2) copies the aggregator's snapshots; (3) per component,
+/// computes the recent window from the counters it kept at earlier cycles, the silence since the
+/// latest cycle, the tasks sharing its thread and the thread's OS counters, and runs the checks;
+/// (4) publishes the ReportSet under a mutex held only for the swap, then calls the subscribers.
+/// The monitor never touches the RT side: it reads the aggregator (which the supervisor fills) and
+/// the thresholds it is given, nothing else; it reads no file.
 ///
 /// Thread safety: every member is thread-safe; `step()` calls are serialised with each other and
 /// with the thread's cycles. Nothing here is RT-safe.
 
 #include <cstdint>
-#include <filesystem>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -49,8 +49,6 @@ struct MonitorOptions {
   bool builtin_checks = true;
   /// Read each component thread's OS counters (platform::read_thread_stats, ~6 us per thread).
   bool read_thread_stats = true;
-  /// Poll the watched threshold file at every cycle and reload it when it changed.
-  bool poll_thresholds = true;
   /// Add the "vigil.monitor" report (the monitor's own cycles, and threshold reload errors).
   bool self_report = true;
   std::string supervisor_name = "vigil.supervisor";
@@ -97,23 +95,35 @@ class Monitor {
 
   // --- thresholds ---
 
-  /// Replaces the thresholds (taken as they are: validate them by loading YAML). Takes effect at
-  /// the next cycle.
+  /// Replaces the thresholds (taken as they are: validate them by loading YAML) and clears the
+  /// reported threshold errors. Takes effect at the next cycle. The "vigil.monitor" report shows
+  /// generation 0 for thresholds set this way.
   void set_thresholds(ThresholdSet thresholds);
-  /// The thresholds in use (never null; the built-in defaults until set or loaded).
+  /// Same, sharing an existing value (null is ignored), with the `generation` the
+  /// "vigil.monitor" report shows (a file's reload count, see ThresholdFile).
+  void set_thresholds(std::shared_ptr<const ThresholdSet> thresholds, std::uint64_t generation);
+  /// The thresholds in use (never null; the built-in defaults until set).
   [[nodiscard]] std::shared_ptr<const ThresholdSet> thresholds() const;
-  /// Loads thresholds from the YAML file at `path` and watches it: each cycle polls it (unless
-  /// MonitorOptions::poll_thresholds is false) and reloads it when it changed. Fails with every
-  /// error of the file, keeping the thresholds in use.
-  expected<void, config::ConfigErrors> watch_thresholds(const std::filesystem::path& path);
-  /// Re-reads the watched file now. On success returns the new generation; on failure keeps the
-  /// previous thresholds, records the errors (threshold_errors(), the "vigil.monitor" report) and
-  /// returns them. Fails with one error when no file is watched.
-  expected<std::uint64_t, config::ConfigErrors> reload_thresholds();
-  /// Errors of the last failed reload; empty when the last attempt succeeded.
-  [[nodiscard]] config::ConfigErrors threshold_errors() const;
-  /// 1 after watch_thresholds(), incremented by each successful reload; 0 when no file is watched.
+  /// The generation given with the thresholds in use (0 when set without one).
   [[nodiscard]] std::uint64_t thresholds_generation() const;
+  /// Reports `errors` (a failed reload of the thresholds' source; the thresholds in use are
+  /// kept) as WARN messages of the "vigil.monitor" report until the next `set_thresholds` or
+  /// `set_threshold_errors({})`.
+  void set_threshold_errors(config::ConfigErrors errors);
+  /// The errors reported with `set_threshold_errors` and not cleared since.
+  [[nodiscard]] config::ConfigErrors threshold_errors() const;
+
+  // --- cycle hooks ---
+
+  /// A hook, called at the start of every cycle on the monitor's thread (or step()'s caller),
+  /// before the thresholds are read: a `ThresholdFile` polls its file there.
+  using CycleHook = std::function<void()>;
+  /// Adds a hook; returns its id. Waits for a cycle under way. A hook must not call step(),
+  /// stop(), add/remove_cycle_hook or the destructor; exceptions it throws are ignored.
+  std::uint64_t add_cycle_hook(CycleHook hook);
+  /// Removes a hook (unknown ids are ignored); once it returns, the hook is not running and will
+  /// not run again. Waits for a cycle under way.
+  void remove_cycle_hook(std::uint64_t id);
 
   // --- running ---
 

@@ -1,5 +1,5 @@
 // PEAK-System trace files (.trc), versions 1.0-1.3, 2.0 and 2.1 ("PEAK CAN TRC File Format").
-#include "vigil/can/trc.hpp"
+#include "vigil/can/log/trc.hpp"
 
 #include <fmt/format.h>
 
@@ -8,7 +8,7 @@
 #include <istream>
 #include <utility>
 
-#include "text_log.hpp"
+#include "can/log/line_reader.hpp"
 
 namespace vigil::can {
 
@@ -374,18 +374,18 @@ bool parse_start_time(std::string_view s, Nanos& out) {
   return !__builtin_add_overflow(whole, part, &out);
 }
 
-enum class Outcome : std::uint8_t { Frame, Comment, Skipped, Malformed, Fatal };
+using Outcome = detail::LineOutcome;
 
 }  // namespace
 
 // --- reader ------------------------------------------------------------------------------------
 
 struct TrcReader::Impl {
-  Impl(std::unique_ptr<std::istream> own, std::istream& in, std::string source,
+  Impl(std::unique_ptr<std::istream> owned, std::istream& in, std::string source,
        ReaderOptions options)
-      : owned(std::move(own)),
-        lines(in.rdbuf(), options.max_line_bytes),
-        core(std::move(source), std::move(options)) {}
+      : text(std::move(owned), in, std::move(source), std::move(options)) {}
+
+  Outcome parse(std::string_view line);
 
   Outcome header_line(std::string_view line, std::size_t semicolon);
   Outcome start_records();
@@ -408,9 +408,7 @@ struct TrcReader::Impl {
     return !__builtin_add_overflow(*start, offset, &out);
   }
 
-  std::unique_ptr<std::istream> owned;  // set by open(); `lines` reads its buffer
-  detail::LineReader lines;
-  detail::ReaderCore core;
+  detail::TextLog text;
 
   TrcVersion version = TrcVersion::V1_0;
   std::optional<Nanos> start;
@@ -420,7 +418,6 @@ struct TrcReader::Impl {
   bool in_records = false;
   Layout layout;
 
-  std::uint64_t skipped = 0;
   Tokens tokens;
   Problem problem;
   LogEntry entry;
@@ -471,7 +468,7 @@ Outcome TrcReader::Impl::header_line(std::string_view line, std::size_t semicolo
   }
   if (key == "COLUMNS") {
     columns.assign(value);
-    columns_line = lines.line_number();
+    columns_line = text.line_number();
     columns_offset = eq + 1;
     return Outcome::Comment;
   }
@@ -760,6 +757,17 @@ Outcome TrcReader::Impl::record(std::string_view line) {
   return Outcome::Frame;
 }
 
+Outcome TrcReader::Impl::parse(std::string_view line) {
+  std::size_t first = 0;
+  while (first < line.size() && is_blank(line[first])) ++first;
+  if (first == line.size()) return Outcome::Comment;
+  if (line[first] == ';') return header_line(line, first);
+  if (!in_records) {
+    if (const Outcome o = start_records(); o == Outcome::Fatal) return o;
+  }
+  return record(line);
+}
+
 TrcReader::TrcReader(std::istream& in, std::string source_name, ReaderOptions options)
     : impl_(std::make_unique<Impl>(nullptr, in, std::move(source_name), std::move(options))) {}
 
@@ -770,79 +778,32 @@ TrcReader::~TrcReader() = default;
 
 expected<TrcReader, Error> TrcReader::open(const std::filesystem::path& path,
                                            ReaderOptions options) {
-  auto in = detail::open_input(path.string());
-  if (!in) return unexpected(in.error());
-  std::istream& stream = **in;
-  return TrcReader(
-      std::make_unique<Impl>(std::move(*in), stream, path.string(), std::move(options)));
+  auto impl = detail::open_text_log<Impl>(path.string(), std::move(options));
+  if (!impl) return unexpected(impl.error());
+  return TrcReader(std::move(*impl));
 }
 
 expected<std::optional<LogEntry>, Error> TrcReader::next() {
   Impl& d = *impl_;
-  if (d.core.failure()) return unexpected(*d.core.failure());
-  for (;;) {
-    std::string_view line;
-    const auto status = d.lines.next(line);
-    if (status == detail::LineReader::Status::End) return std::optional<LogEntry>{};
-    if (status == detail::LineReader::Status::TooLong) {
-      if (!d.core.report(d.lines.line_number(), 0,
-                         fmt::format("line longer than {} bytes", d.lines.max_line_bytes()))) {
-        return unexpected(*d.core.failure());
-      }
-      continue;
-    }
-    std::size_t first = 0;
-    while (first < line.size() && is_blank(line[first])) ++first;
-    Outcome outcome = Outcome::Comment;
-    if (first == line.size()) {
-      outcome = Outcome::Comment;
-    } else if (line[first] == ';') {
-      outcome = d.header_line(line, first);
-    } else {
-      if (!d.in_records) outcome = d.start_records();
-      if (outcome != Outcome::Fatal) outcome = d.record(line);
-    }
-    switch (outcome) {
-      case Outcome::Frame:
-        return std::optional<LogEntry>(d.entry);
-      case Outcome::Comment:
-        continue;
-      case Outcome::Skipped:
-        ++d.skipped;
-        continue;
-      case Outcome::Fatal:
-        d.core.fail(d.lines.line_number(), d.problem.offset, std::move(d.problem.message));
-        return unexpected(*d.core.failure());
-      case Outcome::Malformed:
-        if (!d.core.report(d.lines.line_number(), d.problem.offset, std::move(d.problem.message))) {
-          return unexpected(*d.core.failure());
-        }
-        continue;
-    }
-  }
+  const auto got = d.text.next(d.problem, [&d](std::string_view line) { return d.parse(line); });
+  if (!got) return unexpected(got.error());
+  if (!*got) return std::optional<LogEntry>{};
+  return std::optional<LogEntry>(d.entry);
 }
 
 TrcVersion TrcReader::version() const noexcept { return impl_->version; }
 std::optional<Nanos> TrcReader::start_time() const noexcept { return impl_->start; }
-std::uint64_t TrcReader::malformed_count() const noexcept { return impl_->core.malformed_count(); }
-std::uint64_t TrcReader::skipped_count() const noexcept { return impl_->skipped; }
-const std::vector<ParseError>& TrcReader::errors() const noexcept { return impl_->core.errors(); }
-std::uint64_t TrcReader::line_number() const noexcept { return impl_->lines.line_number(); }
-const std::string& TrcReader::source_name() const noexcept { return impl_->core.source(); }
+std::uint64_t TrcReader::malformed_count() const noexcept { return impl_->text.malformed_count(); }
+std::uint64_t TrcReader::skipped_count() const noexcept { return impl_->text.skipped_count(); }
+const std::vector<ParseError>& TrcReader::errors() const noexcept { return impl_->text.errors(); }
+std::uint64_t TrcReader::line_number() const noexcept { return impl_->text.line_number(); }
+const std::string& TrcReader::source_name() const noexcept { return impl_->text.source(); }
 
 expected<CanLog, Error> read_trc_file(const std::filesystem::path& path, ReaderOptions options) {
   auto reader = TrcReader::open(path, std::move(options));
   if (!reader) return unexpected(reader.error());
-  CanLog log;
-  for (;;) {
-    auto entry = reader->next();
-    if (!entry) return unexpected(entry.error());
-    if (!*entry) break;
-    log.entries.push_back(**entry);
-  }
-  log.malformed = reader->malformed_count();
-  log.skipped = reader->skipped_count();
-  log.errors = reader->errors();
+  auto log = detail::read_entries(*reader);
+  if (log) log->skipped = reader->skipped_count();
   return log;
 }
 

@@ -1,8 +1,13 @@
-#include "can_extension.hpp"
+#include "vigil/deploy/can_extension.hpp"
 
 #include <fmt/format.h>
 
-namespace vigil::app {
+#include <map>
+#include <string>
+
+#include "vigil/platform/clock.hpp"
+
+namespace vigil::deploy {
 
 CanExtension::CanExtension(can::CanConfig config) : config_(std::move(config)) {
   statistics_ = std::make_unique<can::CanAggregator>(registry_);
@@ -13,11 +18,11 @@ CanExtension::CanExtension(can::CanConfig config) : config_(std::move(config)) {
 }
 
 expected<void, Error> CanExtension::start() {
-  stopped_at_ = 0;
+  stopped_at_.store(0, std::memory_order_relaxed);
   return supervisor_->start();
 }
 
-void CanExtension::stopping() { stopped_at_ = platform::now_ns(); }
+void CanExtension::stopping() { stopped_at_.store(platform::now_ns(), std::memory_order_relaxed); }
 
 void CanExtension::stop() { supervisor_->stop(); }
 
@@ -25,10 +30,12 @@ void CanExtension::contribute(ReportSet& reports) {
   if (!supervisor_->running()) supervisor_->step();
   // After a stop, nodes are judged as of the moment the system began to stop: the bus went quiet
   // because the system stopped, not because a node failed.
-  const Nanos now = stopped_at_ != 0 ? stopped_at_ : platform::now_ns();
+  const Nanos stopped = stopped_at_.load(std::memory_order_relaxed);
+  const Nanos now = stopped != 0 ? stopped : platform::now_ns();
   const can::CanReport r = monitor_->evaluate(*statistics_, now);
   std::map<std::string, Report> groups;
   for (const auto& n : r.nodes) {
+    if (!n.is_node()) continue;  // the frames of no node (SYNC, NMT...) are not judged
     Report rep;
     rep.kind = ReportKind::CanNode;
     rep.name = fmt::format("can{}/{}", n.bus ? std::to_string(*n.bus) : std::string("*"), n.name);
@@ -40,16 +47,15 @@ void CanExtension::contribute(ReportSet& reports) {
       rep.latency_ns = n.rx->io_ns;  // read time
       rep.user_ns = n.rx->gap_ns;    // time between frames received
     }
-    if (!n.rx && !n.tx) {
-      rep.state_label = "never seen";
-    } else if (n.status.level() >= StatusLevel::Error && n.silence_ns > 0) {
-      rep.state_label = "not responding";
-    } else {
-      rep.state_label = "responding";
-    }
+    rep.state_label = std::string(can::to_string(n.liveness));
     rep.add("frames_rx", std::to_string(rx));
     rep.add("frames_tx", std::to_string(tx));
     if (n.silence_ns >= 0) rep.add("silence", format_nanos(static_cast<double>(n.silence_ns)));
+    if (n.silence_limit_ns >= 0) {
+      rep.add("silence_limit",
+              fmt::format("{} ({})", format_nanos(static_cast<double>(n.silence_limit_ns)),
+                          n.limit_learned ? "learned" : "configured"));
+    }
     if (n.rx) {
       rep.add("rx_gap", fmt::format("p50 {} max {}", format_nanos(double(n.rx->gap_ns.p50)),
                                     format_nanos(double(n.rx->gap_ns.max))));
@@ -73,17 +79,16 @@ void CanExtension::contribute(ReportSet& reports) {
 
 void register_can_extension() {
   static const bool once = [] {
-    deploy::register_extension(
-        "can",
-        [](const config::Node& section,
-           deploy::System&) -> expected<std::unique_ptr<deploy::Extension>, config::ConfigErrors> {
-          can::CanConfig cfg = can::load_can_config(section);
-          if (section.has_errors()) return vigil::unexpected(section.errors());
-          return std::make_unique<CanExtension>(std::move(cfg));
-        });
+    register_extension(std::string(kCanSection),
+                       [](const config::Node& section,
+                          System&) -> expected<std::unique_ptr<Extension>, config::ConfigErrors> {
+                         can::CanConfig cfg = can::load_can_config(section);
+                         if (section.has_errors()) return vigil::unexpected(section.errors());
+                         return std::make_unique<CanExtension>(std::move(cfg));
+                       });
     return true;
   }();
   (void)once;
 }
 
-}  // namespace vigil::app
+}  // namespace vigil::deploy

@@ -1,6 +1,6 @@
 // candump log format (can-utils lib.c parse_canframe / snprintf_canframe, candump.c, log2asc.c):
 // reader, frame parser and writer.
-#include "vigil/can/candump.hpp"
+#include "vigil/can/log/candump.hpp"
 
 #include <fmt/format.h>
 
@@ -11,7 +11,7 @@
 #include <ostream>
 #include <utility>
 
-#include "text_log.hpp"
+#include "can/log/line_reader.hpp"
 
 namespace vigil::can {
 
@@ -355,11 +355,9 @@ void format_line(fmt::memory_buffer& b, const Frame& f, std::string_view iface,
 // --- reader ------------------------------------------------------------------------------------
 
 struct CandumpReader::Impl {
-  Impl(std::unique_ptr<std::istream> own, std::istream& in, std::string source,
+  Impl(std::unique_ptr<std::istream> owned, std::istream& in, std::string source,
        ReaderOptions options)
-      : owned(std::move(own)),
-        lines(in.rdbuf(), options.max_line_bytes),
-        core(std::move(source), std::move(options)) {}
+      : text(std::move(owned), in, std::move(source), std::move(options)) {}
 
   // Bus index of `name`, adding it on first appearance; false when the table is full.
   bool bus_of(std::string_view name, std::uint8_t& bus) {
@@ -381,9 +379,25 @@ struct CandumpReader::Impl {
     return true;
   }
 
-  std::unique_ptr<std::istream> owned;  // set by open(); `lines` reads its buffer
-  detail::LineReader lines;
-  detail::ReaderCore core;
+  detail::LineOutcome parse(std::string_view line) {
+    switch (parse_line(line, parsed, problem)) {
+      case LineKind::Comment:
+        return detail::LineOutcome::Comment;
+      case LineKind::Malformed:
+        return detail::LineOutcome::Malformed;
+      case LineKind::Frame:
+        break;
+    }
+    std::uint8_t bus = 0;
+    if (!bus_of(parsed.iface, bus)) {
+      fail(problem, parsed.iface_offset, fmt::format("more than {} interfaces", kMaxInterfaces));
+      return detail::LineOutcome::Malformed;
+    }
+    parsed.frame.bus = bus;
+    return detail::LineOutcome::Frame;
+  }
+
+  detail::TextLog text;
   std::vector<std::string> interfaces;
   std::size_t last_bus = 0;
   ParsedLine parsed;
@@ -400,75 +414,38 @@ CandumpReader::~CandumpReader() = default;
 
 expected<CandumpReader, Error> CandumpReader::open(const std::filesystem::path& path,
                                                    ReaderOptions options) {
-  auto in = detail::open_input(path.string());
-  if (!in) return unexpected(in.error());
-  std::istream& stream = **in;
-  return CandumpReader(
-      std::make_unique<Impl>(std::move(*in), stream, path.string(), std::move(options)));
+  auto impl = detail::open_text_log<Impl>(path.string(), std::move(options));
+  if (!impl) return unexpected(impl.error());
+  return CandumpReader(std::move(*impl));
 }
 
 expected<std::optional<LogEntry>, Error> CandumpReader::next() {
   Impl& d = *impl_;
-  if (d.core.failure()) return unexpected(*d.core.failure());
-  for (;;) {
-    std::string_view line;
-    const auto status = d.lines.next(line);
-    if (status == detail::LineReader::Status::End) return std::optional<LogEntry>{};
-    if (status == detail::LineReader::Status::TooLong) {
-      if (!d.core.report(d.lines.line_number(), 0,
-                         fmt::format("line longer than {} bytes", d.lines.max_line_bytes()))) {
-        return unexpected(*d.core.failure());
-      }
-      continue;
-    }
-    switch (parse_line(line, d.parsed, d.problem)) {
-      case LineKind::Comment:
-        continue;
-      case LineKind::Frame: {
-        std::uint8_t bus = 0;
-        if (!d.bus_of(d.parsed.iface, bus)) {
-          d.problem.offset = d.parsed.iface_offset;
-          d.problem.message = fmt::format("more than {} interfaces", kMaxInterfaces);
-          break;
-        }
-        d.parsed.frame.bus = bus;
-        return std::optional<LogEntry>(LogEntry{d.parsed.frame, d.parsed.direction});
-      }
-      case LineKind::Malformed:
-        break;
-    }
-    if (!d.core.report(d.lines.line_number(), d.problem.offset, std::move(d.problem.message))) {
-      return unexpected(*d.core.failure());
-    }
-  }
+  const auto got = d.text.next(d.problem, [&d](std::string_view line) { return d.parse(line); });
+  if (!got) return unexpected(got.error());
+  if (!*got) return std::optional<LogEntry>{};
+  return std::optional<LogEntry>(LogEntry{d.parsed.frame, d.parsed.direction});
 }
 
 const std::vector<std::string>& CandumpReader::interfaces() const noexcept {
   return impl_->interfaces;
 }
 std::uint64_t CandumpReader::malformed_count() const noexcept {
-  return impl_->core.malformed_count();
+  return impl_->text.malformed_count();
 }
 const std::vector<ParseError>& CandumpReader::errors() const noexcept {
-  return impl_->core.errors();
+  return impl_->text.errors();
 }
-std::uint64_t CandumpReader::line_number() const noexcept { return impl_->lines.line_number(); }
-const std::string& CandumpReader::source_name() const noexcept { return impl_->core.source(); }
+std::uint64_t CandumpReader::line_number() const noexcept { return impl_->text.line_number(); }
+const std::string& CandumpReader::source_name() const noexcept { return impl_->text.source(); }
 
 expected<CanLog, Error> read_candump_file(const std::filesystem::path& path,
                                           ReaderOptions options) {
+  // The interface names are only known once the whole file is read.
   auto reader = CandumpReader::open(path, std::move(options));
   if (!reader) return unexpected(reader.error());
-  CanLog log;
-  for (;;) {
-    auto entry = reader->next();
-    if (!entry) return unexpected(entry.error());
-    if (!*entry) break;
-    log.entries.push_back(**entry);
-  }
-  log.interfaces = reader->interfaces();
-  log.malformed = reader->malformed_count();
-  log.errors = reader->errors();
+  auto log = detail::read_entries(*reader);
+  if (log) log->interfaces = reader->interfaces();
   return log;
 }
 

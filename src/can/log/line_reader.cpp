@@ -1,5 +1,5 @@
-// Line reading and error policy shared by the CAN log readers.
-#include "text_log.hpp"
+// The line loop and error policy every CAN text log reader shares.
+#include "can/log/line_reader.hpp"
 
 #include <fmt/format.h>
 
@@ -109,26 +109,35 @@ LineReader::Status LineReader::next(std::string_view& line) {
   }
 }
 
-ReaderCore::ReaderCore(std::string source, ReaderOptions options)
-    : source_(std::move(source)), options_(std::move(options)) {}
+TextLog::TextLog(std::unique_ptr<std::istream> owned, std::istream& in, std::string source,
+                 ReaderOptions options)
+    : owned_(std::move(owned)),
+      lines_(in.rdbuf(), options.max_line_bytes),
+      source_(std::move(source)),
+      options_(std::move(options)) {}
 
-ParseError ReaderCore::record(std::uint64_t line, std::size_t offset, std::string message) {
+Problem TextLog::too_long() const {
+  return Problem{0, fmt::format("line longer than {} bytes", lines_.max_line_bytes())};
+}
+
+ParseError TextLog::record(Problem& problem) {
   ++malformed_;
-  ParseError e{source_, line, static_cast<std::uint32_t>(offset + 1), std::move(message)};
+  ParseError e{source_, lines_.line_number(), static_cast<std::uint32_t>(problem.offset + 1),
+               std::move(problem.message)};
   if (options_.on_error) options_.on_error(e);
   if (kept_.size() < options_.max_kept_errors) kept_.push_back(e);
   return e;
 }
 
-bool ReaderCore::report(std::uint64_t line, std::size_t offset, std::string message) {
-  ParseError e = record(line, offset, std::move(message));
+bool TextLog::report(Problem& problem) {
+  ParseError e = record(problem);
   if (options_.on_malformed == OnMalformed::Skip) return true;
   failure_ = Error{EINVAL, e.to_string()};
   return false;
 }
 
-void ReaderCore::fail(std::uint64_t line, std::size_t offset, std::string message) {
-  ParseError e = record(line, offset, std::move(message));
+void TextLog::fail(Problem& problem) {
+  ParseError e = record(problem);
   failure_ = Error{EINVAL, e.to_string()};
 }
 

@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "vigil/can/frame.hpp"
-#include "vigil/can/log_reader.hpp"
+#include "vigil/can/log/reader.hpp"
 #include "vigil/error.hpp"
 #include "vigil/expected.hpp"
 

@@ -1,0 +1,72 @@
+#pragma once
+/// @file
+/// The `can:` section of a deployment (target `vigil::deploy_can`): CAN supervision that lives
+/// with a `System`. The section is a CAN configuration (docs/reference/can-config.md); the
+/// extension owns a CAN registry for the sniffers of the deployment's CAN I/O components, a CAN
+/// supervisor thread (10 Hz) and a CAN monitor whose verdicts join the system's reports: one
+/// report per node ("can0/drive_5", kind CanNode) and one per group ("can group left_arm").
+///
+/// Linking `vigil::deploy_can` (or the umbrella `vigil::vigil`) registers the extension before
+/// `main` runs, so any program that loads a deployment with a `can:` section gets CAN
+/// supervision; `register_can_extension()` does the same explicitly (idempotent). A CAN I/O
+/// component finds the extension through its context:
+///
+/// ```cpp
+/// auto* can = ctx.system->extension<vigil::deploy::CanExtension>();
+/// sniffer_ = std::make_unique<vigil::can::Sniffer<256>>(can->registry(), ctx.name, options);
+/// static_cast<void>(sniffer_->set_filter(can->config().filter));
+/// ```
+///
+/// Threads: the System's control thread calls start/stopping/stop; `contribute` runs on the
+/// threads that read the System's reports. Not RT-safe (only the sniffers are).
+
+#include <atomic>
+#include <memory>
+#include <string_view>
+
+#include "vigil/can/can_config.hpp"
+#include "vigil/can/can_monitor.hpp"
+#include "vigil/can/can_statistics.hpp"
+#include "vigil/can/sniffer.hpp"
+#include "vigil/deploy/extension.hpp"
+
+namespace vigil::deploy {
+
+/// The name of the deployment section the CAN extension handles.
+inline constexpr std::string_view kCanSection = "can";
+
+/// CAN supervision configured by a deployment's `can:` section.
+class CanExtension : public Extension {
+ public:
+  /// Builds the registry, aggregator, supervisor (not started) and monitor for `config`.
+  explicit CanExtension(can::CanConfig config);
+  /// Starts the CAN supervisor thread; fails when the thread cannot be created.
+  expected<void, Error> start() override;
+  /// Records the moment the system began to stop: liveness is judged as of then afterwards.
+  void stopping() override;
+  /// Stops the CAN supervisor after a last drain.
+  void stop() override;
+  /// Adds one report per CAN node and one per group to `reports`.
+  void contribute(ReportSet& reports) override;
+
+  /// Where the deployment's sniffers join. Thread-safe.
+  [[nodiscard]] can::CanRegistry& registry() noexcept { return registry_; }
+  /// The section as loaded (filter, node map, thresholds, nodes, groups).
+  [[nodiscard]] const can::CanConfig& config() const noexcept { return config_; }
+  /// The CAN monitor (e.g. to add checks or replace the configuration). Thread-safe.
+  [[nodiscard]] can::CanMonitor& monitor() noexcept { return *monitor_; }
+
+ private:
+  can::CanConfig config_;
+  can::CanRegistry registry_;
+  std::unique_ptr<can::CanAggregator> statistics_;
+  std::unique_ptr<can::CanSupervisor> supervisor_;
+  std::unique_ptr<can::CanMonitor> monitor_;
+  std::atomic<Nanos> stopped_at_{0};  // once stopping: the time liveness is judged at
+};
+
+/// Registers the extension for the `can:` section (idempotent, thread-safe). Linking
+/// `vigil::deploy_can` already does it at static initialisation.
+void register_can_extension();
+
+}  // namespace vigil::deploy

@@ -1,0 +1,501 @@
+// The CAN monitor's report and the CAN log replay (`vigil can-stats`) as text and JSON.
+#include "vigil/export/can_report.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <utility>
+
+#include "vigil/export/json_writer.hpp"
+
+namespace vigil::exporter {
+
+using namespace vigil::can;  // NOLINT: the formatters name many CAN types
+
+// ---------------------------------------------------------------------------------------------
+// Text
+
+namespace {
+
+// Columns separated by two spaces, numbers right-aligned, the last column not padded.
+class TextTable {
+ public:
+  TextTable(std::vector<std::string> header, std::vector<bool> right) : right_(std::move(right)) {
+    rows_.push_back(std::move(header));
+  }
+  void add(std::vector<std::string> row) { rows_.push_back(std::move(row)); }
+  [[nodiscard]] std::string str() const {
+    std::vector<std::size_t> width(rows_.front().size(), 0);
+    for (const auto& row : rows_) {
+      for (std::size_t i = 0; i < row.size() && i < width.size(); ++i) {
+        width[i] = std::max(width[i], row[i].size());
+      }
+    }
+    std::string out;
+    for (const auto& row : rows_) {
+      std::string line;
+      for (std::size_t i = 0; i < row.size(); ++i) {
+        if (i > 0) line += "  ";
+        const bool last = i + 1 == row.size();
+        const std::size_t pad = width[i] - std::min(width[i], row[i].size());
+        if (i < right_.size() && right_[i]) line.append(pad, ' ');
+        line += row[i];
+        if (!last && !(i < right_.size() && right_[i])) line.append(pad, ' ');
+      }
+      while (!line.empty() && line.back() == ' ') line.pop_back();
+      out += line;
+      out += '\n';
+    }
+    return out;
+  }
+
+ private:
+  std::vector<bool> right_;
+  std::vector<std::vector<std::string>> rows_;
+};
+
+std::string us(double ns) { return fmt::format("{:.3f}", ns / 1e3); }
+std::string ms(double ns) { return fmt::format("{:.3f}", ns / 1e6); }
+std::string us_or_dash(const StatsSummary& s, double ns) { return s.count == 0 ? "-" : us(ns); }
+std::string ms_or_dash(const StatsSummary& s, double ns) { return s.count == 0 ? "-" : ms(ns); }
+
+std::string messages_of(const Status& s) { return s.summary("; "); }
+
+// "0CF00400" (extended, 8 digits) or "181" (standard, 3 digits), as candump writes ids.
+std::string format_id(std::uint32_t id, bool extended) {
+  return extended ? fmt::format("{:08X}", id) : fmt::format("{:03X}", id);
+}
+
+// An id's function for people, with the direction of a request or an answer and its peer.
+std::string describe_function(NodeMapKind kind, const IdStats& s) {
+  if (s.error) return "error class";
+  std::string f = format_function(kind, s.function);
+  if (s.rtr) return f + " (remote request)";
+  if (kind == NodeMapKind::DroneCan && (s.flags & (node_flags::kRequest | node_flags::kResponse))) {
+    f += s.request() ? " request" : " response";
+    if (s.peer != kNoNode) f += fmt::format(" to {}", s.peer);
+  }
+  return f;
+}
+
+// "data", "RTR" or "error".
+std::string kind_of(const IdStats& s) {
+  if (s.error) return "error";
+  return s.rtr ? "RTR" : "data";
+}
+
+// Bus `bus` for people: `bus_names[bus]` when there is one, else the number.
+std::string bus_name(std::uint8_t bus, const std::vector<std::string>& bus_names) {
+  if (bus < bus_names.size() && !bus_names[bus].empty()) return bus_names[bus];
+  return fmt::format("{}", bus);
+}
+
+}  // namespace
+
+std::string format_can_report(const CanReport& r, const CanTextOptions& options) {
+  std::string out;
+  const SnifferTotals& t = r.snapshot.totals;
+  std::size_t ids_count = 0;
+  for (const IdStats& s : r.snapshot.ids) ids_count += s.error || s.rtr ? 0 : 1;
+  const std::size_t learning = r.learning_count();
+  out += fmt::format("CAN status: {} ({} frames, {} ids, {} nodes of which {} OK{}, node map {})\n",
+                     to_string(r.status.level()), t.frames, ids_count, r.node_count(), r.ok_count(),
+                     learning > 0 ? fmt::format(", {} learning", learning) : "",
+                     to_string(r.node_map));
+  for (const StatusMessage& m : r.status.messages()) {
+    out += fmt::format("  {}: {}\n", to_string(m.level), m.text);
+  }
+  if (t.remote_frames > 0 || t.error_frames > 0) {
+    out += fmt::format("  frames: {} data, {} remote (RTR), {} error\n",
+                       t.accepted - std::min(t.accepted, t.remote_frames), t.remote_frames,
+                       t.error_frames);
+  }
+
+  // Units: one per column family, named in the headers: counts, I/O times in us, gaps,
+  // silences, periods and limits in ms.
+  out += "\nSummary\n";
+  TextTable summary({"CATEGORY", "DIR", "NODES", "FRAMES", "RTR", "RECORDS", "IO MEAN us",
+                     "IO MIN us", "IO MAX us", "GAP MEAN ms", "GAP MIN ms", "GAP MAX ms"},
+                    {false, false, true, true, true, true, true, true, true, true, true, true});
+  for (const CategoryStats& c : r.snapshot.categories) {
+    summary.add(
+        {c.group ? "group " + c.name : c.name, std::string(to_string(c.direction)),
+         fmt::format("{}", c.nodes), fmt::format("{}", c.frames),
+         fmt::format("{}", c.remote_frames), fmt::format("{}", c.records),
+         us_or_dash(c.io_ns, c.io_ns.mean), us_or_dash(c.io_ns, static_cast<double>(c.io_ns.min)),
+         us_or_dash(c.io_ns, static_cast<double>(c.io_ns.max)), ms_or_dash(c.gap_ns, c.gap_ns.mean),
+         ms_or_dash(c.gap_ns, static_cast<double>(c.gap_ns.min)),
+         ms_or_dash(c.gap_ns, static_cast<double>(c.gap_ns.max))});
+  }
+  out += summary.str();
+
+  out += "\nNodes\n";
+  TextTable nodes(
+      {"STATUS", "BUS", "NODE", "NAME", "DIR", "FRAMES", "RTR", "RECORDS", "IDS", "GAP MIN ms",
+       "GAP p50 ms", "GAP MAX ms", "SILENCE ms", "LIMIT ms", "LIVENESS", "MESSAGES"},
+      {false, false, true, false, false, true, true, true, true, true, true, true, true, true,
+       false, false});
+  for (const NodeReport& n : r.nodes) {
+    const std::string status = n.liveness == Liveness::Learning && n.status.ok()
+                                   ? std::string("LEARNING")
+                                   : std::string(to_string(n.status.level()));
+    const std::string bus = n.bus ? bus_name(*n.bus, options.bus_names) : "*";
+    const std::string node = format_node(r.node_map, n.node);
+    const std::string silence = n.silence_ns < 0 ? "-" : ms(static_cast<double>(n.silence_ns));
+    const std::string limit = n.silence_limit_ns < 0 ? "-"
+                                                     : ms(static_cast<double>(n.silence_limit_ns)) +
+                                                           (n.limit_learned ? "" : "*");
+    const std::string name = n.named ? n.name : "-";  // else the NODE column says it
+    const std::string liveness(to_string(n.liveness));
+    bool first = true;
+    for (const auto* s : {&n.rx, &n.tx}) {
+      if (!s->has_value()) continue;
+      const NodeStats& x = **s;
+      const bool rx = x.direction == Direction::Rx;
+      nodes.add({status, bus, node, name, std::string(to_string(x.direction)),
+                 fmt::format("{}{}", x.frames, x.exact_count ? "" : "+"),
+                 fmt::format("{}", x.remote_frames), fmt::format("{}", x.records),
+                 fmt::format("{}", x.ids), ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.min)),
+                 ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.p50)),
+                 ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.max)), rx ? silence : "-",
+                 rx ? limit : "-", first ? liveness : "", first ? messages_of(n.status) : ""});
+      first = false;
+    }
+    if (first) {
+      nodes.add({status, bus, node, name, "-", "0", "0", "0", "0", "-", "-", "-", "-", limit,
+                 liveness, messages_of(n.status)});
+    }
+  }
+  out += nodes.str();
+  if (std::any_of(r.nodes.begin(), r.nodes.end(), [](const NodeReport& n) {
+        return n.silence_limit_ns >= 0 && !n.limit_learned;
+      })) {
+    out += "(* a configured limit; the others are learned from each node's traffic)\n";
+  }
+
+  if (options.ids) {
+    out += "\nIds\n";
+    TextTable ids(
+        {"BUS", "ID", "NODE", "FUNCTION", "DIR", "FRAMES", "RECORDS", "GAP MIN ms", "GAP p50 ms",
+         "GAP MAX ms", "GAP MEAN ms", "KIND", "PERIOD ms", "LIMIT ms", "SILENCE ms", "TRAFFIC"},
+        {false, false, true, false, false, true, true, true, true, true, true, false, true, true,
+         true, false});
+    bool approximate = false;
+    for (std::size_t i = 0; i < r.snapshot.ids.size(); ++i) {
+      const IdStats& s = r.snapshot.ids[i];
+      const IdVerdict v = i < r.ids.size() ? r.ids[i] : IdVerdict{};
+      if (s.gap_ns.count > 0 && !s.gap_exact) approximate = true;
+      const auto opt_ms = [](Nanos x) {
+        return x < 0 ? std::string("-") : ms(static_cast<double>(x));
+      };
+      ids.add({bus_name(s.bus, options.bus_names), format_id(s.id, s.extended),
+               format_node(r.node_map, s.node), describe_function(r.node_map, s),
+               std::string(to_string(s.direction)),
+               fmt::format("{}{}", s.frames, s.exact_count ? "" : "+"),
+               fmt::format("{}", s.records),
+               ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.min)),
+               ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.p50)),
+               ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.max)),
+               ms_or_dash(s.gap_ns, s.gap_ns.mean), kind_of(s), opt_ms(v.period_ns),
+               opt_ms(v.limit_ns), opt_ms(v.silence_ns),
+               std::string(to_string(v.traffic)) + (v.overdue ? " (overdue)" : "")});
+    }
+    out += ids.str();
+    if (approximate) {
+      out += "(gap percentiles are upper bounds within 3.1%; min, max and mean are exact)\n";
+    }
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// JSON
+
+namespace {
+
+void write_summary(JsonWriter& w, const StatsSummary& s) {
+  w.begin_object();
+  w.field("count", s.count).field("min", s.min).field("max", s.max).field("mean", s.mean);
+  w.field("ewma", s.ewma).field("last", s.last);
+  w.field("p50", s.p50).field("p90", s.p90).field("p99", s.p99).field("p999", s.p999);
+  w.end_object();
+}
+
+void write_status(JsonWriter& w, const Status& s) {
+  w.field("status", to_string(s.level()));
+  w.key("messages").begin_array();
+  for (const StatusMessage& m : s.messages()) {
+    w.begin_object().field("level", to_string(m.level)).field("text", m.text).end_object();
+  }
+  w.end_array();
+}
+
+void write_totals(JsonWriter& w, const SnifferTotals& t) {
+  w.begin_object();
+  w.field("frames", t.frames).field("rx", t.rx).field("tx", t.tx);
+  w.field("error_frames", t.error_frames).field("remote_frames", t.remote_frames);
+  w.field("rejected", t.rejected);
+  w.field("accepted", t.accepted).field("untracked_ids", t.untracked_ids);
+  w.field("untracked_nodes", t.untracked_nodes).field("dropped", t.dropped);
+  w.field("filter_changes", t.filter_changes);
+  w.end_object();
+}
+
+void write_node_stats(JsonWriter& w, const NodeStats& s) {
+  w.begin_object();
+  w.field("frames", s.frames).field("remote_frames", s.remote_frames);
+  w.field("exact_count", s.exact_count).field("records", s.records);
+  w.field("ids", s.ids).field("first_ns", s.first_ns).field("last_ns", s.last_ns);
+  w.key("io_ns");
+  write_summary(w, s.io_ns);
+  w.key("gap_ns");
+  write_summary(w, s.gap_ns);
+  w.field("gap_exact", s.gap_exact);
+  w.end_object();
+}
+
+// `key: ns`, or `key: null` for a negative value (none).
+void optional_ns(JsonWriter& w, std::string_view key, Nanos ns) {
+  if (ns < 0) {
+    w.key(key).null();
+  } else {
+    w.field(key, ns);
+  }
+}
+
+void write_us(JsonWriter& w, const StatsSummary& s) {
+  w.begin_object();
+  if (s.count == 0) {
+    w.key("mean").null().key("min").null().key("max").null();
+  } else {
+    w.field("mean", s.mean / 1e3);
+    w.field("min", static_cast<double>(s.min) / 1e3);
+    w.field("max", static_cast<double>(s.max) / 1e3);
+  }
+  w.end_object();
+}
+
+}  // namespace
+
+void write_can_report_members(JsonWriter& w, const CanReport& r,
+                              const std::vector<std::string>& bus_names) {
+  w.field("time_ns", r.time_ns);
+  w.field("node_map", to_string(r.node_map));
+  write_status(w, r.status);
+  w.field("records", r.snapshot.records);
+  w.field("node_count", r.node_count()).field("ok_count", r.ok_count());
+  w.field("learning_count", r.learning_count());
+  w.key("totals");
+  write_totals(w, r.snapshot.totals);
+  w.key("limits").begin_object();
+  w.field("max_ids", r.snapshot.max_ids).field("max_nodes", r.snapshot.max_nodes);
+  w.field("unaggregated_id_records", r.snapshot.unaggregated_id_records);
+  w.field("unaggregated_node_records", r.snapshot.unaggregated_node_records);
+  w.end_object();
+
+  w.key("summary").begin_array();
+  for (const CategoryStats& c : r.snapshot.categories) {
+    w.begin_object();
+    w.field("category", c.name).field("group", c.group).field("direction", to_string(c.direction));
+    w.field("nodes", c.nodes).field("frames", c.frames).field("remote_frames", c.remote_frames);
+    w.field("records", c.records);
+    w.key("io_us");
+    write_us(w, c.io_ns);
+    w.key("gap_us");
+    write_us(w, c.gap_ns);
+    w.end_object();
+  }
+  w.end_array();
+
+  w.key("nodes").begin_array();
+  for (const NodeReport& n : r.nodes) {
+    w.begin_object();
+    if (n.bus) {
+      w.field("bus", *n.bus).field("bus_name", bus_name(*n.bus, bus_names));
+    } else {
+      w.key("bus").null().key("bus_name").null();
+    }
+    if (n.is_node()) {
+      w.field("node", n.node);
+    } else {
+      w.key("node").null();
+    }
+    w.field("name", n.name).field("named", n.named);
+    w.field("expected", n.expected).field("liveness", to_string(n.liveness));
+    w.key("groups").begin_array();
+    for (const std::string& g : n.groups) w.value(g);
+    w.end_array();
+    write_status(w, n.status);
+    optional_ns(w, "silence_ns", n.silence_ns);
+    optional_ns(w, "silence_limit_ns", n.silence_limit_ns);
+    if (n.silence_limit_ns < 0) {
+      w.key("limit").null();
+    } else {
+      w.field("limit", n.limit_learned ? "learned" : "configured");
+    }
+    if (n.limit_id >= 0) {
+      const IdStats& s = r.snapshot.ids[static_cast<std::size_t>(n.limit_id)];
+      w.field("limit_id", format_id(s.id, s.extended));
+    } else {
+      w.key("limit_id").null();
+    }
+    w.field("to_node_frames", n.to_node_frames);
+    optional_ns(w, "unanswered_ns", n.unanswered_ns);
+    w.key("rx");
+    if (n.rx) {
+      write_node_stats(w, *n.rx);
+    } else {
+      w.null();
+    }
+    w.key("tx");
+    if (n.tx) {
+      write_node_stats(w, *n.tx);
+    } else {
+      w.null();
+    }
+    w.end_object();
+  }
+  w.end_array();
+
+  w.key("ids").begin_array();
+  for (std::size_t i = 0; i < r.snapshot.ids.size(); ++i) {
+    const IdStats& s = r.snapshot.ids[i];
+    const IdVerdict v = i < r.ids.size() ? r.ids[i] : IdVerdict{};
+    w.begin_object();
+    w.field("bus", s.bus).field("bus_name", bus_name(s.bus, bus_names));
+    w.field("id", format_id(s.id, s.extended)).field("id_value", s.id);
+    w.field("extended", s.extended).field("kind", kind_of(s));
+    w.field("direction", to_string(s.direction));
+    if (s.node == kNoNode) {
+      w.key("node").null();
+    } else {
+      w.field("node", s.node);
+    }
+    w.field("function", s.function);
+    w.field("function_name", describe_function(r.node_map, s));
+    if (s.peer == kNoNode) {
+      w.key("peer").null();
+    } else {
+      w.field("peer", s.peer);
+    }
+    w.field("to_node", (s.flags & node_flags::kToNode) != 0);
+    w.field("request", s.request()).field("response", (s.flags & node_flags::kResponse) != 0);
+    w.field("traffic", to_string(v.traffic));
+    optional_ns(w, "period_ns", v.period_ns);
+    optional_ns(w, "silence_limit_ns", v.limit_ns);
+    optional_ns(w, "silence_ns", v.silence_ns);
+    w.field("overdue", v.overdue);
+    w.field("frames", s.frames).field("exact_count", s.exact_count).field("records", s.records);
+    w.field("first_ns", s.first_ns).field("last_ns", s.last_ns);
+    w.key("io_ns");
+    write_summary(w, s.io_ns);
+    w.key("gap_ns");
+    write_summary(w, s.gap_ns);
+    w.field("gap_exact", s.gap_exact);
+    w.end_object();
+  }
+  w.end_array();
+
+  w.key("sniffers").begin_array();
+  for (const SnifferInfo& s : r.snapshot.sniffers) {
+    w.begin_object();
+    w.field("port_id", s.port_id).field("name", s.name).field("alive", s.alive);
+    w.field("node_map", to_string(s.node_map)).field("filter", s.filter);
+    w.field("ids", s.ids).field("max_ids", s.max_ids).field("nodes", s.nodes);
+    w.field("max_nodes", s.max_nodes).field("port_capacity", s.port_capacity);
+    w.key("totals");
+    write_totals(w, s.totals);
+    w.end_object();
+  }
+  w.end_array();
+}
+
+std::string can_report_json(const CanReport& report, int indent,
+                            const std::vector<std::string>& bus_names) {
+  JsonWriter w(indent);
+  w.begin_object();
+  w.field("schema", 1);
+  write_can_report_members(w, report, bus_names);
+  w.end_object();
+  return w.take();
+}
+
+// ---------------------------------------------------------------------------------------------
+// CAN log replay (vigil can-stats)
+
+namespace {
+
+// A log timestamp as candump writes it: seconds with 6 decimals (9 when not whole µs).
+std::string timestamp_text(Nanos t) {
+  const Nanos s = t / kNanosPerSecond;
+  const Nanos ns = t % kNanosPerSecond;
+  if (ns % 1000 == 0) return fmt::format("{}.{:06}", s, ns / 1000);
+  return fmt::format("{}.{:09}", s, ns);
+}
+
+}  // namespace
+
+std::string format_replay_warnings(const LogReplay& replay, std::string_view prefix,
+                                   std::size_t max_per_file) {
+  std::string out;
+  for (const ReplayFile& f : replay.files()) {
+    if (f.malformed == 0) continue;
+    out += fmt::format("{}warning: {}: {} malformed line{} skipped\n", prefix, f.path.string(),
+                       f.malformed, f.malformed == 1 ? "" : "s");
+    for (std::size_t i = 0; i < f.errors.size() && i < max_per_file; ++i) {
+      out += "  " + f.errors[i].to_string() + '\n';
+    }
+  }
+  return out;
+}
+
+std::string format_can_replay(const LogReplay& replay, const CanReport& report,
+                              const CanReplayTextOptions& options) {
+  std::string out;
+  const Nanos duration = replay.last_ns() - replay.first_ns();
+  out += fmt::format("vigil can-stats: {} file{}, {} frames, {} to {} ({:.6f} s)\n",
+                     replay.files().size(), replay.files().size() == 1 ? "" : "s", replay.frames(),
+                     timestamp_text(replay.first_ns()), timestamp_text(replay.last_ns()),
+                     static_cast<double>(duration) / 1e9);
+  for (const ReplayFile& f : replay.files()) {
+    out += fmt::format("  {}: {}, {} frames", f.path.string(), to_string(f.format), f.frames);
+    if (f.malformed > 0) out += fmt::format(", {} malformed lines skipped", f.malformed);
+    if (f.skipped > 0) out += fmt::format(", {} status records", f.skipped);
+    out += '\n';
+  }
+  std::string buses;
+  for (std::size_t i = 0; i < replay.bus_names().size(); ++i) {
+    if (i > 0) buses += ", ";
+    buses += fmt::format("{} = {}", i, replay.bus_names()[i]);
+  }
+  if (!buses.empty()) out += "  buses: " + buses + '\n';
+  if (!options.config.empty()) out += "  config: " + options.config + '\n';
+  out += '\n';
+  out += format_can_report(report, {.ids = options.ids, .bus_names = replay.bus_names()});
+  return out;
+}
+
+std::string can_replay_json(const LogReplay& replay, const CanReport& report, int indent) {
+  JsonWriter w(indent);
+  w.begin_object();
+  w.field("schema", 1).field("tool", "vigil can-stats");
+  w.key("files").begin_array();
+  for (const ReplayFile& f : replay.files()) {
+    w.begin_object();
+    w.field("path", f.path.string()).field("format", to_string(f.format));
+    w.field("frames", f.frames).field("malformed", f.malformed).field("skipped", f.skipped);
+    w.end_object();
+  }
+  w.end_array();
+  w.key("buses").begin_array();
+  for (const std::string& b : replay.bus_names()) w.value(b);
+  w.end_array();
+  w.field("frames", replay.frames());
+  w.field("first_timestamp_ns", replay.first_ns()).field("last_timestamp_ns", replay.last_ns());
+  w.field("duration_ns", replay.last_ns() - replay.first_ns());
+  write_can_report_members(w, report, replay.bus_names());
+  w.end_object();
+  return w.take();
+}
+
+}  // namespace vigil::exporter
