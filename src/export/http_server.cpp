@@ -273,6 +273,7 @@ struct Published {
   }
 };
 
+constexpr int kListenBacklog = 128;
 constexpr const char* kJson = "application/json; charset=utf-8";
 constexpr const char* kText = "text/plain; charset=utf-8";
 
@@ -566,9 +567,12 @@ expected<void, Error> HttpServer::start() {
   httplib::Server& s = *m.server;
   // SO_REUSEADDR (restart while old connections linger in TIME_WAIT) but not SO_REUSEPORT:
   // a second server on the same port must fail, not share the port.
-  s.set_socket_options([](socket_t sock) {
+  // The hook also remembers the socket, whose listen backlog is raised after the bind.
+  auto last_socket = std::make_shared<std::atomic<socket_t>>(INVALID_SOCKET);
+  s.set_socket_options([last_socket](socket_t sock) {
     int yes = 1;
     (void)::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+    last_socket->store(sock);
   });
   const unsigned threads = o.threads;
   const std::string name = o.thread_name;
@@ -611,6 +615,12 @@ expected<void, Error> HttpServer::start() {
         Error(err, fmt::format("HTTP server: cannot listen on {}: {}", o.listen.to_string(), what)));
   }
   m.bound = ListenAddress{o.listen.host, port};
+  // Debian's cpp-httplib listens with a backlog of 5: a burst of scrapers (or a browser opening
+  // several connections) would see dropped SYNs and retransmission delays of seconds. Linux
+  // updates the backlog of a listening socket when listen() is called again.
+  if (const socket_t sock = last_socket->load(); sock != INVALID_SOCKET) {
+    (void)::listen(sock, kListenBacklog);
+  }
 
   auto t = platform::Thread::spawn(
       platform::ThreadConfig{.name = o.thread_name, .policy = platform::SchedPolicy::Other,

@@ -94,8 +94,11 @@ class Writer {
   Writer(std::string& out, ExpositionFormat f) : out_(out), om_(f == ExpositionFormat::OpenMetrics) {}
 
   // HELP, TYPE (and UNIT) of family `name` (the sample name for gauges, counters with their
-  // `_total`, info with its `_info`; the base name for histograms and summaries).
+  // `_total`, info with its `_info`; the base name for histograms and summaries). Written with
+  // the family's first sample: a family without samples (no CAN bus...) is left out.
   void family(std::string_view name, Type type, std::string_view help) {
+    pending_.clear();
+    std::string& h = pending_;  // the header waits for the first sample
     std::string_view meta = name;
     const char* type_name = "gauge";
     switch (type) {
@@ -118,19 +121,19 @@ class Writer {
         }
         break;
     }
-    out_ += "# HELP ";
-    out_ += meta;
-    out_ += ' ';
-    append_help(out_, help, om_);
-    out_ += "\n# TYPE ";
-    out_ += meta;
-    out_ += ' ';
-    out_ += type_name;
-    out_ += '\n';
+    h += "# HELP ";
+    h += meta;
+    h += ' ';
+    append_help(h, help, om_);
+    h += "\n# TYPE ";
+    h += meta;
+    h += ' ';
+    h += type_name;
+    h += '\n';
     if (om_ && type != Type::Info && meta.ends_with("_seconds")) {
-      out_ += "# UNIT ";
-      out_ += meta;
-      out_ += " seconds\n";
+      h += "# UNIT ";
+      h += meta;
+      h += " seconds\n";
     }
   }
 
@@ -154,6 +157,10 @@ class Writer {
 
  private:
   void head(std::string_view name, std::string_view component, std::initializer_list<Label> extra) {
+    if (!pending_.empty()) {
+      out_ += pending_;
+      pending_.clear();
+    }
     out_ += name;
     bool first = true;
     const auto label = [&](std::string_view n, std::string_view v) {
@@ -172,6 +179,7 @@ class Writer {
 
   std::string& out_;
   bool om_;
+  std::string pending_;
 };
 
 // le values of the fixed boundaries, in seconds, formatted once.

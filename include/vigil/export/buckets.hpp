@@ -3,9 +3,9 @@
 /// Prometheus histogram buckets from vigil's log-linear histograms.
 ///
 /// A `LogLinearHistogram<>` has 1,152 buckets of at most 3.1 % relative width: far too many time
-/// series for a fleet. The exporter reduces it to one fixed set of `le` boundaries, the 1-2-5
-/// series from 1 µs to 10 s (22 boundaries, then +Inf), the same for every component and every
-/// timing family so that fleets can aggregate them (`sum by (le)`).
+/// series for a fleet. The exporter reduces it to one fixed set of `le` boundaries, 1, 1.5, 2,
+/// 3, 5, 7 per decade from 1 µs to 10 s (43 boundaries, then +Inf), the same for every component
+/// and every timing family so that fleets can aggregate them (`sum by (le)`).
 ///
 /// Rule: a sample is counted under the smallest boundary >= the upper edge of its log-linear
 /// bucket. The edges do not fall on decimal boundaries, so a sample within 3.1 % below a
@@ -13,7 +13,7 @@
 /// under-state a duration. Samples above 2^40 ns (18 min) count only in +Inf. Everything is
 /// exact apart from that: counts are cumulative, `+Inf` equals `count`.
 ///
-/// Not RT-safe where it allocates (nothing here does); any thread.
+/// Allocation-free; any thread.
 
 #include <array>
 #include <cstddef>
@@ -25,14 +25,22 @@
 namespace vigil::exporter {
 
 /// Number of finite `le` boundaries.
-inline constexpr std::size_t kBucketBounds = 22;
+inline constexpr std::size_t kBucketBounds = 43;
 
-/// The finite `le` boundaries in nanoseconds: 1, 2, 5 µs ... 1, 2, 5, 10 s.
-inline constexpr std::array<Nanos, kBucketBounds> kBucketBoundsNs = {
-    1'000,         2'000,         5'000,         10'000,        20'000,        50'000,
-    100'000,       200'000,       500'000,       1'000'000,     2'000'000,     5'000'000,
-    10'000'000,    20'000'000,    50'000'000,    100'000'000,   200'000'000,   500'000'000,
-    1'000'000'000, 2'000'000'000, 5'000'000'000, 10'000'000'000};
+/// The finite `le` boundaries in nanoseconds: 1, 1.5, 2, 3, 5, 7 per decade from 1 µs to 10 s
+/// (neighbours at most 1.5 apart, so `histogram_quantile`'s interpolation stays within that).
+inline constexpr std::array<Nanos, kBucketBounds> kBucketBoundsNs = [] {
+  std::array<Nanos, kBucketBounds> b{};
+  constexpr std::array<Nanos, 6> kSteps = {10, 15, 20, 30, 50, 70};  // x 100 ns
+  Nanos decade = 100;                                                 // 1 us = 10 x 100 ns
+  std::size_t i = 0;
+  for (int d = 0; d < 7; ++d, decade *= 10) {
+    for (Nanos s : kSteps) b[i++] = s * decade;
+  }
+  b[i] = 10 * decade;  // 10 s
+  return b;
+}();
+static_assert(kBucketBoundsNs.front() == 1'000 && kBucketBoundsNs.back() == 10'000'000'000);
 
 /// One distribution as Prometheus wants it: cumulative counts at each boundary, the count
 /// (the +Inf bucket) and the sum. Plain value, trivially copyable.
