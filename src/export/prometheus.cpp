@@ -268,6 +268,19 @@ const char* content_type(ExpositionFormat format) noexcept {
 }
 
 void append_label_value(std::string& out, std::string_view value) {
+  // Fast path: plain ASCII without anything to escape (nearly every name).
+  bool plain = true;
+  for (char c : value) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u >= 0x80 || c == '\\' || c == '"' || c == '\n') {
+      plain = false;
+      break;
+    }
+  }
+  if (plain) {
+    out.append(value);
+    return;
+  }
   std::size_t i = 0;
   while (i < value.size()) {
     const char c = value[i];

@@ -431,3 +431,30 @@ TEST_CASE("Diagnostics map reports onto a ROS 2 DiagnosticArray", "[export][diag
   CHECK(neg["header"]["stamp"]["sec"].number_text() == "-1");
   CHECK(neg["header"]["stamp"]["nanosec"].number_text() == "999999999");
 }
+
+TEST_CASE("serve_http: one call in a program with real threads", "[export][http]") {
+  Registry<Message> registry;
+  ComponentAggregator aggregator;
+  ComponentSupervisorLoop supervisor(registry, aggregator,
+                                     SupervisorOptions{.period_ns = 5 * kNanosPerMilli});
+  Monitor monitor(aggregator, MonitorOptions{.period_ns = 20 * kNanosPerMilli});
+  monitor.set_supervisor(&supervisor);
+  HttpOptions o = quiet_options();
+  auto http = serve_http(monitor, aggregator, o);
+  REQUIRE(http);
+  REQUIRE(supervisor.start());
+  REQUIRE(monitor.start());
+  auto c = client(*(*http)->http());
+  int status = 0;
+  for (int i = 0; i < 200 && status != 200; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    if (auto r = c.Get("/healthz")) status = r->status;
+  }
+  CHECK(status == 200);
+  auto r = c.Get("/api/v1/reports/vigil.supervisor");
+  REQUIRE(r);
+  CHECK(r->status == 200);
+  http->reset();  // while the monitor runs: unsubscribes, waits for a publication in progress
+  monitor.stop();
+  supervisor.stop();
+}
