@@ -9,6 +9,7 @@ CHECK is one of:
   reference    every metric of docs/reference/metrics.md is exposed, every exposed one documented
   chromium     headless Chromium shows every component with the JSON API's status; screenshot
   prometheus   a real Prometheus scrapes the demo: components, histogram_quantile, an alert
+  fleet        docs/fleet/: agent mode + remote write + the documented alerts, the Grafana JSON
   requests     bad requests get 4xx, 100 concurrent scrapers are served, slow clients are bounded,
                a second server on the port fails, the default listener is on 127.0.0.1 only
 
@@ -402,6 +403,112 @@ scrape_configs:
           f"{p99 * 1e6:.1f} us, alert firing for {sorted(fired)}")
 
 
+def check_fleet(args):
+    """docs/fleet/: the robot's agent remote-writes to a central Prometheus that evaluates the
+    documented alert rules; the Grafana dashboard only uses documented metrics."""
+    fleet = os.path.join(args.source, "docs", "fleet")
+    documented = documented_metrics(args.source)
+    with open(os.path.join(fleet, "grafana-vigil-fleet.json")) as f:
+        dashboard = json.load(f)
+    used = set()
+    for panel in dashboard["panels"]:
+        for t in panel.get("targets", []):
+            for name in re.findall(r"\b(vigil_[a-z0-9_]+)", t["expr"]):
+                used.add(re.sub(r"_(bucket|sum|count)$", "", name)
+                         if re.sub(r"_(bucket|sum|count)$", "", name) in documented else name)
+    if not used or used - documented:
+        fail(f"the Grafana dashboard uses undocumented metrics: {sorted(used - documented)}")
+    print(f"Grafana dashboard: {len(dashboard['panels'])} panels, metrics {sorted(used)}")
+
+    prometheus = shutil.which("prometheus")
+    if not prometheus:
+        skip("prometheus not found (Debian package prometheus); the dashboard JSON was checked")
+    promtool = shutil.which("promtool")
+    if promtool:
+        r = subprocess.run([promtool, "check", "rules", os.path.join(fleet, "vigil-alerts.yml")],
+                           capture_output=True, text=True)
+        if r.returncode != 0:
+            fail("promtool check rules: " + r.stdout + r.stderr)
+    demo = Demo(args.vigil, duration=90)
+    with tempfile.TemporaryDirectory() as tmp:
+        central_port, agent_port = free_port(), free_port()
+        shutil.copy(os.path.join(fleet, "vigil-alerts.yml"), tmp)
+        with open(os.path.join(fleet, "prometheus-central.yml")) as f:
+            central = f.read().replace("evaluation_interval: 15s", "evaluation_interval: 1s")
+        with open(os.path.join(tmp, "central.yml"), "w") as f:
+            f.write(central)
+        with open(os.path.join(fleet, "prometheus-agent.yml")) as f:
+            agent = (f.read().replace("127.0.0.1:9479", f"127.0.0.1:{demo.port}")
+                     .replace("central.example:9090", f"127.0.0.1:{central_port}")
+                     .replace("scrape_interval: 5s", "scrape_interval: 1s")
+                     .replace("queue_config: {", "queue_config: {batch_send_deadline: 1s, "))
+        with open(os.path.join(tmp, "agent.yml"), "w") as f:
+            f.write(agent)
+        log = open(os.path.join(args.out, "prometheus-fleet.log"), "w")
+        procs = [
+            subprocess.Popen([prometheus, f"--config.file={tmp}/central.yml",
+                              "--web.enable-remote-write-receiver",
+                              f"--web.listen-address=127.0.0.1:{central_port}",
+                              f"--storage.tsdb.path={tmp}/central"], stdout=log,
+                             stderr=subprocess.STDOUT),
+            subprocess.Popen([prometheus, "--enable-feature=agent",
+                              f"--config.file={tmp}/agent.yml",
+                              f"--web.listen-address=127.0.0.1:{agent_port}",
+                              f"--storage.agent.path={tmp}/agent"], stdout=log,
+                             stderr=subprocess.STDOUT)]
+
+        def query(path, **params):
+            url = f"http://127.0.0.1:{central_port}{path}?" + urllib.parse.urlencode(params)
+            with urllib.request.urlopen(url, timeout=5) as r:
+                doc = json.loads(r.read())
+            if doc.get("status") != "success":
+                raise RuntimeError(str(doc))
+            return doc["data"]
+
+        def poll(what, fn, timeout=60):
+            end = time.time() + timeout
+            last = None
+            while time.time() < end:
+                for p in procs:
+                    if p.poll() is not None:
+                        fail(f"a prometheus exited with {p.returncode} (see {log.name})")
+                try:
+                    result = fn()
+                    if result:
+                        return result
+                    last = "empty"
+                except (urllib.error.URLError, ConnectionError, OSError, RuntimeError) as e:
+                    last = str(e)
+                time.sleep(0.5)
+            fail(f"{what}: nothing after {timeout} s ({last})")
+
+        try:
+            robots = poll("vigil_component_status on the central Prometheus", lambda: {
+                (r["metric"].get("robot"), r["metric"].get("site")) for r in query(
+                    "/api/v1/query", query='vigil_component_status{component="motor_left"}')["result"]})
+            if robots != {("robot-01", "lab")}:
+                fail(f"robot identity on the central Prometheus: {robots}")
+
+            def firing():
+                return {(a["labels"]["robot"], a["labels"]["component"])
+                        for a in query("/api/v1/alerts")["alerts"]
+                        if a["state"] == "firing" and a["labels"]["alertname"] == "VigilComponentError"}
+            fired = poll("VigilComponentError for robot-01/encoder",
+                         lambda: (lambda f: f if ("robot-01", "encoder") in f else None)(firing()))
+        finally:
+            for p in procs:
+                p.send_signal(signal.SIGTERM)
+            for p in procs:
+                try:
+                    p.wait(timeout=20)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+            log.close()
+    demo.finish()
+    print(f"fleet: agent -> remote write -> central; robot identity {sorted(robots)}; "
+          f"alerts firing {sorted(fired)}")
+
+
 def raw_request(port, data, timeout=10):
     """Sends raw bytes, returns the status code of the answer (None when the server closed)."""
     with socket.create_connection(("127.0.0.1", port), timeout=timeout) as s:
@@ -504,7 +611,7 @@ def check_requests(args):
 
 CHECKS = {"promtool": check_promtool, "openmetrics": check_openmetrics,
           "reference": check_reference, "chromium": check_chromium,
-          "prometheus": check_prometheus, "requests": check_requests}
+          "prometheus": check_prometheus, "requests": check_requests, "fleet": check_fleet}
 
 
 def main():
