@@ -82,7 +82,8 @@ int run_demo(const DemoOptions& o) {
     exports.http->threads = h->threads;
     exports.http->dashboard = h->dashboard;
   }
-  if (exports.http) exports.http->log = [](const std::string& line) { std::printf("%s\n", line.c_str()); };
+  if (exports.http)
+    exports.http->log = [](const std::string& line) { std::printf("%s\n", line.c_str()); };
   exports.textfile = o.textfile;
   exports.augment = [&system](ReportSet& r) { r = system.reports(); };  // with CAN's reports
   std::unique_ptr<exporter::MonitorExporter> exporter;

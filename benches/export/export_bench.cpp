@@ -60,8 +60,11 @@ struct World {
       r.silence_ns = 3 * kNanosPerMilli;
       r.port_capacity = 256;
       r.port_high_water = 12;
-      r.thread = platform::ThreadStats{.tid = r.tid, .name = "control", .voluntary_switches = 10,
-                                       .involuntary_switches = 3, .minor_faults = 1,
+      r.thread = platform::ThreadStats{.tid = r.tid,
+                                       .name = "control",
+                                       .voluntary_switches = 10,
+                                       .involuntary_switches = 3,
+                                       .minor_faults = 1,
                                        .user_time_ns = 5'000'000'000};
       if (i % 10 == 0) r.merge(StatusLevel::Warn, "near overrun: EWMA of total time 930us");
       reports.components.push_back(std::move(r));
@@ -119,7 +122,8 @@ void render(benchmark::State& state, exporter::ExpositionFormat format) {
     benchmark::DoNotOptimize(json.data());
     ours.push_back(static_cast<double>(t1 - t0));
     floor.push_back(static_cast<double>(t2 - t1));
-    ratio.push_back(static_cast<double>(t1 - t0) / static_cast<double>(std::max<Nanos>(t2 - t1, 1)));
+    ratio.push_back(static_cast<double>(t1 - t0) /
+                    static_cast<double>(std::max<Nanos>(t2 - t1, 1)));
     state.SetIterationTime(static_cast<double>(t1 - t0) * 1e-9);
   }
   report_vs(state, "ms/render", median(ours) * 1e-6, median(floor) * 1e-6, median(ratio));
@@ -129,7 +133,9 @@ void render(benchmark::State& state, exporter::ExpositionFormat format) {
 }
 
 void metrics(benchmark::State& state) { render(state, exporter::ExpositionFormat::Prometheus); }
-void openmetrics(benchmark::State& state) { render(state, exporter::ExpositionFormat::OpenMetrics); }
+void openmetrics(benchmark::State& state) {
+  render(state, exporter::ExpositionFormat::OpenMetrics);
+}
 
 void publish(benchmark::State& state) {
   const auto n = static_cast<std::size_t>(state.range(0));

@@ -15,7 +15,7 @@ BucketCounts reduce(const Histogram& h, std::size_t first, std::size_t last, Nan
   out.sum_ns = sum_ns;
   if (out.count == 0) return out;
   std::array<std::uint64_t, kBucketBounds> own{};  // per boundary, not yet cumulative
-  std::size_t j = 0;                                // boundaries only grow with the bucket
+  std::size_t j = 0;                               // boundaries only grow with the bucket
   for (std::size_t i = first; i <= last && i < Histogram::kBucketCount; ++i) {
     const std::uint64_t c = h.count_at(i);
     if (c == 0) continue;
@@ -39,8 +39,8 @@ BucketCounts reduce_to_buckets(const RunningStats& stats, Nanos shift_ns, double
   const Nanos lo = std::max<Nanos>(stats.min(), 0);
   const Nanos hi = std::max<Nanos>(stats.max(), 0);
   const std::size_t first = Histogram::bucket_index(std::min(lo, Histogram::kMaxTrackable));
-  const std::size_t last = hi > Histogram::kMaxTrackable ? Histogram::kBucketCount - 1
-                                                         : Histogram::bucket_index(hi);
+  const std::size_t last =
+      hi > Histogram::kMaxTrackable ? Histogram::kBucketCount - 1 : Histogram::bucket_index(hi);
   const double sum = sum_ns >= 0 ? sum_ns : stats.mean() * static_cast<double>(stats.count());
   return reduce(stats.histogram(), first, last, shift_ns, sum);
 }

@@ -67,8 +67,7 @@ expected<ListenAddress, std::string> parse_listen(std::string_view text) {
   }
   int p = -1;
   const auto [end, ec] = std::from_chars(port.data(), port.data() + port.size(), p);
-  if (port.empty() || ec != std::errc{} || end != port.data() + port.size() || p < 0 ||
-      p > 65535) {
+  if (port.empty() || ec != std::errc{} || end != port.data() + port.size() || p < 0 || p > 65535) {
     return vigil::unexpected(
         fmt::format("'{}': the port must be a number in 0..65535 (0: any free port)", text));
   }
@@ -88,8 +87,8 @@ class Pool final : public httplib::TaskQueue {
   Pool(unsigned n, const std::string& name) {
     for (unsigned i = 0; i < n; ++i) {
       auto t = platform::Thread::spawn(
-          platform::ThreadConfig{.name = name, .policy = platform::SchedPolicy::Other,
-                                 .prefault_stack_bytes = 0},
+          platform::ThreadConfig{
+              .name = name, .policy = platform::SchedPolicy::Other, .prefault_stack_bytes = 0},
           [this] { work(); });
       if (t) threads_.push_back(std::move(*t));
     }
@@ -400,27 +399,28 @@ void HttpServer::Impl::routes() {
     }
     if (check_host && !loopback_host(req.get_header_value("Host"))) {
       res.status = 403;
-      res.set_content("403 forbidden: this server listens on a loopback address and answers "
-                      "only requests for localhost, 127.0.0.1 or [::1]\n",
-                      kText);
+      res.set_content(
+          "403 forbidden: this server listens on a loopback address and answers "
+          "only requests for localhost, 127.0.0.1 or [::1]\n",
+          kText);
       return HR::Handled;
     }
     return HR::Unhandled;
   });
-  s.set_error_handler(httplib::Server::HandlerWithResponse([](const httplib::Request& req,
-                                                              httplib::Response& res) {
-    if (!res.body.empty()) return HR::Unhandled;
-    if (res.status == 404) {
-      res.set_content(fmt::format("404 not found: {} (endpoints: /, /metrics, /api/v1/reports, "
-                                  "/api/v1/reports/<name>, /api/v1/diagnostics, "
-                                  "/api/v1/histograms, /api/v1/history, /healthz)\n",
-                                  req.path.size() > 200 ? req.path.substr(0, 200) : req.path),
-                      kText);
-    } else {
-      res.set_content(fmt::format("{} {}\n", res.status, reason(res.status)), kText);
-    }
-    return HR::Handled;
-  }));
+  s.set_error_handler(
+      httplib::Server::HandlerWithResponse([](const httplib::Request& req, httplib::Response& res) {
+        if (!res.body.empty()) return HR::Unhandled;
+        if (res.status == 404) {
+          res.set_content(fmt::format("404 not found: {} (endpoints: /, /metrics, /api/v1/reports, "
+                                      "/api/v1/reports/<name>, /api/v1/diagnostics, "
+                                      "/api/v1/histograms, /api/v1/history, /healthz)\n",
+                                      req.path.size() > 200 ? req.path.substr(0, 200) : req.path),
+                          kText);
+        } else {
+          res.set_content(fmt::format("{} {}\n", res.status, reason(res.status)), kText);
+        }
+        return HR::Handled;
+      }));
   s.set_exception_handler(
       [](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
         std::string what = "unknown exception";
@@ -474,9 +474,10 @@ void HttpServer::Impl::routes() {
       res.set_content(render_metrics(MetricsSnapshot{}, f), content_type(f));
       return;
     }
-    const std::string& body = f == ExpositionFormat::OpenMetrics
-                                  ? p->get(p->openmetrics, [&] { return render_metrics(*p->snap, f); })
-                                  : p->get(p->prometheus, [&] { return render_metrics(*p->snap, f); });
+    const std::string& body =
+        f == ExpositionFormat::OpenMetrics
+            ? p->get(p->openmetrics, [&] { return render_metrics(*p->snap, f); })
+            : p->get(p->prometheus, [&] { return render_metrics(*p->snap, f); });
     res.set_content(body, content_type(f));
   });
 
@@ -495,9 +496,8 @@ void HttpServer::Impl::routes() {
           return p.get(p.reports, [&] { return to_json(p.snap->reports); });
         }));
   s.Get("/api/v1/diagnostics", json_endpoint([](const Published& p) -> const std::string& {
-          return p.get(p.diagnostics, [&] {
-            return to_diagnostics_json(p.snap->reports, p.snap->wall_time_ns);
-          });
+          return p.get(p.diagnostics,
+                       [&] { return to_diagnostics_json(p.snap->reports, p.snap->wall_time_ns); });
         }));
   s.Get("/api/v1/histograms", json_endpoint([](const Published& p) -> const std::string& {
           return p.get(p.histograms, [&] { return histograms_json(*p.snap); });
@@ -554,13 +554,16 @@ expected<void, Error> HttpServer::start() {
   const HttpOptions& o = m.options;
   if (m.running) return vigil::unexpected(Error("HTTP server: already running"));
   if (o.threads < 1 || o.threads > 16) {
-    return vigil::unexpected(Error(EINVAL, fmt::format("HTTP server: threads must be in 1..16, not {}", o.threads)));
+    return vigil::unexpected(
+        Error(EINVAL, fmt::format("HTTP server: threads must be in 1..16, not {}", o.threads)));
   }
   if (o.listen.port < 0 || o.listen.port > 65535) {
-    return vigil::unexpected(Error(EINVAL, fmt::format("HTTP server: port {} is not in 0..65535", o.listen.port)));
+    return vigil::unexpected(
+        Error(EINVAL, fmt::format("HTTP server: port {} is not in 0..65535", o.listen.port)));
   }
   if (o.dashboard_refresh_ns < 200 * kNanosPerMilli || o.dashboard_refresh_ns > kNanosPerSecond) {
-    return vigil::unexpected(Error(EINVAL, "HTTP server: the dashboard refresh must be 200 ms..1 s (1 to 5 Hz)"));
+    return vigil::unexpected(
+        Error(EINVAL, "HTTP server: the dashboard refresh must be 200 ms..1 s (1 to 5 Hz)"));
   }
 
   m.server = std::make_unique<httplib::Server>();
@@ -578,7 +581,8 @@ expected<void, Error> HttpServer::start() {
   const std::string name = o.thread_name;
   s.new_task_queue = [threads, name] { return new Pool(threads, name); };
   s.set_keep_alive_max_count(1);  // one request per connection: no thread held between requests
-  s.set_keep_alive_timeout(std::max<time_t>(1, static_cast<time_t>(o.read_timeout_ns / kNanosPerSecond)));
+  s.set_keep_alive_timeout(
+      std::max<time_t>(1, static_cast<time_t>(o.read_timeout_ns / kNanosPerSecond)));
   s.set_read_timeout(o.read_timeout_ns / kNanosPerSecond,
                      (o.read_timeout_ns % kNanosPerSecond) / 1000);
   s.set_write_timeout(o.write_timeout_ns / kNanosPerSecond,
@@ -607,12 +611,12 @@ expected<void, Error> HttpServer::start() {
   if (!bound) {
     const int err = errno;
     const std::string what =
-        err == EADDRINUSE
-            ? "the port is taken (another process serves it); choose another port"
-            : err != 0 ? std::string(std::strerror(err)) : std::string("cannot resolve or bind");
+        err == EADDRINUSE ? "the port is taken (another process serves it); choose another port"
+        : err != 0        ? std::string(std::strerror(err))
+                          : std::string("cannot resolve or bind");
     m.server.reset();
-    return vigil::unexpected(
-        Error(err, fmt::format("HTTP server: cannot listen on {}: {}", o.listen.to_string(), what)));
+    return vigil::unexpected(Error(
+        err, fmt::format("HTTP server: cannot listen on {}: {}", o.listen.to_string(), what)));
   }
   m.bound = ListenAddress{o.listen.host, port};
   // Debian's cpp-httplib listens with a backlog of 5: a burst of scrapers (or a browser opening
@@ -623,12 +627,13 @@ expected<void, Error> HttpServer::start() {
   }
 
   auto t = platform::Thread::spawn(
-      platform::ThreadConfig{.name = o.thread_name, .policy = platform::SchedPolicy::Other,
-                             .prefault_stack_bytes = 0},
+      platform::ThreadConfig{
+          .name = o.thread_name, .policy = platform::SchedPolicy::Other, .prefault_stack_bytes = 0},
       [srv = m.server.get()] { srv->listen_after_bind(); });
   if (!t) {
     m.server.reset();
-    return vigil::unexpected(Error(t.error().code, "HTTP server: cannot start its thread: " + t.error().message));
+    return vigil::unexpected(
+        Error(t.error().code, "HTTP server: cannot start its thread: " + t.error().message));
   }
   m.listener = std::move(*t);
   // stop() only stops a server whose accept loop has begun: wait for it (a few ms).
@@ -639,10 +644,11 @@ expected<void, Error> HttpServer::start() {
   m.log(fmt::format("vigil: HTTP on {} (dashboard /, Prometheus /metrics, JSON /api/v1/reports)",
                     url()));
   if (!m.bound.loopback()) {
-    m.log(fmt::format("vigil: warning: HTTP listens on {}, not on loopback only: every host that "
-                      "can reach this one can read the reports (no authentication; see "
-                      "docs/guide/http.md)",
-                      m.bound.to_string()));
+    m.log(
+        fmt::format("vigil: warning: HTTP listens on {}, not on loopback only: every host that "
+                    "can reach this one can read the reports (no authentication; see "
+                    "docs/guide/http.md)",
+                    m.bound.to_string()));
   }
   return {};
 }

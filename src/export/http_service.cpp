@@ -12,8 +12,7 @@ MonitorExporter::MonitorExporter(Monitor& monitor, const ComponentAggregator* ag
 
 expected<std::unique_ptr<MonitorExporter>, Error> MonitorExporter::start(
     Monitor& monitor, const ComponentAggregator* aggregator, ExportOptions options) {
-  std::unique_ptr<MonitorExporter> e(
-      new MonitorExporter(monitor, aggregator, std::move(options)));
+  std::unique_ptr<MonitorExporter> e(new MonitorExporter(monitor, aggregator, std::move(options)));
   if (e->options_.http) {
     e->http_ = std::make_unique<HttpServer>(*e->options_.http);
     if (auto ok = e->http_->start(); !ok) return vigil::unexpected(ok.error());

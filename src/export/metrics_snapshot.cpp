@@ -40,10 +40,9 @@ HistoryFrame make_history_frame(const ReportSet& reports) {
 
 const ComponentHistograms* MetricsSnapshot::histograms_of(const Report& report) const noexcept {
   if (report.kind != ReportKind::Component) return nullptr;
-  const auto it = std::lower_bound(histograms.begin(), histograms.end(), report.id,
-                                   [](const ComponentHistograms& h, std::uint32_t id) {
-                                     return h.id < id;
-                                   });
+  const auto it =
+      std::lower_bound(histograms.begin(), histograms.end(), report.id,
+                       [](const ComponentHistograms& h, std::uint32_t id) { return h.id < id; });
   if (it == histograms.end() || it->id != report.id || it->name != report.name) return nullptr;
   return &*it;
 }

@@ -91,7 +91,8 @@ struct Label {
 
 class Writer {
  public:
-  Writer(std::string& out, ExpositionFormat f) : out_(out), om_(f == ExpositionFormat::OpenMetrics) {}
+  Writer(std::string& out, ExpositionFormat f)
+      : out_(out), om_(f == ExpositionFormat::OpenMetrics) {}
 
   // HELP, TYPE (and UNIT) of family `name` (the sample name for gauges, counters with their
   // `_total`, info with its `_info`; the base name for histograms and summaries). Written with
@@ -397,7 +398,8 @@ void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFor
   });
   w.family("vigil_component_alive", Type::Gauge,
            "1 while the component is registered, 0 once it left (reported for a while).");
-  each(component, [&](const Report& r) { w.sample_u("vigil_component_alive", r.name, {}, r.alive); });
+  each(component,
+       [&](const Report& r) { w.sample_u("vigil_component_alive", r.name, {}, r.alive); });
   w.family("vigil_component_realtime_refused", Type::Gauge,
            "1 when SCHED_FIFO was asked for but refused, and the component runs SCHED_OTHER.");
   each(component, [&](const Report& r) {
@@ -405,8 +407,9 @@ void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFor
   });
   w.family("vigil_component_period_seconds", Type::Gauge,
            "Configured period of the component; 0 when not periodic.");
-  each(component,
-       [&](const Report& r) { w.sample("vigil_component_period_seconds", r.name, {}, seconds(r.period_ns)); });
+  each(component, [&](const Report& r) {
+    w.sample("vigil_component_period_seconds", r.name, {}, seconds(r.period_ns));
+  });
   w.family("vigil_component_tasks_on_thread", Type::Gauge,
            "Alive components that share the component's thread, itself included.");
   each(component, [&](const Report& r) {
@@ -447,8 +450,7 @@ void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFor
     w.family(base, Type::Histogram, help);
     each(component, [&](const Report& r) {
       const ComponentHistograms* h = snap.histograms_of(r);
-      histogram_samples(w, base, r.name, h != nullptr ? &pick_buckets(*h) : nullptr,
-                        pick_stats(r));
+      histogram_samples(w, base, r.name, h != nullptr ? &pick_buckets(*h) : nullptr, pick_stats(r));
     });
   };
   histogram(
@@ -531,12 +533,14 @@ void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFor
 
   // --- the supervisor ---
   w.family("vigil_supervisor_cycles_total", Type::Counter, "Drain cycles of the supervisor.");
-  each(supervisor,
-       [&](const Report& r) { w.sample_u("vigil_supervisor_cycles_total", r.name, {}, r.counters.cycles); });
+  each(supervisor, [&](const Report& r) {
+    w.sample_u("vigil_supervisor_cycles_total", r.name, {}, r.counters.cycles);
+  });
   w.family("vigil_supervisor_messages_total", Type::Counter,
            "Messages the supervisor drained from the components' ports.");
   each(supervisor, [&](const Report& r) {
-    if (auto n = value_u64(r, "messages")) w.sample_u("vigil_supervisor_messages_total", r.name, {}, *n);
+    if (auto n = value_u64(r, "messages"))
+      w.sample_u("vigil_supervisor_messages_total", r.name, {}, *n);
   });
   w.family("vigil_supervisor_ports", Type::Gauge, "Ports the supervisor drains.");
   each(supervisor, [&](const Report& r) {
@@ -553,20 +557,24 @@ void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFor
   });
   w.family("vigil_supervisor_drain_seconds", Type::Summary,
            "Time of one supervisor cycle (draining every port).");
-  each(supervisor,
-       [&](const Report& r) { summary_samples(w, "vigil_supervisor_drain_seconds", r.name, r.total_ns); });
+  each(supervisor, [&](const Report& r) {
+    summary_samples(w, "vigil_supervisor_drain_seconds", r.name, r.total_ns);
+  });
 
   // --- the monitor ---
   w.family("vigil_monitor_cycles_total", Type::Counter, "Cycles of the monitor.");
-  each(monitor,
-       [&](const Report& r) { w.sample_u("vigil_monitor_cycles_total", r.name, {}, r.counters.cycles); });
+  each(monitor, [&](const Report& r) {
+    w.sample_u("vigil_monitor_cycles_total", r.name, {}, r.counters.cycles);
+  });
   w.family("vigil_monitor_period_seconds", Type::Gauge, "Period of the monitor's thread.");
-  each(monitor,
-       [&](const Report& r) { w.sample("vigil_monitor_period_seconds", r.name, {}, seconds(r.period_ns)); });
+  each(monitor, [&](const Report& r) {
+    w.sample("vigil_monitor_period_seconds", r.name, {}, seconds(r.period_ns));
+  });
   w.family("vigil_monitor_cycle_seconds", Type::Summary,
            "Time of one monitor cycle (checks on every component).");
-  each(monitor,
-       [&](const Report& r) { summary_samples(w, "vigil_monitor_cycle_seconds", r.name, r.total_ns); });
+  each(monitor, [&](const Report& r) {
+    summary_samples(w, "vigil_monitor_cycle_seconds", r.name, r.total_ns);
+  });
   w.family("vigil_monitor_components", Type::Gauge, "Components the monitor checked.");
   each(monitor, [&](const Report& r) {
     if (auto n = value_u64(r, "components")) w.sample_u("vigil_monitor_components", r.name, {}, *n);
@@ -594,14 +602,19 @@ void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFor
   });
   w.family("vigil_can_rx_gap_seconds", Type::Summary,
            "Time between consecutive frames received from a CAN node.");
-  each(can_node, [&](const Report& r) { summary_samples(w, "vigil_can_rx_gap_seconds", r.name, r.user_ns); });
+  each(can_node,
+       [&](const Report& r) { summary_samples(w, "vigil_can_rx_gap_seconds", r.name, r.user_ns); });
   w.family("vigil_can_read_seconds", Type::Summary,
            "Time of the read call that returned a CAN node's frame.");
-  each(can_node, [&](const Report& r) { summary_samples(w, "vigil_can_read_seconds", r.name, r.latency_ns); });
+  each(can_node, [&](const Report& r) {
+    summary_samples(w, "vigil_can_read_seconds", r.name, r.latency_ns);
+  });
   w.family("vigil_can_silence_seconds", Type::Gauge,
            "Time since the latest frame received from a CAN node (absent when never received).");
   each([](const Report& r) { return r.kind == ReportKind::CanNode && r.silence_ns >= 0; },
-       [&](const Report& r) { w.sample("vigil_can_silence_seconds", r.name, {}, seconds(r.silence_ns)); });
+       [&](const Report& r) {
+         w.sample("vigil_can_silence_seconds", r.name, {}, seconds(r.silence_ns));
+       });
   w.family("vigil_can_group_frames_total", Type::Counter,
            "CAN frames of a group's nodes, both directions.");
   each(can_group, [&](const Report& r) {

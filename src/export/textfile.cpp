@@ -27,8 +27,8 @@ expected<void, Error> write_textfile(const std::filesystem::path& path,
     if (!f) {
       std::error_code ignored;
       std::filesystem::remove(tmp, ignored);
-      return vigil::unexpected(
-          Error(fmt::format("textfile {}: cannot write {} (disk full?)", path.string(), tmp.string())));
+      return vigil::unexpected(Error(
+          fmt::format("textfile {}: cannot write {} (disk full?)", path.string(), tmp.string())));
     }
   }
   std::error_code ec;
@@ -36,9 +36,9 @@ expected<void, Error> write_textfile(const std::filesystem::path& path,
   if (ec) {
     std::error_code ignored;
     std::filesystem::remove(tmp, ignored);
-    return vigil::unexpected(Error(ec.value(), fmt::format("textfile {}: cannot rename {} to it: {}",
-                                                           path.string(), tmp.string(),
-                                                           ec.message())));
+    return vigil::unexpected(
+        Error(ec.value(), fmt::format("textfile {}: cannot rename {} to it: {}", path.string(),
+                                      tmp.string(), ec.message())));
   }
   return {};
 }

@@ -26,7 +26,8 @@ std::string with_outputs(std::string_view outputs) {
   return std::string(R"(
 activities: [{name: a, period: 10ms}]
 components: [{name: c, type: test.idle, activity: a}]
-outputs: )") + std::string(outputs) + "\n";
+outputs: )") +
+         std::string(outputs) + "\n";
 }
 }  // namespace
 
@@ -40,7 +41,8 @@ TEST_CASE("outputs.http reads listen, threads and dashboard", "[export][deploy]"
   CHECK(d->outputs.http->dashboard);
 
   d = load_deployment_string(
-      with_outputs("{json: f.json, http: {listen: \"0.0.0.0:9200\", threads: 2, dashboard: false}}"),
+      with_outputs(
+          "{json: f.json, http: {listen: \"0.0.0.0:9200\", threads: 2, dashboard: false}}"),
       "d.yaml", factory());
   REQUIRE(d);
   CHECK(d->outputs.http->listen.host == "0.0.0.0");

@@ -260,7 +260,8 @@ TEST_CASE("100 concurrent scrapers are all served", "[export][http]") {
         ++ok;
       } else {
         std::lock_guard lock(failures_mutex);
-        failures.push_back(r ? "status " + std::to_string(r->status) : httplib::to_string(r.error()));
+        failures.push_back(r ? "status " + std::to_string(r->status)
+                             : httplib::to_string(r.error()));
       }
     });
   }

@@ -34,9 +34,13 @@ MetricsSnapshot rich_snapshot() {
   // A thread's OS counters on one component.
   for (Report& r : s.reports.components) {
     if (r.name == "fast") {
-      r.thread = platform::ThreadStats{.tid = 42, .name = "t", .voluntary_switches = 3,
-                                       .involuntary_switches = 4, .minor_faults = 5,
-                                       .major_faults = 6, .user_time_ns = 1'500'000'000,
+      r.thread = platform::ThreadStats{.tid = 42,
+                                       .name = "t",
+                                       .voluntary_switches = 3,
+                                       .involuntary_switches = 4,
+                                       .minor_faults = 5,
+                                       .major_faults = 6,
+                                       .user_time_ns = 1'500'000'000,
                                        .system_time_ns = 10'000'000};
     }
   }
@@ -45,8 +49,12 @@ MetricsSnapshot rich_snapshot() {
   node.name = "can0/drive_5";
   node.state_label = "not responding";
   node.silence_ns = 250 * kNanosPerMilli;
-  node.user_ns = StatsSummary{.count = 10, .mean = 1e6, .p50 = 900'000, .p90 = 1'000'000,
-                              .p99 = 1'100'000, .p999 = 1'200'000};
+  node.user_ns = StatsSummary{.count = 10,
+                              .mean = 1e6,
+                              .p50 = 900'000,
+                              .p90 = 1'000'000,
+                              .p99 = 1'100'000,
+                              .p999 = 1'200'000};
   node.add("frames_rx", "120");
   node.add("frames_tx", "118");
   node.merge(StatusLevel::Error, "not responding for 250ms");
@@ -116,9 +124,9 @@ TEST_CASE("The Accept header chooses the format", "[export][prometheus]") {
 TEST_CASE("Buckets follow the documented rule, cumulative, +Inf equals the count",
           "[export][prometheus][buckets]") {
   RunningStats stats;
-  const std::vector<Nanos> samples = {0,      500,     900,        1'000,        1'400,
-                                      2'000,  33'000,  7'000'000,  9'999'999'999, 10'000'000'000,
-                                      Nanos{1} << 41};
+  const std::vector<Nanos> samples = {
+      0,      500,       900,           1'000,          1'400,         2'000,
+      33'000, 7'000'000, 9'999'999'999, 10'000'000'000, Nanos{1} << 41};
   for (Nanos v : samples) stats.add(v);
   const BucketCounts b = reduce_to_buckets(stats);
   CHECK(b.count == samples.size());
@@ -134,7 +142,7 @@ TEST_CASE("Buckets follow the documented rule, cumulative, +Inf equals the count
     CHECK(b.cumulative[k] == expected);
     if (k > 0) CHECK(b.cumulative[k] >= b.cumulative[k - 1]);
   }
-  CHECK(b.cumulative[0] == 3);                  // 0, 500, 900 (1000's bucket ends at 1007)
+  CHECK(b.cumulative[0] == 3);                       // 0, 500, 900 (1000's bucket ends at 1007)
   CHECK(b.cumulative.back() == samples.size() - 3);  // above 10 s (bucket edge) and 2^41: +Inf only
   CHECK(b.sum_ns == Approx(stats.mean() * static_cast<double>(stats.count())));
 

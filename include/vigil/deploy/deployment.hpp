@@ -31,8 +31,8 @@
 #include "vigil/config/node.hpp"
 #include "vigil/deploy/factory.hpp"
 #include "vigil/exec/periodic_activity.hpp"
-#include "vigil/export/http_server.hpp"
 #include "vigil/expected.hpp"
+#include "vigil/export/http_server.hpp"
 #include "vigil/monitor/thresholds.hpp"
 
 namespace vigil::deploy {

@@ -32,7 +32,7 @@ inline constexpr std::size_t kBucketBounds = 43;
 inline constexpr std::array<Nanos, kBucketBounds> kBucketBoundsNs = [] {
   std::array<Nanos, kBucketBounds> b{};
   constexpr std::array<Nanos, 6> kSteps = {10, 15, 20, 30, 50, 70};  // x 100 ns
-  Nanos decade = 100;                                                 // 1 us = 10 x 100 ns
+  Nanos decade = 100;                                                // 1 us = 10 x 100 ns
   std::size_t i = 0;
   for (int d = 0; d < 7; ++d, decade *= 10) {
     for (Nanos s : kSteps) b[i++] = s * decade;

@@ -90,10 +90,10 @@ struct HttpOptions {
 
 /// Counters of the server (since start).
 struct HttpStats {
-  std::uint64_t requests = 0;        ///< requests answered (any status)
-  std::uint64_t client_errors = 0;   ///< 4xx answers
-  std::uint64_t server_errors = 0;   ///< 5xx answers
-  std::uint64_t publications = 0;    ///< snapshots published
+  std::uint64_t requests = 0;       ///< requests answered (any status)
+  std::uint64_t client_errors = 0;  ///< 4xx answers
+  std::uint64_t server_errors = 0;  ///< 5xx answers
+  std::uint64_t publications = 0;   ///< snapshots published
 };
 
 class HttpServer {

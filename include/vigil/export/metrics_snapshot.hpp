@@ -37,9 +37,9 @@ struct ComponentHistograms {
 /// One component at one point of the dashboard's history.
 struct HistoryPoint {
   std::string name;
-  Nanos execution_p99_ns = 0;       ///< p99 of on_update() time (since the start)
-  Nanos latency_p99_ns = 0;         ///< p99 of wake-up latency (since the start)
-  std::uint64_t overruns = 0;       ///< cumulative overruns
+  Nanos execution_p99_ns = 0;         ///< p99 of on_update() time (since the start)
+  Nanos latency_p99_ns = 0;           ///< p99 of wake-up latency (since the start)
+  std::uint64_t overruns = 0;         ///< cumulative overruns
   std::uint64_t window_overruns = 0;  ///< overruns in the monitor's recent window
   StatusLevel status = StatusLevel::Ok;
 };

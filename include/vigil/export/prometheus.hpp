@@ -43,8 +43,7 @@ void append_label_value(std::string& out, std::string_view value);
 void append_number(std::string& out, double v);
 
 /// The whole exposition of `snapshot` in `format` (OpenMetrics ends with `# EOF`).
-[[nodiscard]] std::string render_metrics(const MetricsSnapshot& snapshot,
-                                         ExpositionFormat format);
+[[nodiscard]] std::string render_metrics(const MetricsSnapshot& snapshot, ExpositionFormat format);
 
 /// Same, appending to `out` (reuse its capacity between calls).
 void render_metrics(std::string& out, const MetricsSnapshot& snapshot, ExpositionFormat format);

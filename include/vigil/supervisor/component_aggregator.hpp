@@ -141,8 +141,7 @@ class ComponentAggregator {
   /// Calls `visit` for every record, in id order, holding that record's lock during the call:
   /// keep it short (no I/O), the supervisor waits for it. Any thread; not RT-safe. `visit` must
   /// not call back into the aggregator.
-  void visit_distributions(
-      const std::function<void(const ComponentDistributions&)>& visit) const;
+  void visit_distributions(const std::function<void(const ComponentDistributions&)>& visit) const;
   /// Number of records (alive and recently left).
   [[nodiscard]] std::size_t size() const;
   /// Changes the EWMA weight for every record (takes effect for new samples).
