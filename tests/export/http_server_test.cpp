@@ -16,6 +16,8 @@
 #include "vigil/export/diagnostics.hpp"
 #include "vigil/export/http_service.hpp"
 #include "vigil/export/textfile.hpp"
+#include "vigil/platform/thread.hpp"
+#include "vigil/platform/thread_stats.hpp"
 
 using namespace vigil;
 using namespace vigil::exporter;
@@ -458,4 +460,42 @@ TEST_CASE("serve_http: one call in a program with real threads", "[export][http]
   http->reset();  // while the monitor runs: unsubscribes, waits for a publication in progress
   monitor.stop();
   supervisor.stop();
+}
+
+TEST_CASE("The server's threads run SCHED_OTHER even when started from a FIFO thread",
+          "[export][http]") {
+  HttpServer server(quiet_options());
+  bool started = false;
+  auto fifo = platform::Thread::spawn(
+      platform::ThreadConfig{.name = "fifo-starter", .policy = platform::SchedPolicy::Fifo,
+                             .priority = 10},
+      [&] { started = server.start().has_value(); });
+  if (!fifo) {
+    WARN("SCHED_FIFO refused (" << fifo.error().message << "): starting from this thread");
+    started = server.start().has_value();
+  } else {
+    fifo->join();
+  }
+  REQUIRE(started);
+  // The pool is created by the accepting thread once it runs: wait for the four threads.
+  std::vector<int> tids;
+  for (int attempt = 0; attempt < 200 && tids.size() < 4; ++attempt) {
+    tids.clear();
+    for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+      std::ifstream comm(task.path() / "comm");
+      std::string name;
+      std::getline(comm, name);
+      if (name == "vigil-http") tids.push_back(std::stoi(task.path().filename().string()));
+    }
+    if (tids.size() < 4) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  int http_threads = 0;
+  for (int tid : tids) {
+    auto stats = platform::read_thread_stats(tid);
+    REQUIRE(stats);
+    CHECK(stats->policy == platform::SchedPolicy::Other);
+    CHECK(stats->priority == 0);
+    ++http_threads;
+  }
+  CHECK(http_threads == 1 + 3);  // the accepting thread and the pool
 }
