@@ -467,8 +467,8 @@ TEST_CASE("The server's threads run SCHED_OTHER even when started from a FIFO th
   HttpServer server(quiet_options());
   bool started = false;
   auto fifo = platform::Thread::spawn(
-      platform::ThreadConfig{.name = "fifo-starter", .policy = platform::SchedPolicy::Fifo,
-                             .priority = 10},
+      platform::ThreadConfig{
+          .name = "fifo-starter", .policy = platform::SchedPolicy::Fifo, .priority = 10},
       [&] { started = server.start().has_value(); });
   if (!fifo) {
     WARN("SCHED_FIFO refused (" << fifo.error().message << "): starting from this thread");
