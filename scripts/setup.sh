@@ -13,6 +13,9 @@ packages=(
   libboost-dev libfmt-dev libyaml-cpp-dev libcpp-httplib-dev libcli11-dev
   # tests and benchmarks
   catch2 libbenchmark-dev can-utils rt-tests
+  # the dashboard's charts (embedded at build time) and the HTTP end-to-end tests: a real
+  # browser, Prometheus (and promtool), the OpenMetrics parser, ss
+  libjs-chart.js chromium prometheus python3-prometheus-client iproute2
 )
 
 missing=()

@@ -13,6 +13,8 @@ struct DemoOptions {
   bool no_live = false;
   bool details = false;
   bool print_config = false;
+  std::string http;      ///< "[ADDR:]PORT": serve HTTP (overrides the deployment's outputs.http)
+  std::string textfile;  ///< node-exporter textfile (.prom) rewritten every monitor cycle
 };
 int run_demo(const DemoOptions& options);
 

@@ -10,6 +10,7 @@
 #include "commands.hpp"
 #include "demo_components.hpp"
 #include "vigil/deploy/system.hpp"
+#include "vigil/export/http_service.hpp"
 #include "vigil/export/json_report.hpp"
 #include "vigil/export/text_report.hpp"
 #include "vigil/platform/process.hpp"
@@ -64,6 +65,39 @@ int run_demo(const DemoOptions& o) {
   }
   deploy::System& system = **sys;
 
+  // HTTP and the textfile: started before the components, so that a taken port stops the demo
+  // before anything runs.
+  exporter::ExportOptions exports;
+  if (!o.http.empty()) {
+    auto listen = exporter::parse_listen(o.http);
+    if (!listen) {
+      std::fprintf(stderr, "vigil demo: --http %s\n", listen.error().c_str());
+      return 2;
+    }
+    exports.http.emplace();
+    exports.http->listen = *listen;
+  } else if (const auto& h = system.spec().outputs.http) {
+    exports.http.emplace();
+    exports.http->listen = h->listen;
+    exports.http->threads = h->threads;
+    exports.http->dashboard = h->dashboard;
+  }
+  if (exports.http)
+    exports.http->log = [](const std::string& line) { std::printf("%s\n", line.c_str()); };
+  exports.textfile = o.textfile;
+  exports.augment = [&system](ReportSet& r) { r = system.reports(); };  // with CAN's reports
+  std::unique_ptr<exporter::MonitorExporter> exporter;
+  if (exports.http || !exports.textfile.empty()) {
+    auto e = exporter::MonitorExporter::start(system.monitor(), &system.aggregator(),
+                                              std::move(exports));
+    if (!e) {
+      std::fprintf(stderr, "vigil demo: %s\n", e.error().message.c_str());
+      return 1;
+    }
+    exporter = std::move(*e);
+    std::fflush(stdout);
+  }
+
   platform::install_stop_signals();  // Ctrl-C and SIGTERM stop cleanly
 
   if (auto r = system.start(); !r) {
@@ -98,6 +132,12 @@ int run_demo(const DemoOptions& o) {
   const bool interrupted = platform::stop_requested();
   system.stop();
   const ReportSet final_reports = system.step_monitor();
+  if (exporter) {
+    exporter->publish(final_reports);  // served until the demo exits
+    if (const std::string err = exporter->textfile_error(); !err.empty()) {
+      std::fprintf(stderr, "vigil demo: %s\n", err.c_str());
+    }
+  }
   std::printf("\n%s after %.1f s. Final report:\n", interrupted ? "Interrupted" : "Stopped",
               static_cast<double>(platform::now_ns() - start) / 1e9);
   std::fputs(format_summary(final_reports, color).c_str(), stdout);

@@ -40,6 +40,11 @@ int main(int argc, char** argv) {
   demo_cmd->add_flag("--no-live", demo.no_live, "Print only the final report, no live view");
   demo_cmd->add_flag("--details", demo.details, "End with the detail view of every component");
   demo_cmd->add_flag("--print-config", demo.print_config, "Print the built-in deployment and exit");
+  demo_cmd->add_option("--http", demo.http,
+                       "Serve /metrics, the JSON APIs and the dashboard on [ADDR:]PORT "
+                       "(127.0.0.1 unless ADDR is given; PORT 0 picks a free one)");
+  demo_cmd->add_option("--prom-file", demo.textfile,
+                       "Rewrite FILE.prom (node-exporter textfile) after every monitor cycle");
 
   vigil::app::CheckConfigOptions check;
   auto* check_cmd = app.add_subcommand(

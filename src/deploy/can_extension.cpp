@@ -40,6 +40,7 @@ void CanExtension::contribute(ReportSet& reports) {
     rep.kind = ReportKind::CanNode;
     rep.name = fmt::format("can{}/{}", n.bus ? std::to_string(*n.bus) : std::string("*"), n.name);
     rep.status = n.status;
+    rep.silence_ns = n.silence_ns;
     const std::uint64_t rx = n.rx ? n.rx->frames : 0;
     const std::uint64_t tx = n.tx ? n.tx->frames : 0;
     rep.counters.cycles = rx + tx;  // frames, for the summary's count column

@@ -197,8 +197,22 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
     }
   }
   if (const config::Node o = root["outputs"]; o.defined()) {
-    o.reject_unknown_keys({"json"});
+    o.reject_unknown_keys({"json", "http"});
     if (o.has("json")) d.outputs.json = o.required<std::string>("json", config::non_empty());
+    if (const config::Node h = o["http"]; h.defined()) {
+      h.reject_unknown_keys({"listen", "threads", "dashboard"});
+      HttpOutputSpec http;
+      const auto listen_check = [](const std::string& v) -> std::optional<std::string> {
+        auto a = exporter::parse_listen(v);
+        if (!a) return a.error();
+        return std::nullopt;
+      };
+      const std::string listen = h.required<std::string>("listen", listen_check);
+      if (auto a = exporter::parse_listen(listen)) http.listen = *a;
+      http.threads = h.optional("threads", 3U, config::in_range(1U, 16U));
+      http.dashboard = h.optional("dashboard", true);
+      d.outputs.http = http;
+    }
   }
   return root.finish(std::move(d));
 }

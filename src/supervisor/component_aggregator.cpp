@@ -250,6 +250,24 @@ std::optional<ComponentSnapshot> ComponentAggregator::find(std::string_view name
   return std::nullopt;
 }
 
+void ComponentAggregator::visit_distributions(
+    const std::function<void(const ComponentDistributions&)>& visit) const {
+  std::shared_lock lock(list_mutex_);
+  for (const auto& s : slots_) {
+    std::lock_guard slot_lock(s->mutex);
+    ComponentDistributions d;
+    d.id = s->data.id;
+    d.name = s->data.name;
+    d.user = &s->user;
+    d.latency = &s->latency;
+    d.period = &s->period;
+    d.overhead = &s->overhead;
+    d.total_shift_ns = s->last_overhead;
+    d.total = s->total.summary(StatsSummary{}, 0);
+    visit(d);
+  }
+}
+
 std::size_t ComponentAggregator::size() const {
   std::shared_lock lock(list_mutex_);
   return slots_.size();

@@ -15,7 +15,7 @@
 ///   monitor_period: 1s
 ///   ewma_weight: 0.05
 ///   thresholds: {defaults: {overrun: {near_fraction: 0.9}}}   # or a file name
-/// outputs: {json: final.json}
+/// outputs: {json: final.json, http: {listen: 9479}}
 /// can: {node_map: canopen}        # a section of a registered extension
 /// (vigil/deploy/extension.hpp)
 /// ```
@@ -36,6 +36,7 @@
 #include "vigil/deploy/factory.hpp"
 #include "vigil/exec/periodic_activity.hpp"
 #include "vigil/expected.hpp"
+#include "vigil/export/http_server.hpp"
 #include "vigil/monitor/thresholds.hpp"
 
 namespace vigil::deploy {
@@ -68,9 +69,17 @@ struct SupervisionSpec {
   bool lock_memory = true;
 };
 
+/// `outputs.http`: serve the reports over HTTP while the system runs (docs/guide/http.md).
+struct HttpOutputSpec {
+  exporter::ListenAddress listen;  ///< `listen: "[ADDR:]PORT"` (127.0.0.1 without ADDR)
+  unsigned threads = 3;            ///< `threads: 1..16`
+  bool dashboard = true;           ///< `dashboard: false` serves no web page
+};
+
 /// Where the results go.
 struct OutputSpec {
   std::optional<std::filesystem::path> json;  ///< final reports (the monitor's JSON schema)
+  std::optional<HttpOutputSpec> http;         ///< live HTTP endpoint
 };
 
 /// A top-level section handled by an extension (e.g. `can:`), unparsed.

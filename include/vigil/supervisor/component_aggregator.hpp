@@ -13,6 +13,7 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -82,6 +83,22 @@ struct ComponentSnapshot {
   }
 };
 
+/// One component's distributions, lent to a `ComponentAggregator::visit_distributions` callback
+/// for the duration of the call (the pointers are valid only then). For exporters that need the
+/// histograms behind the percentiles (Prometheus buckets).
+struct ComponentDistributions {
+  std::uint32_t id = 0;
+  std::string_view name;
+  const RunningStats* user = nullptr;      ///< on_update() alone
+  const RunningStats* latency = nullptr;   ///< wake-up latency
+  const RunningStats* period = nullptr;    ///< start-to-start of consecutive cycles
+  const RunningStats* overhead = nullptr;  ///< supervision's own time per cycle (sampled)
+  /// Total time has no histogram of its own: it is user time plus this (the latest measured
+  /// overhead), as for `ComponentSnapshot::total_ns`' percentiles.
+  Nanos total_shift_ns = 0;
+  StatsSummary total;  ///< total time's exact count, min, max, mean, EWMA
+};
+
 /// Options of the aggregator.
 struct AggregatorOptions {
   /// Weight of the newest sample in the EWMAs (0 < w <= 1).
@@ -122,6 +139,10 @@ class ComponentAggregator {
   [[nodiscard]] std::vector<ComponentSnapshot> snapshot() const;
   /// The record of component `name` (the first alive one of that name), if any.
   [[nodiscard]] std::optional<ComponentSnapshot> find(std::string_view name) const;
+  /// Calls `visit` for every record, in id order, holding that record's lock during the call:
+  /// keep it short (no I/O), the supervisor waits for it. Any thread; not RT-safe. `visit` must
+  /// not call back into the aggregator.
+  void visit_distributions(const std::function<void(const ComponentDistributions&)>& visit) const;
   /// Number of records (alive and recently left).
   [[nodiscard]] std::size_t size() const;
   /// Changes the EWMA weight for every record (takes effect for new samples).

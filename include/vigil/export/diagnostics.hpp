@@ -1,0 +1,38 @@
+#pragma once
+/// @file
+/// The monitor's reports as a ROS 2 `diagnostic_msgs/msg/DiagnosticArray` in JSON, the shape a
+/// ROS bridge or an rqt_robot_monitor-style tool takes as it is:
+///
+/// ```json
+/// {"header": {"stamp": {"sec": 1700000000, "nanosec": 250000000}, "frame_id": ""},
+///  "status": [{"level": 2, "name": "vigil: encoder", "message": "exception: ...",
+///              "hardware_id": "tid 4242 cpu 0",
+///              "values": [{"key": "state", "value": "Exception"}, ...]}]}
+/// ```
+///
+/// Mapping: `level` is the status as an integer (OK 0, WARN 1, ERROR 2, STALE 3: the values of
+/// DiagnosticStatus' constants); `name` is "vigil: <report name>"; `message` the findings joined
+/// by "; " ("OK" when there is none); `hardware_id` the thread and CPU for components
+/// ("tid 4242 cpu 1", "cpu any" when not pinned, "" before the thread is known), "bus:node" for
+/// CAN nodes ("can0:drive_5"), "can:<group>" for CAN groups, "vigil" for the supervisor and the
+/// monitor; `values` are string key/value pairs: the main figures, then the checks' values.
+/// docs/reference/http.md lists the keys.
+///
+/// Not RT-safe (allocates); any thread; pure.
+
+#include <cstdint>
+#include <string>
+
+#include "vigil/monitor/report.hpp"
+
+namespace vigil::exporter {
+
+/// The DiagnosticArray of `reports`, stamped `wall_time_ns` (Unix time in ns). `indent` as
+/// `JsonWriter` (0: one line).
+[[nodiscard]] std::string to_diagnostics_json(const ReportSet& reports, std::int64_t wall_time_ns,
+                                              int indent = 0);
+
+/// The `hardware_id` of `report` (see the file comment).
+[[nodiscard]] std::string hardware_id(const Report& report);
+
+}  // namespace vigil::exporter

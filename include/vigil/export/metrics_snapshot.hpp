@@ -1,0 +1,72 @@
+#pragma once
+/// @file
+/// `MetricsSnapshot`: what the HTTP exporter serves. One immutable value per monitor cycle: the
+/// monitor's reports, the components' timing distributions reduced to Prometheus buckets, and a
+/// short history of p99s and overruns for the dashboard's charts.
+///
+/// Design (copy-on-publish): the thread that publishes (the monitor's, through a subscription)
+/// builds a new snapshot and swaps a `shared_ptr<const MetricsSnapshot>`; HTTP threads only read
+/// snapshots they hold a reference to. Nothing here touches the real-time side.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "vigil/export/buckets.hpp"
+#include "vigil/monitor/report.hpp"
+#include "vigil/supervisor/component_aggregator.hpp"
+
+namespace vigil::exporter {
+
+/// The timing distributions of one component as Prometheus buckets.
+struct ComponentHistograms {
+  std::uint32_t id = 0;  ///< the registry id (`Report::id`)
+  std::string name;
+  BucketCounts execution;  ///< on_update() alone (`Report::user_ns`)
+  BucketCounts total;      ///< user + supervision overhead (`Report::total_ns`)
+  BucketCounts latency;    ///< wake-up latency (`Report::latency_ns`)
+  BucketCounts period;     ///< measured start-to-start period (`Report::measured_period_ns`)
+};
+
+/// The buckets of every component of `aggregator`, by id. Takes each record's lock for the
+/// time of one reduction (microseconds). Not RT-safe (allocates); any non-RT thread.
+[[nodiscard]] std::vector<ComponentHistograms> collect_histograms(
+    const ComponentAggregator& aggregator);
+
+/// One component at one point of the dashboard's history.
+struct HistoryPoint {
+  std::string name;
+  Nanos execution_p99_ns = 0;         ///< p99 of on_update() time (since the start)
+  Nanos latency_p99_ns = 0;           ///< p99 of wake-up latency (since the start)
+  std::uint64_t overruns = 0;         ///< cumulative overruns
+  std::uint64_t window_overruns = 0;  ///< overruns in the monitor's recent window
+  StatusLevel status = StatusLevel::Ok;
+};
+
+/// Every component at one monitor cycle.
+struct HistoryFrame {
+  std::uint64_t cycle = 0;
+  Nanos time_ns = 0;  ///< monitor clock
+  std::vector<HistoryPoint> points;
+};
+
+/// Builds the history frame of `reports` (components only).
+[[nodiscard]] HistoryFrame make_history_frame(const ReportSet& reports);
+
+/// Everything the HTTP endpoints serve, from one monitor cycle. Immutable once published.
+struct MetricsSnapshot {
+  ReportSet reports;
+  /// Buckets by component id; empty when the publisher had no aggregator (then the histogram
+  /// families carry only their count and sum).
+  std::vector<ComponentHistograms> histograms;
+  /// The recent history, oldest first (shared between consecutive snapshots).
+  std::vector<std::shared_ptr<const HistoryFrame>> history;
+  std::int64_t wall_time_ns = 0;  ///< Unix time at publication (for ROS header stamps)
+  Nanos published_ns = 0;         ///< monotonic time at publication
+
+  /// The buckets of `report` (a component), or null. O(log n).
+  [[nodiscard]] const ComponentHistograms* histograms_of(const Report& report) const noexcept;
+};
+
+}  // namespace vigil::exporter

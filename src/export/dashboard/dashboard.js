@@ -1,0 +1,229 @@
+// vigil's live dashboard: polls the JSON API (docs/reference/http.md) and draws a status table
+// and, when Chart.js is served at /static/chart.js, per-component charts: execution-time and
+// wake-up latency histograms, and a recent history of p99s and overruns.
+// Plain browser JavaScript, no build step; every text from the server goes through textContent.
+(function () {
+  'use strict';
+  const body = document.body;
+  const refreshMs = Math.min(1000, Math.max(200, Number(body.dataset.refreshMs) || 500));
+  const chartsWanted = body.dataset.charts === '1';
+
+  let chartsReady = false;
+  let lastCycle = -1;
+  let boundsLabels = null;
+  const rows = new Map();   // name -> <tr>
+  const cards = new Map();  // name -> {card, badge, hist, line}
+
+  document.getElementById('version').textContent = body.dataset.version || '';
+
+  function fmtNs(ns) {
+    if (ns === null || ns === undefined || !isFinite(ns)) return '-';
+    const a = Math.abs(ns);
+    if (a < 1e3) return ns.toFixed(0) + ' ns';
+    if (a < 1e6) return (ns / 1e3).toPrecision(3) + ' µs';
+    if (a < 1e9) return (ns / 1e6).toPrecision(3) + ' ms';
+    return (ns / 1e9).toPrecision(3) + ' s';
+  }
+  function fmtBound(s) {
+    return s < 1e-3 ? (s * 1e6) + 'µs' : s < 1 ? (s * 1e3) + 'ms' : s + 's';
+  }
+  function cell(tr, i, text, cls) {
+    let td = tr.children[i];
+    if (!td) {
+      td = document.createElement('td');
+      if (cls) td.className = cls;
+      tr.appendChild(td);
+    }
+    if (td.textContent !== text) td.textContent = text;
+    return td;
+  }
+
+  function renderTable(doc) {
+    const tbody = document.querySelector('#status tbody');
+    const seen = new Set();
+    for (const c of doc.components) {
+      seen.add(c.name);
+      let tr = rows.get(c.name);
+      if (!tr) {
+        tr = document.createElement('tr');
+        tr.dataset.component = c.name;
+        rows.set(c.name, tr);
+      }
+      tbody.appendChild(tr);  // keeps the server's order
+      tr.dataset.status = c.status;
+      tr.dataset.kind = c.kind;
+      cell(tr, 0, c.name);
+      cell(tr, 1, c.kind);
+      const st = cell(tr, 2, '');
+      let badge = st.firstChild;
+      if (!badge) {
+        badge = document.createElement('span');
+        badge.className = 'badge';
+        st.appendChild(badge);
+      }
+      badge.dataset.status = c.status;
+      badge.textContent = c.status;
+      cell(tr, 3, c.state);
+      cell(tr, 4, String(c.counters.cycles), 'num');
+      const isComp = c.kind === 'component';
+      cell(tr, 5, isComp && c.timing.user_ns.count ? fmtNs(c.timing.user_ns.p99) : '-', 'num');
+      cell(tr, 6, isComp && c.timing.latency_ns.count ? fmtNs(c.timing.latency_ns.p99) : '-', 'num');
+      cell(tr, 7, isComp ? c.window.overruns + ' / ' + c.counters.overruns : '-', 'num');
+      cell(tr, 8, isComp ? String(c.counters.rt_losses) : '-', 'num');
+      cell(tr, 9, c.messages.join('; '), 'msg');
+    }
+    for (const [name, tr] of rows) {
+      if (!seen.has(name)) {
+        tr.remove();
+        rows.delete(name);
+      }
+    }
+    const overall = document.getElementById('overall');
+    overall.dataset.status = doc.status;
+    overall.textContent = doc.status;
+    document.getElementById('meta').textContent =
+        'monitor cycle ' + doc.cycle + ' · ' + doc.components.length + ' reports · refresh ' +
+        (1000 / refreshMs).toFixed(0) + ' Hz';
+  }
+
+  // --- charts ---
+
+  function makeCard(name) {
+    const card = document.createElement('div');
+    card.className = 'card';
+    card.dataset.component = name;
+    const h = document.createElement('h3');
+    const badge = document.createElement('span');
+    badge.className = 'badge';
+    const title = document.createElement('span');
+    title.textContent = name;
+    h.append(badge, title);
+    const plots = document.createElement('div');
+    plots.className = 'plots';
+    const mk = () => {
+      const d = document.createElement('div');
+      d.className = 'plot';
+      const cv = document.createElement('canvas');
+      d.appendChild(cv);
+      plots.appendChild(d);
+      return cv;
+    };
+    const histCanvas = mk();
+    const lineCanvas = mk();
+    card.append(h, plots);
+    document.getElementById('charts').appendChild(card);
+    const common = { animation: false, responsive: true, maintainAspectRatio: false,
+                     plugins: { legend: { labels: { boxWidth: 10, font: { size: 10 } } } } };
+    const hist = new Chart(histCanvas, {
+      type: 'bar',
+      data: { labels: [], datasets: [
+        { label: 'execution %', data: [], backgroundColor: '#3b7dd8' },
+        { label: 'latency %', data: [], backgroundColor: '#e07b39' }] },
+      options: Object.assign({}, common, {
+        scales: { x: { ticks: { font: { size: 9 }, maxRotation: 60 } },
+                  y: { beginAtZero: true, ticks: { font: { size: 9 } },
+                       title: { display: true, text: '% of cycles', font: { size: 9 } } } } })
+    });
+    const line = new Chart(lineCanvas, {
+      type: 'line',
+      data: { labels: [], datasets: [
+        { label: 'exec p99 µs', data: [], borderColor: '#3b7dd8', pointRadius: 0, yAxisID: 'y' },
+        { label: 'latency p99 µs', data: [], borderColor: '#e07b39', pointRadius: 0, yAxisID: 'y' },
+        { label: 'overruns (window)', data: [], borderColor: '#d23b3b', pointRadius: 0,
+          stepped: true, yAxisID: 'y1' }] },
+      options: Object.assign({}, common, {
+        scales: { x: { ticks: { font: { size: 9 }, maxTicksLimit: 6 },
+                       title: { display: true, text: 's', font: { size: 9 } } },
+                  y: { beginAtZero: true, ticks: { font: { size: 9 } } },
+                  y1: { beginAtZero: true, position: 'right', grid: { drawOnChartArea: false },
+                        ticks: { font: { size: 9 }, precision: 0 } } } })
+    });
+    const entry = { card, badge, hist, line };
+    cards.set(name, entry);
+    return entry;
+  }
+
+  function share(b) {
+    const n = b.count || 0;
+    return b.buckets.map(v => (n ? (100 * v) / n : 0));
+  }
+
+  function renderCharts(reports, hists, history) {
+    if (!boundsLabels) {
+      boundsLabels = hists.bounds_s.map(s => '≤' + fmtBound(s));
+      boundsLabels.push('>' + fmtBound(hists.bounds_s[hists.bounds_s.length - 1]));
+    }
+    const status = new Map(reports.components.map(c => [c.name, c.status]));
+    const seen = new Set();
+    for (const h of hists.components) {
+      if (!status.has(h.name)) continue;
+      seen.add(h.name);
+      const e = cards.get(h.name) || makeCard(h.name);
+      e.badge.dataset.status = status.get(h.name);
+      e.badge.textContent = status.get(h.name);
+      // Show the buckets from the first to the last non-empty one of either histogram.
+      const ex = share(h.execution), la = share(h.latency);
+      let lo = ex.length, hi = -1;
+      ex.forEach((v, i) => { if (v > 0 || la[i] > 0) { lo = Math.min(lo, i); hi = Math.max(hi, i); } });
+      if (hi < lo) { lo = 0; hi = 0; }
+      lo = Math.max(0, lo - 1);
+      hi = Math.min(ex.length - 1, hi + 1);
+      e.hist.data.labels = boundsLabels.slice(lo, hi + 1);
+      e.hist.data.datasets[0].data = ex.slice(lo, hi + 1);
+      e.hist.data.datasets[1].data = la.slice(lo, hi + 1);
+      e.hist.update('none');
+      const s = history.components[h.name];
+      if (s) {
+        e.line.data.labels = history.time_s.map(t => t.toFixed(0));
+        e.line.data.datasets[0].data = s.execution_p99_s.map(v => (v === null ? null : v * 1e6));
+        e.line.data.datasets[1].data = s.latency_p99_s.map(v => (v === null ? null : v * 1e6));
+        e.line.data.datasets[2].data = s.window_overruns;
+        e.line.update('none');
+      }
+    }
+    for (const [name, e] of cards) {
+      if (!seen.has(name)) {
+        e.hist.destroy();
+        e.line.destroy();
+        e.card.remove();
+        cards.delete(name);
+      }
+    }
+  }
+
+  async function getJson(url) {
+    const r = await fetch(url, { cache: 'no-store' });
+    if (!r.ok) throw new Error(url + ': ' + r.status);
+    return r.json();
+  }
+
+  async function tick() {
+    try {
+      const reports = await getJson('/api/v1/reports');
+      renderTable(reports);
+      document.getElementById('conn').hidden = true;
+      if (chartsReady && reports.cycle !== lastCycle) {
+        const [hists, history] = await Promise.all([getJson('/api/v1/histograms'),
+                                                    getJson('/api/v1/history')]);
+        renderCharts(reports, hists, history);
+      }
+      lastCycle = reports.cycle;
+      body.dataset.loaded = '1';
+    } catch (e) {
+      document.getElementById('conn').hidden = false;
+    } finally {
+      setTimeout(tick, refreshMs);
+    }
+  }
+
+  if (chartsWanted) {
+    const s = document.createElement('script');
+    s.src = '/static/chart.js';
+    s.onload = () => { chartsReady = typeof Chart !== 'undefined'; lastCycle = -1; };
+    s.onerror = () => { document.getElementById('nocharts').hidden = false; };
+    document.head.appendChild(s);
+  } else {
+    document.getElementById('nocharts').hidden = false;
+  }
+  tick();
+})();

@@ -1,0 +1,50 @@
+#include "vigil/export/metrics_snapshot.hpp"
+
+#include <algorithm>
+
+namespace vigil::exporter {
+
+std::vector<ComponentHistograms> collect_histograms(const ComponentAggregator& aggregator) {
+  std::vector<ComponentHistograms> out;
+  out.reserve(aggregator.size());
+  aggregator.visit_distributions([&](const ComponentDistributions& d) {
+    ComponentHistograms h;
+    h.id = d.id;
+    h.name = std::string(d.name);
+    h.execution = reduce_to_buckets(*d.user);
+    h.total = reduce_to_buckets(*d.user, d.total_shift_ns,
+                                d.total.mean * static_cast<double>(d.total.count));
+    h.latency = reduce_to_buckets(*d.latency);
+    h.period = reduce_to_buckets(*d.period);
+    out.push_back(std::move(h));
+  });
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.id < b.id; });
+  return out;
+}
+
+HistoryFrame make_history_frame(const ReportSet& reports) {
+  HistoryFrame f;
+  f.cycle = reports.cycle;
+  f.time_ns = reports.time_ns;
+  for (const Report& r : reports.components) {
+    if (r.kind != ReportKind::Component) continue;
+    f.points.push_back(HistoryPoint{.name = r.name,
+                                    .execution_p99_ns = r.user_ns.p99,
+                                    .latency_p99_ns = r.latency_ns.p99,
+                                    .overruns = r.counters.overruns,
+                                    .window_overruns = r.window.overruns,
+                                    .status = r.status.level()});
+  }
+  return f;
+}
+
+const ComponentHistograms* MetricsSnapshot::histograms_of(const Report& report) const noexcept {
+  if (report.kind != ReportKind::Component) return nullptr;
+  const auto it =
+      std::lower_bound(histograms.begin(), histograms.end(), report.id,
+                       [](const ComponentHistograms& h, std::uint32_t id) { return h.id < id; });
+  if (it == histograms.end() || it->id != report.id || it->name != report.name) return nullptr;
+  return &*it;
+}
+
+}  // namespace vigil::exporter

@@ -1,0 +1,627 @@
+#include "vigil/export/prometheus.hpp"
+
+#include <fmt/format.h>
+
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <initializer_list>
+#include <iterator>
+#include <optional>
+#include <vector>
+
+#include "vigil/version.hpp"
+
+namespace vigil::exporter {
+
+namespace {
+
+// --- text helpers ------------------------------------------------------------------------------
+
+// Length of the valid UTF-8 sequence starting at s[i] (1 for ASCII), 0 when invalid (RFC 3629:
+// no overlong forms, surrogates or code points above U+10FFFF).
+std::size_t utf8_length(std::string_view s, std::size_t i) noexcept {
+  const auto b = [&](std::size_t k) { return static_cast<unsigned char>(s[i + k]); };
+  const unsigned c0 = b(0);
+  if (c0 < 0x80) return 1;
+  std::size_t n = 0;
+  unsigned code = 0;
+  unsigned min = 0;
+  if (c0 >= 0xC2 && c0 <= 0xDF) {
+    n = 2;
+    code = c0 & 0x1F;
+    min = 0x80;
+  } else if (c0 >= 0xE0 && c0 <= 0xEF) {
+    n = 3;
+    code = c0 & 0x0F;
+    min = 0x800;
+  } else if (c0 >= 0xF0 && c0 <= 0xF4) {
+    n = 4;
+    code = c0 & 0x07;
+    min = 0x10000;
+  } else {
+    return 0;
+  }
+  if (i + n > s.size()) return 0;
+  for (std::size_t k = 1; k < n; ++k) {
+    if ((b(k) & 0xC0) != 0x80) return 0;
+    code = (code << 6) | (b(k) & 0x3F);
+  }
+  if (code < min || code > 0x10FFFF || (code >= 0xD800 && code <= 0xDFFF)) return 0;
+  return n;
+}
+
+// Escapes `s` for a HELP line (`quote`: OpenMetrics also escapes '"').
+void append_help(std::string& out, std::string_view s, bool quote) {
+  for (char c : s) {
+    if (c == '\\') {
+      out += "\\\\";
+    } else if (c == '\n') {
+      out += "\\n";
+    } else if (c == '"' && quote) {
+      out += "\\\"";
+    } else {
+      out += c;
+    }
+  }
+}
+
+double seconds(double ns) noexcept { return ns / 1e9; }
+double seconds(Nanos ns) noexcept { return static_cast<double>(ns) / 1e9; }
+
+// A value added by a check, read as an unsigned integer (the supervisor's and monitor's figures,
+// CAN frame counts): empty when absent or not a number.
+std::optional<std::uint64_t> value_u64(const Report& r, std::string_view key) {
+  const std::string* v = r.value(key);
+  if (v == nullptr) return std::nullopt;
+  std::uint64_t n = 0;
+  const auto [end, ec] = std::from_chars(v->data(), v->data() + v->size(), n);
+  if (ec != std::errc{} || end != v->data() + v->size()) return std::nullopt;
+  return n;
+}
+
+// --- the writer --------------------------------------------------------------------------------
+
+enum class Type : std::uint8_t { Gauge, Counter, Histogram, Summary, Info };
+
+struct Label {
+  std::string_view name;
+  std::string_view value;
+};
+
+class Writer {
+ public:
+  Writer(std::string& out, ExpositionFormat f)
+      : out_(out), om_(f == ExpositionFormat::OpenMetrics) {}
+
+  // HELP, TYPE (and UNIT) of family `name` (the sample name for gauges, counters with their
+  // `_total`, info with its `_info`; the base name for histograms and summaries). Written with
+  // the family's first sample: a family without samples (no CAN bus...) is left out.
+  void family(std::string_view name, Type type, std::string_view help) {
+    pending_.clear();
+    std::string& h = pending_;  // the header waits for the first sample
+    std::string_view meta = name;
+    const char* type_name = "gauge";
+    switch (type) {
+      case Type::Gauge:
+        break;
+      case Type::Counter:
+        type_name = "counter";
+        if (om_) meta.remove_suffix(std::string_view("_total").size());
+        break;
+      case Type::Histogram:
+        type_name = "histogram";
+        break;
+      case Type::Summary:
+        type_name = "summary";
+        break;
+      case Type::Info:
+        if (om_) {
+          type_name = "info";
+          meta.remove_suffix(std::string_view("_info").size());
+        }
+        break;
+    }
+    h += "# HELP ";
+    h += meta;
+    h += ' ';
+    append_help(h, help, om_);
+    h += "\n# TYPE ";
+    h += meta;
+    h += ' ';
+    h += type_name;
+    h += '\n';
+    if (om_ && type != Type::Info && meta.ends_with("_seconds")) {
+      h += "# UNIT ";
+      h += meta;
+      h += " seconds\n";
+    }
+  }
+
+  // One sample: `name{labels} value`. `labels` are written in order, `extra` after them.
+  void sample(std::string_view name, std::string_view component, std::initializer_list<Label> extra,
+              double value) {
+    head(name, component, extra);
+    append_number(out_, value);
+    out_ += '\n';
+  }
+  void sample_u(std::string_view name, std::string_view component,
+                std::initializer_list<Label> extra, std::uint64_t value) {
+    head(name, component, extra);
+    fmt::format_to(std::back_inserter(out_), "{}", value);
+    out_ += '\n';
+  }
+
+  void end() {
+    if (om_) out_ += "# EOF\n";
+  }
+
+ private:
+  void head(std::string_view name, std::string_view component, std::initializer_list<Label> extra) {
+    if (!pending_.empty()) {
+      out_ += pending_;
+      pending_.clear();
+    }
+    out_ += name;
+    bool first = true;
+    const auto label = [&](std::string_view n, std::string_view v) {
+      out_ += first ? '{' : ',';
+      first = false;
+      out_ += n;
+      out_ += "=\"";
+      append_label_value(out_, v);
+      out_ += '"';
+    };
+    if (!component.empty()) label("component", component);
+    for (const Label& l : extra) label(l.name, l.value);
+    if (!first) out_ += '}';
+    out_ += ' ';
+  }
+
+  std::string& out_;
+  bool om_;
+  std::string pending_;
+};
+
+// le values of the fixed boundaries, in seconds, formatted once.
+const std::array<std::string, kBucketBounds>& le_labels() {
+  static const std::array<std::string, kBucketBounds> labels = [] {
+    std::array<std::string, kBucketBounds> a;
+    for (std::size_t i = 0; i < kBucketBounds; ++i) {
+      append_number(a[i], static_cast<double>(kBucketBoundsNs[i]) / 1e9);
+    }
+    return a;
+  }();
+  return labels;
+}
+
+void histogram_samples(Writer& w, std::string_view base, std::string_view component,
+                       const BucketCounts* buckets, const StatsSummary& stats) {
+  const std::string bucket = std::string(base) + "_bucket";
+  std::uint64_t count = stats.count;
+  double sum_ns = stats.mean * static_cast<double>(stats.count);
+  if (buckets != nullptr) {
+    const auto& le = le_labels();
+    for (std::size_t i = 0; i < kBucketBounds; ++i) {
+      w.sample_u(bucket, component, {{"le", le[i]}}, buckets->cumulative[i]);
+    }
+    count = buckets->count;
+    sum_ns = buckets->sum_ns;
+  }
+  w.sample_u(bucket, component, {{"le", "+Inf"}}, count);
+  w.sample(std::string(base) + "_sum", component, {}, seconds(sum_ns));
+  w.sample_u(std::string(base) + "_count", component, {}, count);
+}
+
+void summary_samples(Writer& w, std::string_view base, std::string_view component,
+                     const StatsSummary& s) {
+  const std::string_view b = base;
+  if (s.count > 0) {
+    w.sample(b, component, {{"quantile", "0.5"}}, seconds(s.p50));
+    w.sample(b, component, {{"quantile", "0.9"}}, seconds(s.p90));
+    w.sample(b, component, {{"quantile", "0.99"}}, seconds(s.p99));
+    w.sample(b, component, {{"quantile", "0.999"}}, seconds(s.p999));
+  }
+  w.sample(std::string(base) + "_sum", component, {},
+           seconds(s.mean * static_cast<double>(s.count)));
+  w.sample_u(std::string(base) + "_count", component, {}, s.count);
+}
+
+constexpr std::array<TaskState, 5> kStates = {TaskState::PreOperational, TaskState::Stopped,
+                                              TaskState::Running, TaskState::Exception,
+                                              TaskState::FatalError};
+
+bool is(const Report& r, ReportKind k) { return r.kind == k; }
+
+}  // namespace
+
+// --- public helpers ----------------------------------------------------------------------------
+
+ExpositionFormat negotiate_format(std::string_view accept) noexcept {
+  // Accept: application/openmetrics-text;version=1.0.0;q=0.5,text/plain;version=0.0.4;q=0.4,...
+  std::size_t pos = 0;
+  while (pos <= accept.size()) {
+    std::size_t end = accept.find(',', pos);
+    if (end == std::string_view::npos) end = accept.size();
+    std::string_view item = accept.substr(pos, end - pos);
+    while (!item.empty() && (item.front() == ' ' || item.front() == '\t')) item.remove_prefix(1);
+    if (item.starts_with("application/openmetrics-text")) {
+      // A q-value of 0 means "not acceptable".
+      const std::size_t q = item.find("q=");
+      if (q == std::string_view::npos) return ExpositionFormat::OpenMetrics;
+      std::string_view qv = item.substr(q + 2);
+      const std::size_t stop = qv.find(';');
+      if (stop != std::string_view::npos) qv = qv.substr(0, stop);
+      double value = 0;
+      const auto [p, ec] = std::from_chars(qv.data(), qv.data() + qv.size(), value);
+      (void)p;
+      if (ec != std::errc{} || value > 0) return ExpositionFormat::OpenMetrics;
+    }
+    pos = end + 1;
+  }
+  return ExpositionFormat::Prometheus;
+}
+
+const char* content_type(ExpositionFormat format) noexcept {
+  return format == ExpositionFormat::OpenMetrics
+             ? "application/openmetrics-text; version=1.0.0; charset=utf-8"
+             : "text/plain; version=0.0.4; charset=utf-8";
+}
+
+void append_label_value(std::string& out, std::string_view value) {
+  // Fast path: plain ASCII without anything to escape (nearly every name).
+  bool plain = true;
+  for (char c : value) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u >= 0x80 || c == '\\' || c == '"' || c == '\n') {
+      plain = false;
+      break;
+    }
+  }
+  if (plain) {
+    out.append(value);
+    return;
+  }
+  std::size_t i = 0;
+  while (i < value.size()) {
+    const char c = value[i];
+    if (c == '\\') {
+      out += "\\\\";
+    } else if (c == '"') {
+      out += "\\\"";
+    } else if (c == '\n') {
+      out += "\\n";
+    } else if (static_cast<unsigned char>(c) < 0x80) {
+      out += c;
+    } else {
+      const std::size_t n = utf8_length(value, i);
+      if (n == 0) {
+        out += "\xEF\xBF\xBD";  // U+FFFD
+        ++i;
+        continue;
+      }
+      out.append(value.substr(i, n));
+      i += n;
+      continue;
+    }
+    ++i;
+  }
+}
+
+void append_number(std::string& out, double v) {
+  if (std::isnan(v)) {
+    out += "NaN";
+  } else if (std::isinf(v)) {
+    out += v > 0 ? "+Inf" : "-Inf";
+  } else if (v == std::floor(v) && std::fabs(v) < 9.007199254740992e15) {
+    fmt::format_to(std::back_inserter(out), "{}", static_cast<std::int64_t>(v));
+  } else {
+    fmt::format_to(std::back_inserter(out), "{}", v);
+  }
+}
+
+std::string render_metrics(const MetricsSnapshot& snapshot, ExpositionFormat format) {
+  std::string out;
+  render_metrics(out, snapshot, format);
+  return out;
+}
+
+void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFormat format) {
+  out.reserve(out.size() + 512 + snap.reports.components.size() * 9000);
+  Writer w(out, format);
+  const auto& reports = snap.reports.components;
+  const auto each = [&](auto&& pred, auto&& fn) {
+    for (const Report& r : reports) {
+      if (pred(r)) fn(r);
+    }
+  };
+  const auto any = [](const Report&) { return true; };
+  const auto component = [](const Report& r) { return is(r, ReportKind::Component); };
+  const auto has_thread = [](const Report& r) { return r.thread.has_value(); };
+  const auto supervisor = [](const Report& r) { return is(r, ReportKind::Supervisor); };
+  const auto monitor = [](const Report& r) { return is(r, ReportKind::Monitor); };
+  const auto can_node = [](const Report& r) { return is(r, ReportKind::CanNode); };
+  const auto can_group = [](const Report& r) { return is(r, ReportKind::CanGroup); };
+
+  // --- the process ---
+  w.family("vigil_build_info", Type::Info, "vigil's version (value 1).");
+  w.sample("vigil_build_info", {}, {{"version", kVersion}}, 1);
+  w.family("vigil_report_timestamp_seconds", Type::Gauge,
+           "Unix time at which the monitor published the reports served.");
+  w.sample("vigil_report_timestamp_seconds", {}, {}, static_cast<double>(snap.wall_time_ns) / 1e9);
+  w.family("vigil_reports", Type::Gauge, "Reports served, by kind of report.");
+  {
+    std::array<std::uint64_t, 5> n{};
+    for (const Report& r : reports) ++n[static_cast<std::size_t>(r.kind)];
+    for (ReportKind k : {ReportKind::Component, ReportKind::Supervisor, ReportKind::Monitor,
+                         ReportKind::CanNode, ReportKind::CanGroup}) {
+      w.sample_u("vigil_reports", {}, {{"kind", to_string(k)}}, n[static_cast<std::size_t>(k)]);
+    }
+  }
+
+  // --- every report: status and state ---
+  w.family("vigil_component_status", Type::Gauge,
+           "Status of a component (or of the supervisor, monitor, CAN node or group): "
+           "0 OK, 1 WARN, 2 ERROR, 3 STALE.");
+  each(any, [&](const Report& r) {
+    w.sample_u("vigil_component_status", r.name, {{"kind", to_string(r.kind)}},
+               static_cast<std::uint64_t>(r.status.level()));
+  });
+  w.family("vigil_component_state", Type::Gauge,
+           "Lifecycle state: 1 for the current one. Components have one series per state; CAN "
+           "nodes and groups one for their state in words.");
+  each(any, [&](const Report& r) {
+    const char* kind = to_string(r.kind);
+    if (!r.state_label.empty()) {
+      w.sample_u("vigil_component_state", r.name, {{"kind", kind}, {"state", r.state_label}}, 1);
+      return;
+    }
+    for (TaskState s : kStates) {
+      w.sample_u("vigil_component_state", r.name, {{"kind", kind}, {"state", to_string(s)}},
+                 r.state == s ? 1 : 0);
+    }
+  });
+
+  // --- components ---
+  w.family("vigil_component_info", Type::Info,
+           "Placement of a component (value 1): activity, scheduling policy and priority, CPU.");
+  each(component, [&](const Report& r) {
+    const std::string prio = std::to_string(r.priority);
+    const std::string cpu = std::to_string(r.cpu);
+    w.sample("vigil_component_info", r.name,
+             {{"activity", r.activity},
+              {"policy", platform::to_string(r.policy)},
+              {"requested_policy", platform::to_string(r.requested_policy)},
+              {"priority", prio},
+              {"cpu", cpu}},
+             1);
+  });
+  w.family("vigil_component_alive", Type::Gauge,
+           "1 while the component is registered, 0 once it left (reported for a while).");
+  each(component,
+       [&](const Report& r) { w.sample_u("vigil_component_alive", r.name, {}, r.alive); });
+  w.family("vigil_component_realtime_refused", Type::Gauge,
+           "1 when SCHED_FIFO was asked for but refused, and the component runs SCHED_OTHER.");
+  each(component, [&](const Report& r) {
+    w.sample_u("vigil_component_realtime_refused", r.name, {}, r.realtime_refused);
+  });
+  w.family("vigil_component_period_seconds", Type::Gauge,
+           "Configured period of the component; 0 when not periodic.");
+  each(component, [&](const Report& r) {
+    w.sample("vigil_component_period_seconds", r.name, {}, seconds(r.period_ns));
+  });
+  w.family("vigil_component_tasks_on_thread", Type::Gauge,
+           "Alive components that share the component's thread, itself included.");
+  each(component, [&](const Report& r) {
+    w.sample_u("vigil_component_tasks_on_thread", r.name, {}, r.tasks_on_thread);
+  });
+
+  const auto counter = [&](std::string_view name, std::string_view help, auto get) {
+    w.family(name, Type::Counter, help);
+    each(component, [&](const Report& r) { w.sample_u(name, r.name, {}, get(r)); });
+  };
+  counter("vigil_component_cycles_total", "Cycles run (exact, even when samples were dropped).",
+          [](const Report& r) { return r.counters.cycles; });
+  counter("vigil_component_samples_total",
+          "Cycle samples the supervisor received (fewer than cycles when the port dropped some).",
+          [](const Report& r) { return r.samples; });
+  counter("vigil_component_overruns_total", "Cycles that ended after the next release.",
+          [](const Report& r) { return r.counters.overruns; });
+  counter("vigil_component_missed_cycles_total",
+          "Releases skipped or run late because of overruns.",
+          [](const Report& r) { return r.counters.missed_cycles; });
+  w.family("vigil_component_rt_losses_total", Type::Counter,
+           "Real-time losses detected in the component's update, by cause.");
+  each(component, [&](const Report& r) {
+    for (int i = 0; i < kLossCauses; ++i) {
+      w.sample_u("vigil_component_rt_losses_total", r.name,
+                 {{"cause", platform::to_string(static_cast<LossCause>(i))}},
+                 r.counters.losses[static_cast<std::size_t>(i)]);
+    }
+  });
+  counter("vigil_component_exceptions_total", "Exceptions thrown by the component's hooks.",
+          [](const Report& r) { return r.counters.exceptions; });
+  counter("vigil_component_dropped_messages_total",
+          "Messages the component's port dropped because it was full (timing detail only).",
+          [](const Report& r) { return r.counters.dropped; });
+
+  const auto histogram = [&](std::string_view base, std::string_view help, auto pick_buckets,
+                             auto pick_stats) {
+    w.family(base, Type::Histogram, help);
+    each(component, [&](const Report& r) {
+      const ComponentHistograms* h = snap.histograms_of(r);
+      histogram_samples(w, base, r.name, h != nullptr ? &pick_buckets(*h) : nullptr, pick_stats(r));
+    });
+  };
+  histogram(
+      "vigil_component_execution_seconds", "Time spent in the component's on_update(), per cycle.",
+      [](const ComponentHistograms& h) -> const BucketCounts& { return h.execution; },
+      [](const Report& r) -> const StatsSummary& { return r.user_ns; });
+  histogram(
+      "vigil_component_total_seconds",
+      "Time per cycle including supervision (on_update() plus the latest measured overhead).",
+      [](const ComponentHistograms& h) -> const BucketCounts& { return h.total; },
+      [](const Report& r) -> const StatsSummary& { return r.total_ns; });
+  histogram(
+      "vigil_component_wakeup_latency_seconds",
+      "Wake-up latency: start of a cycle minus its scheduled release.",
+      [](const ComponentHistograms& h) -> const BucketCounts& { return h.latency; },
+      [](const Report& r) -> const StatsSummary& { return r.latency_ns; });
+  histogram(
+      "vigil_component_cycle_period_seconds",
+      "Measured period: start-to-start time of consecutive cycles.",
+      [](const ComponentHistograms& h) -> const BucketCounts& { return h.period; },
+      [](const Report& r) -> const StatsSummary& { return r.measured_period_ns; });
+
+  w.family("vigil_component_overhead_ratio", Type::Gauge,
+           "Supervision's share of the component's cycle time (mean overhead / mean total).");
+  each(component, [&](const Report& r) {
+    w.sample("vigil_component_overhead_ratio", r.name, {}, r.overhead_share);
+  });
+  w.family("vigil_component_silence_seconds", Type::Gauge,
+           "Time since the latest cycle of a running component arrived (absent when not running).");
+  each([](const Report& r) { return r.kind == ReportKind::Component && r.silence_ns >= 0; },
+       [&](const Report& r) {
+         w.sample("vigil_component_silence_seconds", r.name, {}, seconds(r.silence_ns));
+       });
+  w.family("vigil_component_port_capacity", Type::Gauge,
+           "Capacity of the component's message port, in messages.");
+  each(component, [&](const Report& r) {
+    w.sample_u("vigil_component_port_capacity", r.name, {}, r.port_capacity);
+  });
+  w.family("vigil_component_port_high_water", Type::Gauge,
+           "Highest occupancy of the component's port seen at a drain, in messages.");
+  each(component, [&](const Report& r) {
+    w.sample_u("vigil_component_port_high_water", r.name, {}, r.port_high_water);
+  });
+
+  // --- the threads' OS counters (components and the monitor) ---
+  const auto thread_counter = [&](std::string_view name, std::string_view help, auto get) {
+    w.family(name, Type::Counter, help);
+    each(has_thread, [&](const Report& r) { w.sample_u(name, r.name, {}, get(*r.thread)); });
+  };
+  thread_counter("vigil_thread_voluntary_switches_total",
+                 "Voluntary context switches of the component's thread (it blocked).",
+                 [](const platform::ThreadStats& t) { return t.voluntary_switches; });
+  thread_counter("vigil_thread_involuntary_switches_total",
+                 "Involuntary context switches of the component's thread (it was preempted).",
+                 [](const platform::ThreadStats& t) { return t.involuntary_switches; });
+  thread_counter("vigil_thread_minor_faults_total", "Minor page faults of the component's thread.",
+                 [](const platform::ThreadStats& t) { return t.minor_faults; });
+  thread_counter("vigil_thread_major_faults_total", "Major page faults of the component's thread.",
+                 [](const platform::ThreadStats& t) { return t.major_faults; });
+  w.family("vigil_thread_cpu_seconds_total", Type::Counter,
+           "CPU time of the component's thread by mode (kernel tick resolution).");
+  each(has_thread, [&](const Report& r) {
+    w.sample("vigil_thread_cpu_seconds_total", r.name, {{"mode", "user"}},
+             seconds(r.thread->user_time_ns));
+    w.sample("vigil_thread_cpu_seconds_total", r.name, {{"mode", "system"}},
+             seconds(r.thread->system_time_ns));
+  });
+  w.family("vigil_thread_primary_seconds_total", Type::Counter,
+           "Xenomai Cobalt: time of the thread in primary mode (0 on Linux).");
+  each(has_thread, [&](const Report& r) {
+    w.sample("vigil_thread_primary_seconds_total", r.name, {}, seconds(r.thread->primary_time_ns));
+  });
+  thread_counter("vigil_thread_mode_switches_total",
+                 "Xenomai Cobalt: switches of the thread to secondary mode (0 on Linux).",
+                 [](const platform::ThreadStats& t) { return t.mode_switches; });
+  w.family("vigil_thread_last_cpu", Type::Gauge, "CPU the component's thread last ran on.");
+  each(has_thread, [&](const Report& r) {
+    w.sample("vigil_thread_last_cpu", r.name, {}, static_cast<double>(r.thread->last_cpu));
+  });
+
+  // --- the supervisor ---
+  w.family("vigil_supervisor_cycles_total", Type::Counter, "Drain cycles of the supervisor.");
+  each(supervisor, [&](const Report& r) {
+    w.sample_u("vigil_supervisor_cycles_total", r.name, {}, r.counters.cycles);
+  });
+  w.family("vigil_supervisor_messages_total", Type::Counter,
+           "Messages the supervisor drained from the components' ports.");
+  each(supervisor, [&](const Report& r) {
+    if (auto n = value_u64(r, "messages"))
+      w.sample_u("vigil_supervisor_messages_total", r.name, {}, *n);
+  });
+  w.family("vigil_supervisor_ports", Type::Gauge, "Ports the supervisor drains.");
+  each(supervisor, [&](const Report& r) {
+    if (auto n = value_u64(r, "ports")) w.sample_u("vigil_supervisor_ports", r.name, {}, *n);
+  });
+  w.family("vigil_supervisor_port_high_water", Type::Gauge,
+           "Highest port occupancy the supervisor saw at a drain, in messages.");
+  each(supervisor, [&](const Report& r) {
+    w.sample_u("vigil_supervisor_port_high_water", r.name, {}, r.port_high_water);
+  });
+  w.family("vigil_supervisor_period_seconds", Type::Gauge, "Period of the supervisor's thread.");
+  each(supervisor, [&](const Report& r) {
+    w.sample("vigil_supervisor_period_seconds", r.name, {}, seconds(r.period_ns));
+  });
+  w.family("vigil_supervisor_drain_seconds", Type::Summary,
+           "Time of one supervisor cycle (draining every port).");
+  each(supervisor, [&](const Report& r) {
+    summary_samples(w, "vigil_supervisor_drain_seconds", r.name, r.total_ns);
+  });
+
+  // --- the monitor ---
+  w.family("vigil_monitor_cycles_total", Type::Counter, "Cycles of the monitor.");
+  each(monitor, [&](const Report& r) {
+    w.sample_u("vigil_monitor_cycles_total", r.name, {}, r.counters.cycles);
+  });
+  w.family("vigil_monitor_period_seconds", Type::Gauge, "Period of the monitor's thread.");
+  each(monitor, [&](const Report& r) {
+    w.sample("vigil_monitor_period_seconds", r.name, {}, seconds(r.period_ns));
+  });
+  w.family("vigil_monitor_cycle_seconds", Type::Summary,
+           "Time of one monitor cycle (checks on every component).");
+  each(monitor, [&](const Report& r) {
+    summary_samples(w, "vigil_monitor_cycle_seconds", r.name, r.total_ns);
+  });
+  w.family("vigil_monitor_components", Type::Gauge, "Components the monitor checked.");
+  each(monitor, [&](const Report& r) {
+    if (auto n = value_u64(r, "components")) w.sample_u("vigil_monitor_components", r.name, {}, *n);
+  });
+  w.family("vigil_monitor_checks", Type::Gauge, "Checks the monitor runs on every component.");
+  each(monitor, [&](const Report& r) {
+    if (auto n = value_u64(r, "checks")) w.sample_u("vigil_monitor_checks", r.name, {}, *n);
+  });
+  w.family("vigil_monitor_thresholds_generation", Type::Gauge,
+           "Generation of the watched threshold file (0 when none is watched).");
+  each(monitor, [&](const Report& r) {
+    if (auto n = value_u64(r, "thresholds_generation")) {
+      w.sample_u("vigil_monitor_thresholds_generation", r.name, {}, *n);
+    }
+  });
+
+  // --- CAN nodes and groups ---
+  w.family("vigil_can_frames_total", Type::Counter,
+           "CAN frames of a node by direction: rx (from the node), tx (to the node).");
+  each(can_node, [&](const Report& r) {
+    const auto rx = value_u64(r, "frames_rx");
+    const auto tx = value_u64(r, "frames_tx");
+    if (rx) w.sample_u("vigil_can_frames_total", r.name, {{"direction", "rx"}}, *rx);
+    if (tx) w.sample_u("vigil_can_frames_total", r.name, {{"direction", "tx"}}, *tx);
+  });
+  w.family("vigil_can_rx_gap_seconds", Type::Summary,
+           "Time between consecutive frames received from a CAN node.");
+  each(can_node,
+       [&](const Report& r) { summary_samples(w, "vigil_can_rx_gap_seconds", r.name, r.user_ns); });
+  w.family("vigil_can_read_seconds", Type::Summary,
+           "Time of the read call that returned a CAN node's frame.");
+  each(can_node, [&](const Report& r) {
+    summary_samples(w, "vigil_can_read_seconds", r.name, r.latency_ns);
+  });
+  w.family("vigil_can_silence_seconds", Type::Gauge,
+           "Time since the latest frame received from a CAN node (absent when never received).");
+  each([](const Report& r) { return r.kind == ReportKind::CanNode && r.silence_ns >= 0; },
+       [&](const Report& r) {
+         w.sample("vigil_can_silence_seconds", r.name, {}, seconds(r.silence_ns));
+       });
+  w.family("vigil_can_group_frames_total", Type::Counter,
+           "CAN frames of a group's nodes, both directions.");
+  each(can_group, [&](const Report& r) {
+    w.sample_u("vigil_can_group_frames_total", r.name, {}, r.counters.cycles);
+  });
+
+  w.end();
+}
+
+}  // namespace vigil::exporter

@@ -1,0 +1,266 @@
+#include "vigil/export/prometheus.hpp"
+
+#include <catch2/catch.hpp>
+#include <set>
+
+#include "export/exposition.hpp"
+#include "monitor/harness.hpp"
+#include "vigil/export/buckets.hpp"
+
+using namespace vigil;
+using namespace vigil::exporter;
+using vigil::test::Exposition;
+using vigil::test::parse_exposition;
+
+namespace {
+
+// Reports of every kind, with names that need escaping, and the aggregator's histograms.
+MetricsSnapshot rich_snapshot() {
+  static test::Harness h;
+  static test::PeriodicProbe fast(h, "fast", kNanosPerMilli);
+  static test::PeriodicProbe odd(h, "we\"ird\\name\nx\xff", 2 * kNanosPerMilli);
+  static bool once = [] {
+    fast.probe.work_ns = 30 * kNanosPerMicro;
+    odd.probe.work_ns = 700 * kNanosPerMicro;
+    for (int i = 0; i < 200; ++i) h.cycle(fast.activity);
+    for (int i = 0; i < 50; ++i) h.cycle(odd.activity);
+    return true;
+  }();
+  (void)once;
+  MetricsSnapshot s;
+  s.reports = h.step();
+  s.histograms = collect_histograms(h.aggregator);
+  s.wall_time_ns = 1'700'000'000'123'456'789;
+  // A thread's OS counters on one component.
+  for (Report& r : s.reports.components) {
+    if (r.name == "fast") {
+      r.thread = platform::ThreadStats{.tid = 42,
+                                       .name = "t",
+                                       .voluntary_switches = 3,
+                                       .involuntary_switches = 4,
+                                       .minor_faults = 5,
+                                       .major_faults = 6,
+                                       .user_time_ns = 1'500'000'000,
+                                       .system_time_ns = 10'000'000};
+    }
+  }
+  Report node;
+  node.kind = ReportKind::CanNode;
+  node.name = "can0/drive_5";
+  node.state_label = "not responding";
+  node.silence_ns = 250 * kNanosPerMilli;
+  node.user_ns = StatsSummary{.count = 10,
+                              .mean = 1e6,
+                              .p50 = 900'000,
+                              .p90 = 1'000'000,
+                              .p99 = 1'100'000,
+                              .p999 = 1'200'000};
+  node.add("frames_rx", "120");
+  node.add("frames_tx", "118");
+  node.merge(StatusLevel::Error, "not responding for 250ms");
+  s.reports.components.push_back(node);
+  Report group;
+  group.kind = ReportKind::CanGroup;
+  group.name = "can group left_arm";
+  group.state_label = "degraded";
+  group.counters.cycles = 238;
+  s.reports.components.push_back(group);
+  return s;
+}
+
+std::set<std::string> family_names(const Exposition& e) {
+  std::set<std::string> out;
+  for (const auto& f : e.families) out.insert(f.name);
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("Label values are escaped and repaired to UTF-8", "[export][prometheus]") {
+  std::string out;
+  append_label_value(out, "a\\b\"c\nd");
+  CHECK(out == R"(a\\b\"c\nd)");
+  out.clear();
+  append_label_value(out, "ok \xc3\xa9 bad \xff end \xe2\x82");
+  CHECK(out == "ok \xc3\xa9 bad \xEF\xBF\xBD end \xEF\xBF\xBD\xEF\xBF\xBD");
+  out.clear();
+  append_label_value(out, "tab\tstays");
+  CHECK(out == "tab\tstays");
+}
+
+TEST_CASE("Numbers are written as the formats want them", "[export][prometheus]") {
+  const auto num = [](double v) {
+    std::string s;
+    append_number(s, v);
+    return s;
+  };
+  CHECK(num(0) == "0");
+  CHECK(num(12345678901234.0) == "12345678901234");
+  CHECK(num(1e-6) == "1e-06");
+  CHECK(num(0.5) == "0.5");
+  CHECK(num(INFINITY) == "+Inf");
+  CHECK(num(-INFINITY) == "-Inf");
+  CHECK(num(NAN) == "NaN");
+  CHECK(std::stod(num(0.1 + 0.2)) == 0.1 + 0.2);  // round-trips
+}
+
+TEST_CASE("The Accept header chooses the format", "[export][prometheus]") {
+  CHECK(negotiate_format("") == ExpositionFormat::Prometheus);
+  CHECK(negotiate_format("text/plain;version=0.0.4") == ExpositionFormat::Prometheus);
+  CHECK(negotiate_format("*/*") == ExpositionFormat::Prometheus);
+  // What Prometheus 2.42 sends.
+  CHECK(negotiate_format("application/openmetrics-text;version=1.0.0,application/"
+                         "openmetrics-text;version=0.0.1;q=0.75,text/plain;version=0.0.4;q=0.5,"
+                         "*/*;q=0.1") == ExpositionFormat::OpenMetrics);
+  CHECK(negotiate_format("text/plain, application/openmetrics-text; version=1.0.0; q=0.5") ==
+        ExpositionFormat::OpenMetrics);
+  CHECK(negotiate_format("application/openmetrics-text;q=0") == ExpositionFormat::Prometheus);
+  CHECK(std::string(content_type(ExpositionFormat::OpenMetrics))
+            .starts_with("application/openmetrics-text; version=1.0.0"));
+  CHECK(std::string(content_type(ExpositionFormat::Prometheus))
+            .starts_with("text/plain; version=0.0.4"));
+}
+
+TEST_CASE("Buckets follow the documented rule, cumulative, +Inf equals the count",
+          "[export][prometheus][buckets]") {
+  RunningStats stats;
+  const std::vector<Nanos> samples = {
+      0,      500,       900,           1'000,          1'400,         2'000,
+      33'000, 7'000'000, 9'999'999'999, 10'000'000'000, Nanos{1} << 41};
+  for (Nanos v : samples) stats.add(v);
+  const BucketCounts b = reduce_to_buckets(stats);
+  CHECK(b.count == samples.size());
+  // The rule: a sample counts under the first boundary >= the upper edge of its bucket.
+  using H = RunningStats::Histogram;
+  for (std::size_t k = 0; k < kBucketBounds; ++k) {
+    std::uint64_t expected = 0;
+    for (Nanos v : samples) {
+      if (v > H::kMaxTrackable) continue;
+      if (H::bucket_highest(H::bucket_index(v)) <= kBucketBoundsNs[k]) ++expected;
+    }
+    INFO("le " << kBucketBoundsNs[k]);
+    CHECK(b.cumulative[k] == expected);
+    if (k > 0) CHECK(b.cumulative[k] >= b.cumulative[k - 1]);
+  }
+  CHECK(b.cumulative[0] == 3);                       // 0, 500, 900 (1000's bucket ends at 1007)
+  CHECK(b.cumulative.back() == samples.size() - 3);  // above 10 s (bucket edge) and 2^41: +Inf only
+  CHECK(b.sum_ns == Approx(stats.mean() * static_cast<double>(stats.count())));
+
+  // A shift moves every edge (total time = user + overhead).
+  RunningStats one;
+  one.add(900);
+  CHECK(reduce_to_buckets(one).cumulative[0] == 1);
+  CHECK(reduce_to_buckets(one, 200).cumulative[0] == 0);
+  CHECK(reduce_to_buckets(one, 200).cumulative[1] == 1);
+  CHECK(reduce_to_buckets(RunningStats{}).count == 0);
+}
+
+TEST_CASE("Every family has HELP and TYPE, in both formats", "[export][prometheus]") {
+  const MetricsSnapshot snap = rich_snapshot();
+  for (const bool om : {false, true}) {
+    INFO((om ? "OpenMetrics" : "0.0.4"));
+    const std::string text =
+        render_metrics(snap, om ? ExpositionFormat::OpenMetrics : ExpositionFormat::Prometheus);
+    const Exposition e = parse_exposition(text, om);  // throws on any unreadable line
+    CHECK(e.eof == om);
+    REQUIRE(e.families.size() > 40);
+    for (const auto& f : e.families) {
+      INFO(f.name);
+      CHECK(f.has_help);
+      CHECK(f.has_type);
+      CHECK(!f.help.empty());
+      CHECK(f.name.starts_with("vigil_"));
+      CHECK(!f.samples.empty());
+      if (f.type == "counter" && !om) CHECK(f.name.ends_with("_total"));
+      if (f.type == "counter" && om) CHECK(!f.name.ends_with("_total"));
+      if (om && f.name.ends_with("_seconds") && f.type != "info") CHECK(f.unit == "seconds");
+      CHECK(f.name.find("_ns") == std::string::npos);  // base units only
+    }
+  }
+}
+
+TEST_CASE("Histograms are cumulative with +Inf equal to the count", "[export][prometheus]") {
+  const MetricsSnapshot snap = rich_snapshot();
+  const Exposition e = parse_exposition(render_metrics(snap, ExpositionFormat::Prometheus), false);
+  int checked = 0;
+  for (const auto& f : e.families) {
+    if (f.type != "histogram") continue;
+    std::map<std::string, std::vector<const test::Sample*>> buckets;
+    std::map<std::string, double> counts;
+    for (const auto& s : f.samples) {
+      const std::string c = s.label("component");
+      if (s.name == f.name + "_bucket") buckets[c].push_back(&s);
+      if (s.name == f.name + "_count") counts[c] = s.value;
+    }
+    for (const auto& [component, bs] : buckets) {
+      INFO(f.name << " " << component);
+      REQUIRE(bs.size() == kBucketBounds + 1);
+      double le = -1, previous = 0;
+      for (const auto* b : bs) {
+        const double this_le = b->label("le") == "+Inf" ? INFINITY : std::stod(b->label("le"));
+        CHECK(this_le > le);
+        CHECK(b->value >= previous);
+        le = this_le;
+        previous = b->value;
+      }
+      CHECK(bs.back()->label("le") == "+Inf");
+      CHECK(bs.back()->value == counts.at(component));
+      ++checked;
+    }
+  }
+  CHECK(checked >= 8);  // 4 timing families x 2 components
+
+  // The fast component's execution time (30 us per cycle) sits under le=3e-05 or the next one.
+  const auto* exec = e.find("vigil_component_execution_seconds");
+  REQUIRE(exec != nullptr);
+  double at_20us = -1, at_50us = -1, count = -1;
+  for (const auto& s : exec->samples) {
+    if (s.label("component") != "fast") continue;
+    if (s.label("le") == "2e-05") at_20us = s.value;
+    if (s.label("le") == "5e-05") at_50us = s.value;
+    if (s.name.ends_with("_count")) count = s.value;
+  }
+  CHECK(at_20us == 0);
+  CHECK(count >= 199);
+  CHECK(at_50us == count);
+}
+
+TEST_CASE("Label values round-trip through the exposition", "[export][prometheus]") {
+  const MetricsSnapshot snap = rich_snapshot();
+  const Exposition e = parse_exposition(render_metrics(snap, ExpositionFormat::OpenMetrics), true);
+  const auto* status = e.find("vigil_component_status");
+  REQUIRE(status != nullptr);
+  std::set<std::string> names;
+  for (const auto& s : status->samples) names.insert(s.label("component"));
+  CHECK(names.count("we\"ird\\name\nx\xEF\xBF\xBD") == 1);
+  CHECK(names.count("can0/drive_5") == 1);
+  CHECK(names.count("vigil.supervisor") == 1);
+  CHECK(names.count("vigil.monitor") == 1);
+  for (const auto& s : status->samples) {
+    if (s.label("component") == "can0/drive_5") CHECK(s.value == 2);
+  }
+  const auto* frames = e.find("vigil_can_frames");  // OpenMetrics: the counter's base name
+  REQUIRE(frames != nullptr);
+  REQUIRE(frames->samples.size() == 2);
+  CHECK(frames->samples[0].label("direction") == "rx");
+  CHECK(frames->samples[0].value == 120);
+  const auto* cpu = e.find("vigil_thread_cpu_seconds");
+  REQUIRE(cpu != nullptr);
+  CHECK(cpu->samples.at(0).value == 1.5);
+  const auto* build = e.find("vigil_build");
+  REQUIRE(build != nullptr);
+  CHECK(build->type == "info");
+}
+
+TEST_CASE("An empty snapshot is a valid exposition without empty families",
+          "[export][prometheus]") {
+  for (const bool om : {false, true}) {
+    const std::string text = render_metrics(
+        MetricsSnapshot{}, om ? ExpositionFormat::OpenMetrics : ExpositionFormat::Prometheus);
+    const Exposition e = parse_exposition(text, om);
+    CHECK(family_names(e) == std::set<std::string>{om ? "vigil_build" : "vigil_build_info",
+                                                   "vigil_report_timestamp_seconds",
+                                                   "vigil_reports"});
+    CHECK(e.eof == om);
+  }
+}
