@@ -13,6 +13,8 @@ packages=(
   libboost-dev libfmt-dev libyaml-cpp-dev libcpp-httplib-dev libcli11-dev
   # tests and benchmarks
   catch2 libbenchmark-dev can-utils rt-tests
+  # the LTTng-UST comparison row of benches/task (tracepoint provider and session control)
+  liblttng-ust-dev lttng-tools
 )
 
 missing=()
