@@ -314,7 +314,7 @@ void sniffer_per_frame(benchmark::State& state) {
   const std::vector<can::Frame> frames = log_frames();
   if (frames.empty()) {
     state.SkipWithError(can_log().problem().empty() ? "not available: the capture has no frame"
-                                                     : can_log().problem().c_str());
+                                                    : can_log().problem().c_str());
     return;
   }
   CanFloor floor(frames);
@@ -365,7 +365,7 @@ void can_supervisor(benchmark::State& state) {
   const std::vector<can::Frame> frames = log_frames();
   if (frames.empty()) {
     state.SkipWithError(can_log().problem().empty() ? "not available: the capture has no frame"
-                                                     : can_log().problem().c_str());
+                                                    : can_log().problem().c_str());
     return;
   }
   const auto n = static_cast<std::size_t>(state.range(0));

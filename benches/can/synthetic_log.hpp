@@ -175,7 +175,8 @@ inline SyntheticCanLog write_synthetic_j1939_log(const std::filesystem::path& pa
   std::vector<std::uint32_t> ids;
   for (const auto& fr : frames) {
     const std::int64_t us = fr.t_ns / 1000;
-    std::fprintf(f, "(%lld.%06lld) can0 %08X#", static_cast<long long>(kEpochSeconds + us / 1'000'000),
+    std::fprintf(f, "(%lld.%06lld) can0 %08X#",
+                 static_cast<long long>(kEpochSeconds + us / 1'000'000),
                  static_cast<long long>(us % 1'000'000), fr.id);
     for (std::uint8_t i = 0; i < fr.length; ++i) std::fprintf(f, "%02X", fr.data[i]);
     std::fputc('\n', f);

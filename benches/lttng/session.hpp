@@ -57,8 +57,9 @@ class LttngSession {
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
     while (!enabled()) {
       if (std::chrono::steady_clock::now() > deadline) {
-        return fail("the session started but did not enable this process's tracepoints within "
-                    "10 s");
+        return fail(
+            "the session started but did not enable this process's tracepoints within "
+            "10 s");
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }

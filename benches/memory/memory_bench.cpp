@@ -100,7 +100,8 @@ void supervised_component(benchmark::State& state) {
     const std::size_t rss0 = rss_bytes();
     state.ResumeTiming();
     for (std::size_t i = 0; i < n; ++i) {
-      components.push_back(std::make_unique<Supervised>("component_" + std::to_string(i), registry));
+      components.push_back(
+          std::make_unique<Supervised>("component_" + std::to_string(i), registry));
       for (int k = 0; k < 10; ++k) (void)components.back()->activity.step();
     }
     (void)supervisor.step();
@@ -144,8 +145,7 @@ void can_sniffer(benchmark::State& state) {
     rss = static_cast<double>(rss_bytes() - rss0);
   }
   report_memory(state, "bytes/sniffer", per, rss);
-  state.counters["port_sizeof_bytes"] =
-      static_cast<double>(sizeof(Port<can::CanMessage, 1024>));
+  state.counters["port_sizeof_bytes"] = static_cast<double>(sizeof(Port<can::CanMessage, 1024>));
 }
 
 void can_node(benchmark::State& state) {

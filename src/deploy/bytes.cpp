@@ -15,10 +15,8 @@ struct Unit {
   std::string_view name;
   std::uint64_t bytes;
 };
-constexpr std::array<Unit, 4> kUnits{{{"B", 1},
-                                      {"KiB", 1024},
-                                      {"MiB", 1024 * 1024},
-                                      {"GiB", std::uint64_t{1024} * 1024 * 1024}}};
+constexpr std::array<Unit, 4> kUnits{
+    {{"B", 1}, {"KiB", 1024}, {"MiB", 1024 * 1024}, {"GiB", std::uint64_t{1024} * 1024 * 1024}}};
 
 /// The binary unit a decimal-looking one was probably meant as, or "".
 std::string_view hint_for(std::string_view unit) {
@@ -30,7 +28,8 @@ std::string_view hint_for(std::string_view unit) {
       unit == "mib") {
     return "MiB";
   }
-  if (unit == "G" || unit == "g" || unit == "GB" || unit == "gb" || unit == "GIB" || unit == "gib") {
+  if (unit == "G" || unit == "g" || unit == "GB" || unit == "gb" || unit == "GIB" ||
+      unit == "gib") {
     return "GiB";
   }
   if (unit == "b" || unit == "bytes" || unit == "byte") return "B";
@@ -68,17 +67,19 @@ expected<std::size_t, std::string> parse_bytes(std::string_view text) {
     if (dot) scale *= 10;
   }
   if (!digits) {
-    return unexpected(fmt::format("{} is not a size: write a number and a unit (B, KiB, MiB, GiB), "
-                                  "e.g. 512KiB",
-                                  quoted));
+    return unexpected(
+        fmt::format("{} is not a size: write a number and a unit (B, KiB, MiB, GiB), "
+                    "e.g. 512KiB",
+                    quoted));
   }
   while (i < text.size() && (text[i] == ' ' || text[i] == '\t')) ++i;
   std::string_view unit = text.substr(i);
   while (!unit.empty() && (unit.back() == ' ' || unit.back() == '\t')) unit.remove_suffix(1);
   if (unit.empty()) {
-    return unexpected(fmt::format("{} has no unit: write it with B, KiB, MiB or GiB (e.g. {}B or "
-                                  "64KiB)",
-                                  quoted, text));
+    return unexpected(
+        fmt::format("{} has no unit: write it with B, KiB, MiB or GiB (e.g. {}B or "
+                    "64KiB)",
+                    quoted, text));
   }
   const Unit* u = nullptr;
   for (const auto& k : kUnits) {
@@ -87,12 +88,12 @@ expected<std::size_t, std::string> parse_bytes(std::string_view text) {
   if (u == nullptr) {
     const std::string_view hint = hint_for(unit);
     if (!hint.empty()) {
-      return unexpected(fmt::format("{}: unknown unit '{}'; did you mean '{}' (sizes use binary "
-                                    "units: 1KiB = 1024 bytes)?",
-                                    quoted, unit, hint));
+      return unexpected(
+          fmt::format("{}: unknown unit '{}'; did you mean '{}' (sizes use binary "
+                      "units: 1KiB = 1024 bytes)?",
+                      quoted, unit, hint));
     }
-    return unexpected(
-        fmt::format("{}: unknown unit '{}' (known: B, KiB, MiB, GiB)", quoted, unit));
+    return unexpected(fmt::format("{}: unknown unit '{}' (known: B, KiB, MiB, GiB)", quoted, unit));
   }
   if (whole != 0 && u->bytes > std::numeric_limits<std::uint64_t>::max() / whole) {
     return unexpected(fmt::format("{} is too large", quoted));
@@ -117,8 +118,7 @@ std::string format_bytes(std::size_t bytes) {
   return fmt::format("{}B", bytes);
 }
 
-std::size_t optional_stack(const config::Node& parent, std::string_view key,
-                           std::size_t fallback) {
+std::size_t optional_stack(const config::Node& parent, std::string_view key, std::size_t fallback) {
   const config::Node n = parent[key];
   if (!n.defined()) return fallback;
   if (n.is_null() || !n.is_scalar()) {
@@ -129,7 +129,7 @@ std::size_t optional_stack(const config::Node& parent, std::string_view key,
   if (text == "system") return 0;
   auto bytes = parse_bytes(text);
   if (!bytes) {
-    n.error(bytes.error() + "; or 'system' for the system's default stack");
+    n.error(bytes.error());
     return fallback;
   }
   if (*bytes < kMinStack || *bytes > kMaxStack) {

@@ -139,9 +139,8 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
   }
 
   if (const config::Node s = root["supervision"]; s.defined()) {
-    s.reject_unknown_keys(
-        {"supervisor_period", "monitor_period", "ewma_weight", "thresholds", "lock_memory",
-         "supervisor_stack", "monitor_stack"});
+    s.reject_unknown_keys({"supervisor_period", "monitor_period", "ewma_weight", "thresholds",
+                           "lock_memory", "supervisor_stack", "monitor_stack"});
     auto& sp = d.supervision;
     sp.supervisor_period_ns =
         s.optional_period("supervisor_period", sp.supervisor_period_ns,

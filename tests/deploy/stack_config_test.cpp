@@ -68,7 +68,8 @@ supervision: {supervisor_stack: 128KiB, monitor_stack: 1.5MiB}
   CHECK(d->supervision.monitor_stack_bytes == 1536 * 1024);
 
   auto defaults = load_deployment_string(
-      "activities: [{name: a, period: 1ms}]\ncomponents: [{name: x, type: test.nop, activity: a}]\n",
+      "activities: [{name: a, period: 1ms}]\ncomponents: [{name: x, type: test.nop, activity: "
+      "a}]\n",
       "s.yaml", nop_factory());
   REQUIRE(defaults.has_value());
   CHECK(defaults->supervision.supervisor_stack_bytes == platform::kDefaultStackBytes);

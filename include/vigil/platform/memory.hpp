@@ -17,7 +17,7 @@ struct RealtimeSetupOptions {
   /// Bytes of heap to allocate, touch and give back to malloc, which then keeps them
   /// (M_TRIM_THRESHOLD and M_MMAP_MAX are set so that glibc neither returns nor mmaps them).
   /// 4 MiB: more than a deployment of a few dozen components allocates after start (the demo
-  /// allocates < 1 MiB more), so later allocations are served from memory already resident.
+  /// allocates about 1 MB), so later allocations are served from memory already resident.
   /// Under mlockall the heap's later growth is locked and made resident by the kernel at the
   /// moment it grows, so a smaller value costs a brk() call, never a page fault in a cycle.
   /// Every prefaulted byte stays resident (and locked) for the life of the process.
