@@ -3,9 +3,10 @@
 // Measured as the growth of the heap in use (glibc's mallinfo2: bytes in allocated chunks,
 // arenas and mmapped blocks together) between before and after adding N of them, divided by N.
 // Under mlockall every allocated byte is resident and locked, so this is what each costs in
-// locked RAM; without locking, the resident part is only what was touched (counter
-// `rss_bytes`: growth of VmRSS per item, for comparison). Thread stacks are not in these rows
-// (activities share threads; a thread costs its stack: docs/design/memory.md).
+// locked RAM (without locking only the touched pages are resident; that is not measured here:
+// from one repetition to the next the allocator reuses pages already resident). Thread stacks
+// are not in these rows (activities share threads; a thread costs its stack:
+// docs/design/memory.md).
 //
 // memory/supervised_component: N components (Task<Derived> with an empty on_update, its port of
 //   256 messages in the registry, a ManualActivity) that each ran 10 cycles, then one supervisor
@@ -22,7 +23,6 @@
 //   aggregated (one id slot and one node slot each).
 #include <malloc.h>
 
-#include <fstream>
 #include <memory>
 #include <string>
 #include <vector>
@@ -49,14 +49,6 @@ std::size_t heap_in_use() {
   return mi.uordblks + mi.hblkhd;
 }
 
-/// Resident set size of the process, in bytes.
-std::size_t rss_bytes() {
-  std::ifstream statm("/proc/self/statm");
-  std::size_t pages = 0;
-  std::size_t resident = 0;
-  statm >> pages >> resident;
-  return resident * static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
-}
 
 class Component : public Task<Component> {
  public:
@@ -75,15 +67,10 @@ struct Supervised {
   ManualActivity activity;
 };
 
-void report_memory(benchmark::State& state, const char* unit, double bytes, double rss) {
-  report(state, unit, bytes);
-  state.counters["rss_bytes"] = rss;
-}
 
 void supervised_component(benchmark::State& state) {
   const auto n = static_cast<std::size_t>(state.range(0));
   double per = 0;
-  double rss_per = 0;
   for (auto _ : state) {
     state.PauseTiming();
     Registry<Message> registry;
@@ -97,7 +84,6 @@ void supervised_component(benchmark::State& state) {
     std::vector<std::unique_ptr<Supervised>> components;
     components.reserve(n);
     const std::size_t heap0 = heap_in_use();
-    const std::size_t rss0 = rss_bytes();
     state.ResumeTiming();
     for (std::size_t i = 0; i < n; ++i) {
       components.push_back(
@@ -108,11 +94,10 @@ void supervised_component(benchmark::State& state) {
     (void)monitor.step();
     state.PauseTiming();
     per = static_cast<double>(heap_in_use() - heap0) / static_cast<double>(n);
-    rss_per = static_cast<double>(rss_bytes() - rss0) / static_cast<double>(n);
     components.clear();
     state.ResumeTiming();
   }
-  report_memory(state, "bytes/component", per, rss_per);
+  report(state, "bytes/component", per);
   const double sizeof_bytes =
       static_cast<double>(sizeof(Port<Message, kDefaultPortCapacity>) + 4 * sizeof(RunningStats) +
                           sizeof(ComponentSnapshot) + sizeof(Supervised));
@@ -122,8 +107,8 @@ void supervised_component(benchmark::State& state) {
 void port_size(benchmark::State& state) {
   for (auto _ : state) {
   }
-  report_memory(state, "bytes/port (sizeof)",
-                static_cast<double>(sizeof(Port<Message, kDefaultPortCapacity>)), 0);
+  report(state, "bytes/port (sizeof)",
+         static_cast<double>(sizeof(Port<Message, kDefaultPortCapacity>)));
   state.counters["message_bytes"] = static_cast<double>(sizeof(Message));
   state.counters["capacity"] = static_cast<double>(kDefaultPortCapacity);
 }
@@ -131,27 +116,23 @@ void port_size(benchmark::State& state) {
 #ifdef VIGIL_BENCH_HAVE_CAN
 void can_sniffer(benchmark::State& state) {
   double per = 0;
-  double rss = 0;
   for (auto _ : state) {
     can::CanRegistry registry;
     can::CanAggregator aggregator(registry);
     can::CanSupervisor supervisor(registry.ports(), aggregator);
     (void)supervisor.step();
     const std::size_t heap0 = heap_in_use();
-    const std::size_t rss0 = rss_bytes();
     auto sniffer = std::make_unique<can::Sniffer<1024>>(registry, "bus0");
     (void)supervisor.step();
     per = static_cast<double>(heap_in_use() - heap0);
-    rss = static_cast<double>(rss_bytes() - rss0);
   }
-  report_memory(state, "bytes/sniffer", per, rss);
+  report(state, "bytes/sniffer", per);
   state.counters["port_sizeof_bytes"] = static_cast<double>(sizeof(Port<can::CanMessage, 1024>));
 }
 
 void can_node(benchmark::State& state) {
   const auto n = static_cast<std::uint32_t>(state.range(0));
   double per = 0;
-  double rss = 0;
   for (auto _ : state) {
     can::CanRegistry registry;
     can::CanAggregator aggregator(registry);
@@ -159,7 +140,6 @@ void can_node(benchmark::State& state) {
     can::Sniffer<1024> sniffer(registry, "bus0", {.node_map = can::NodeMap::canopen()});
     (void)supervisor.step();
     const std::size_t heap0 = heap_in_use();
-    const std::size_t rss0 = rss_bytes();
     Nanos t = platform::now_ns();
     for (int round = 0; round < 4; ++round) {  // several frames per node: gaps are measured
       for (std::uint32_t node = 1; node <= n; ++node) {
@@ -171,9 +151,8 @@ void can_node(benchmark::State& state) {
       (void)supervisor.step();
     }
     per = static_cast<double>(heap_in_use() - heap0) / n;
-    rss = static_cast<double>(rss_bytes() - rss0) / n;
   }
-  report_memory(state, "bytes/node (rx, 1 id)", per, rss);
+  report(state, "bytes/node (rx, 1 id)", per);
 }
 #else
 void can_sniffer(benchmark::State& state) {
