@@ -49,7 +49,6 @@ std::size_t heap_in_use() {
   return mi.uordblks + mi.hblkhd;
 }
 
-
 class Component : public Task<Component> {
  public:
   Component(std::string name, Registry<Message>& registry) : Task(std::move(name), {}, registry) {}
@@ -66,7 +65,6 @@ struct Supervised {
   Component task;
   ManualActivity activity;
 };
-
 
 void supervised_component(benchmark::State& state) {
   const auto n = static_cast<std::size_t>(state.range(0));
