@@ -16,6 +16,8 @@ packages=(
   # the dashboard's charts (embedded at build time) and the HTTP end-to-end tests: a real
   # browser, Prometheus (and promtool), the OpenMetrics parser, ss
   libjs-chart.js chromium prometheus python3-prometheus-client iproute2
+  # the LTTng-UST comparison row of benches/task (tracepoint provider and session control)
+  liblttng-ust-dev lttng-tools
 )
 
 missing=()

@@ -1,21 +1,24 @@
 // CAN benchmarks.
 //
-// can/candump_parse: vigil's CandumpReader reading every frame of a real candump log (open +
+// can/candump_parse: vigil's CandumpReader reading every frame of a candump log (open +
 // read + parse, from the page cache), next to can-utils' log2asc converting the same file to
 // /dev/null, timed in the same iteration (order alternating). The peer is timed from spawn to
 // exit (posix_spawn + wait4): that includes its process start (~1 ms), which is what a user
 // running it pays. Value = lines/s of vigil; floor = lines/s of log2asc (medians over the
 // iterations); ratio = how many times faster vigil is, median of per-iteration ratios (goal >= 3).
-// The log is VIGIL_BENCH_CAN_LOG, or the shared capture
-// ../shared/data/can/j1939_truck_candump-2022-03-29.log; log2asc is VIGIL_BENCH_LOG2ASC or the one
-// found at configure time. Without either the benchmark reports an error
-// ("not available" in benches/run).
+//
+// The capture: VIGIL_BENCH_CAN_LOG when set (a real `candump -l` log), otherwise one generated at
+// start into a temporary file (can/synthetic_log.hpp: 90 s of a J1939 bus, ~36,000 frames,
+// periodic groups with jitter and drift, requests and transport sessions), removed at exit; the
+// context line "vigil.can_log" says which. log2asc is VIGIL_BENCH_LOG2ASC or the one found at
+// configure time; without it the comparison row is "not available".
 //
 // can/sniffer_per_frame and can/supervisor: see their comments below (they report themselves
 // unavailable when include/vigil/can/sniffer.hpp does not exist).
 #include <spawn.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>
@@ -24,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "can/synthetic_log.hpp"
 #include "support/bench_support.hpp"
 #include "vigil/can/log/candump.hpp"
 #if __has_include("vigil/can/sniffer.hpp")
@@ -43,13 +47,61 @@ std::string env_or(const char* var, const char* fallback) {
   return v != nullptr && *v != '\0' ? std::string(v) : std::string(fallback);
 }
 
-std::string log_path() {
-#ifdef VIGIL_BENCH_CAN_DATA
-  return env_or("VIGIL_BENCH_CAN_LOG", VIGIL_BENCH_CAN_DATA);
-#else
-  return env_or("VIGIL_BENCH_CAN_LOG", "");
-#endif
+/// The capture every CAN benchmark reads: VIGIL_BENCH_CAN_LOG, or a generated one.
+class CanLogSource {
+ public:
+  CanLogSource() {
+    if (const char* v = std::getenv("VIGIL_BENCH_CAN_LOG"); v != nullptr && *v != '\0') {
+      path_ = v;
+      if (!std::ifstream(path_).good()) {
+        problem_ = "not available: VIGIL_BENCH_CAN_LOG=" + path_ + " cannot be read";
+      }
+      description_ = "VIGIL_BENCH_CAN_LOG=" + path_;
+      return;
+    }
+    char name[] = "/tmp/vigil-bench-can-XXXXXX.log";
+    const int fd = mkstemps(name, 4);
+    if (fd < 0) {
+      problem_ = "not available: cannot create a temporary file for the generated capture";
+      return;
+    }
+    ::close(fd);
+    path_ = name;
+    generated_ = true;
+    const SyntheticCanLog log = write_synthetic_j1939_log(path_);
+    if (log.frames == 0) {
+      problem_ = "not available: cannot write the generated capture to " + path_;
+      return;
+    }
+    description_ = "generated (benches/can/synthetic_log.hpp): " + std::to_string(log.frames) +
+                   " frames, " + std::to_string(log.ids) + " ids, " +
+                   std::to_string(static_cast<int>(log.seconds)) +
+                   " s of a J1939 bus; set VIGIL_BENCH_CAN_LOG for a real capture";
+  }
+  ~CanLogSource() {
+    if (generated_) std::remove(path_.c_str());
+  }
+  CanLogSource(const CanLogSource&) = delete;
+  CanLogSource& operator=(const CanLogSource&) = delete;
+
+  [[nodiscard]] const std::string& path() const { return path_; }
+  /// Empty when the capture can be read; else the reason, for SkipWithError.
+  [[nodiscard]] const std::string& problem() const { return problem_; }
+  [[nodiscard]] const std::string& description() const { return description_; }
+
+ private:
+  std::string path_;
+  std::string problem_;
+  std::string description_;
+  bool generated_ = false;
+};
+
+const CanLogSource& can_log() {
+  static const CanLogSource source;
+  return source;
 }
+
+std::string log_path() { return can_log().path(); }
 
 std::string log2asc_path() {
 #ifdef VIGIL_BENCH_LOG2ASC
@@ -104,12 +156,13 @@ Nanos run_log2asc(const std::string& exe, const std::string& path,
 void candump_parse(benchmark::State& state) {
   const std::string path = log_path();
   const std::string exe = log2asc_path();
-  if (path.empty() || !std::ifstream(path).good()) {
-    state.SkipWithError("CAN log not found (set VIGIL_BENCH_CAN_LOG)");
+  if (!can_log().problem().empty()) {
+    state.SkipWithError(can_log().problem().c_str());
     return;
   }
   if (exe.empty()) {
-    state.SkipWithError("log2asc not found (install can-utils or set VIGIL_BENCH_LOG2ASC)");
+    state.SkipWithError(
+        "not available: log2asc is not installed (can-utils; or set VIGIL_BENCH_LOG2ASC)");
     return;
   }
   const double lines = static_cast<double>(count_lines(path));
@@ -166,10 +219,10 @@ namespace {
 #if __has_include("vigil/can/sniffer.hpp")
 // can/sniffer_per_frame: what a CAN I/O component pays per frame it reads. Subject: two clock
 // reads around the (empty) driver call, then Sniffer::on_read (J1939 node map, a filter that
-// evaluates bus, format and node range and accepts every frame of the log, both exact count
+// evaluates bus, format and node range and accepts every frame of the capture, both exact count
 // tables, one push of the FrameRecord). Floor: the same two clock reads around the same empty
 // call and one push of the same CanMessage into a boost spsc_queue of the sniffer port's
-// capacity. Frames cycle through the real log; batches of 200 (< the port's 1024), alternating
+// capacity. Frames cycle through the capture; batches of 200 (< the port's 1024), alternating
 // with the floor, after each poll of a consumer popping both every 10 ms (as for Task).
 // Value = median ns per frame; ratio = median of per-batch subject/floor (goal <= 1.5, with the
 // filter; filter:0, no filter installed, shows what the filter's guard and evaluation cost).
@@ -260,7 +313,8 @@ void sniffer_per_frame(benchmark::State& state) {
   const bool filtered = state.range(0) != 0;
   const std::vector<can::Frame> frames = log_frames();
   if (frames.empty()) {
-    state.SkipWithError("CAN log not found (set VIGIL_BENCH_CAN_LOG)");
+    state.SkipWithError(can_log().problem().empty() ? "not available: the capture has no frame"
+                                                    : can_log().problem().c_str());
     return;
   }
   CanFloor floor(frames);
@@ -310,7 +364,8 @@ void sniffer_per_frame(benchmark::State& state) {
 void can_supervisor(benchmark::State& state) {
   const std::vector<can::Frame> frames = log_frames();
   if (frames.empty()) {
-    state.SkipWithError("CAN log not found (set VIGIL_BENCH_CAN_LOG)");
+    state.SkipWithError(can_log().problem().empty() ? "not available: the capture has no frame"
+                                                    : can_log().problem().c_str());
     return;
   }
   const auto n = static_cast<std::size_t>(state.range(0));
@@ -394,4 +449,10 @@ BENCHMARK(vigil::bench::candump_parse)
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond);
 
-int main(int argc, char** argv) { return vigil::bench::run_main(argc, argv); }
+int main(int argc, char** argv) {
+  return vigil::bench::run_main(argc, argv, [] {
+    benchmark::AddCustomContext("vigil.can_log", vigil::bench::can_log().problem().empty()
+                                                     ? vigil::bench::can_log().description()
+                                                     : vigil::bench::can_log().problem());
+  });
+}

@@ -249,7 +249,11 @@ inline std::string apply_fifo_from_env() {
 }
 
 /// Registers the context (CPUs used) and runs the benchmarks; the measuring thread is pinned.
-inline int run_main(int argc, char** argv) {
+/// `before` runs first, before the thread is pinned and made SCHED_FIFO (processes it starts
+/// then inherit neither); `after` runs once the benchmarks have run.
+inline int run_main(int argc, char** argv, const std::function<void()>& before = {},
+                    const std::function<void()>& after = {}) {
+  if (before) before();
   const int cpu = measure_cpu();
   const bool pinned = pin_to_cpu(cpu);
   benchmark::AddCustomContext("vigil.fifo", apply_fifo_from_env());
@@ -259,6 +263,7 @@ inline int run_main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();
+  if (after) after();
   benchmark::Shutdown();
   return 0;
 }

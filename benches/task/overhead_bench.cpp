@@ -13,9 +13,20 @@
 // alternates), timing each batch with two clock reads; 200 < 256 so no push fails. The
 // iteration time reported is the subject's mean cycle time; counters carry the floor's, and
 // the ratio subject / floor of the repetition. The "port full" variants do not wait: the
-// queues stay full and every push fails (dropped and counted), the other case users meet.
+// the queues stay full and every push fails (dropped and counted), the other case users meet.
+//
+// Against what users pick instead (when built with liblttng-ust-dev): the same empty cycle traced
+// with two LTTng-UST tracepoints, a start and an end carrying the cycle number (LTTng timestamps
+// every event itself), as a tracing user instruments a loop, under an active session this
+// program starts and ends itself (benches/lttng/session.hpp): `lttng_ust_2_tracepoints` against
+// the floor, and `supervised_vs_lttng`, the default supervised cycle (Task, no detector) with the
+// traced cycle as its reference, in the same iteration (ratio < 1: supervision costs less than
+// tracing the loop). When no session can be made the rows say why. VIGIL_BENCH_LTTNG=0 skips them
+// without touching LTTng.
 #include <algorithm>
 #include <array>
+#include <cstdio>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -24,6 +35,11 @@
 #include "vigil/platform/rt_loss.hpp"
 #include "vigil/task/component_supervisor.hpp"
 #include "vigil/task/task.hpp"
+
+#ifdef VIGIL_BENCH_LTTNG
+#include "lttng/session.hpp"
+#include "lttng/vigil_bench_tp.h"
+#endif
 
 namespace vigil::bench {
 namespace {
@@ -101,6 +117,32 @@ struct GuardSubject {
   ComponentSupervisor sup;
 };
 
+#ifdef VIGIL_BENCH_LTTNG
+LttngSession& lttng_session() {
+  static LttngSession session;
+  return session;
+}
+bool lttng_wanted() {
+  const char* v = std::getenv("VIGIL_BENCH_LTTNG");
+  return v == nullptr || std::string(v) != "0";
+}
+
+// The cycle a tracing user writes: a tracepoint at the start and one at the end of the body.
+struct LttngSubject {
+  [[gnu::noinline]] void cycle() noexcept {
+    const unsigned long c = ++cycles;
+    lttng_ust_tracepoint(vigil_bench, cycle_start, c);
+    empty_update();
+    lttng_ust_tracepoint(vigil_bench, cycle_end, c);
+  }
+  Poller::Drain drain() {
+    return [](Message*, std::size_t) { return std::size_t{0}; };
+  }
+  std::uint64_t dropped() const { return 0; }
+  unsigned long cycles = 0;
+};
+#endif
+
 template <class S>
 Nanos run_batch(S& s) {
   const Nanos t0 = platform::now_ns();
@@ -113,9 +155,10 @@ void fill_port(S& s) {
   for (int i = 0; i < static_cast<int>(kDefaultPortCapacity) + 8; ++i) s.cycle();
 }
 
-template <class Subject, class... Args>
-void paired(benchmark::State& state, bool full, double goal_ratio_max, Args... args) {
-  Floor floor;
+// Times `Subject` against `Reference` (the floor unless said otherwise) in alternating batches.
+template <class Reference, class Subject, class... Args>
+void paired_with(benchmark::State& state, bool full, double goal_ratio_max, Args... args) {
+  Reference floor;
   Subject subject(args...);
   Poller poller({floor.drain(), subject.drain()});
 
@@ -168,6 +211,11 @@ void paired(benchmark::State& state, bool full, double goal_ratio_max, Args... a
   state.counters["dropped_per_cycle"] = static_cast<double>(drops) / cycles;
 }
 
+template <class Subject, class... Args>
+void paired(benchmark::State& state, bool full, double goal_ratio_max, Args... args) {
+  paired_with<Floor, Subject>(state, full, goal_ratio_max, args...);
+}
+
 void register_all() {
   struct Setting {
     const char* name;
@@ -205,6 +253,31 @@ void register_all() {
       [](benchmark::State& st) { paired<TaskSubject>(st, true, 0, Detectors::None, kPeriod); });
   add("task/overhead/update_guard/port_full", kFullBatchesPerRep,
       [](benchmark::State& st) { paired<GuardSubject>(st, true, 0); });
+
+  // Against LTTng-UST. The second row's value is the supervised cycle and its reference column
+  // the traced one; goal: supervision costs no more than tracing the loop.
+#ifdef VIGIL_BENCH_LTTNG
+  auto lttng_or_skip = [](benchmark::State& st) {
+    if (lttng_session().active()) return true;
+    const std::string why = "not available: LTTng session: " + lttng_session().why();
+    st.SkipWithError(why.c_str());
+    return false;
+  };
+  add("task/overhead/lttng_ust_2_tracepoints", kBatchesPerRep, [=](benchmark::State& st) {
+    if (lttng_or_skip(st)) paired<LttngSubject>(st, false, 0);
+  });
+  add("task/overhead/supervised_vs_lttng", kBatchesPerRep, [=](benchmark::State& st) {
+    if (lttng_or_skip(st)) {
+      paired_with<LttngSubject, TaskSubject>(st, false, 1.0, Detectors::None, kPeriod);
+    }
+  });
+#else
+  auto skip = [](benchmark::State& st) {
+    st.SkipWithError("not available: built without liblttng-ust-dev (scripts/setup.sh)");
+  };
+  add("task/overhead/lttng_ust_2_tracepoints", kBatchesPerRep, skip);
+  add("task/overhead/supervised_vs_lttng", kBatchesPerRep, skip);
+#endif
 }
 
 }  // namespace
@@ -215,5 +288,26 @@ int main(int argc, char** argv) {
                                                        ? "linked"
                                                        : "not linked");
   vigil::bench::register_all();
+#ifdef VIGIL_BENCH_LTTNG
+  using vigil::bench::lttng_session;
+  auto before = [] {
+    // Before the thread is pinned and made FIFO: a session daemon started here inherits neither.
+    if (!vigil::bench::lttng_wanted()) {
+      benchmark::AddCustomContext("vigil.lttng", "not available: VIGIL_BENCH_LTTNG=0");
+      return;
+    }
+    (void)lttng_session().begin([] {
+      return lttng_ust_tracepoint_enabled(vigil_bench, cycle_start) &&
+             lttng_ust_tracepoint_enabled(vigil_bench, cycle_end);
+    });
+    benchmark::AddCustomContext("vigil.lttng", lttng_session().describe());
+  };
+  auto after = [] {
+    const std::string said = lttng_session().end();
+    if (!said.empty()) std::fprintf(stderr, "lttng stop: %s\n", said.c_str());
+  };
+  return vigil::bench::run_main(argc, argv, before, after);
+#else
   return vigil::bench::run_main(argc, argv);
+#endif
 }

@@ -1,10 +1,16 @@
 #include "vigil/config/file_watcher.hpp"
 
 #include <chrono>
+#include <system_error>
 
 namespace vigil::config {
 
-FileWatcher::FileWatcher(Nanos period_ns) : period_ns_(period_ns), thread_([this] { run_(); }) {}
+FileWatcher::FileWatcher(Nanos period_ns, std::size_t stack_bytes) : period_ns_(period_ns) {
+  auto t = platform::Thread::spawn({.name = "vigil-watcher", .stack_bytes = stack_bytes},
+                                   [this] { run_(); });
+  if (!t) throw std::system_error(t.error().code, std::generic_category(), t.error().message);
+  thread_ = std::move(*t);
+}
 
 FileWatcher::~FileWatcher() { stop(); }
 

@@ -7,6 +7,7 @@
 #include <set>
 #include <span>
 
+#include "deploy/bytes.hpp"
 #include "vigil/config/load.hpp"
 #include "vigil/deploy/extension.hpp"
 
@@ -29,7 +30,7 @@ constexpr EnumName<Detectors> kDetectors[] = {{"allocation", Detectors::Allocati
 
 ActivitySpec parse_activity(const config::Node& n) {
   n.reject_unknown_keys({"name", "period", "policy", "priority", "cpu", "overrun", "overrun_limit",
-                         "share_thread", "fallback_to_other", "stack_size"});
+                         "share_thread", "fallback_to_other", "stack"});
   ActivitySpec a;
   PeriodicConfig& c = a.config;
   c.name = n.required<std::string>("name", config::non_empty());
@@ -52,7 +53,7 @@ ActivitySpec parse_activity(const config::Node& n) {
   }
   c.share_thread = n.optional("share_thread", true);
   c.fallback_to_other = n.optional("fallback_to_other", true);
-  c.stack_size = n.optional<std::size_t>("stack_size", 0);
+  c.stack_bytes = detail::optional_stack(n, "stack", kDefaultActivityStackBytes);
   return a;
 }
 
@@ -165,8 +166,8 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
   }
 
   if (const config::Node s = root["supervision"]; s.defined()) {
-    s.reject_unknown_keys(
-        {"supervisor_period", "monitor_period", "ewma_weight", "thresholds", "lock_memory"});
+    s.reject_unknown_keys({"supervisor_period", "monitor_period", "ewma_weight", "thresholds",
+                           "lock_memory", "supervisor_stack", "monitor_stack"});
     auto& sp = d.supervision;
     sp.supervisor_period_ns =
         s.optional_period("supervisor_period", sp.supervisor_period_ns,
@@ -176,6 +177,9 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
                           config::duration_in_range(kNanosPerMilli, 3600 * kNanosPerSecond));
     sp.ewma_weight = s.optional("ewma_weight", sp.ewma_weight, config::in_range(1e-6, 1.0));
     sp.lock_memory = s.optional("lock_memory", true);
+    sp.supervisor_stack_bytes =
+        detail::optional_stack(s, "supervisor_stack", sp.supervisor_stack_bytes);
+    sp.monitor_stack_bytes = detail::optional_stack(s, "monitor_stack", sp.monitor_stack_bytes);
     if (const config::Node t = s["thresholds"]; t.defined()) {
       if (t.is_scalar()) {
         std::filesystem::path p = t.get<std::string>();

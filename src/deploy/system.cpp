@@ -11,9 +11,11 @@ System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
       AggregatorOptions{.ewma_weight = spec_.supervision.ewma_weight});
   supervisor_ = std::make_unique<ComponentSupervisorLoop>(
       registry_, *aggregator_,
-      SupervisorOptions{.period_ns = spec_.supervision.supervisor_period_ns});
+      SupervisorOptions{.period_ns = spec_.supervision.supervisor_period_ns,
+                        .stack_bytes = spec_.supervision.supervisor_stack_bytes});
   monitor_ = std::make_unique<Monitor>(
-      *aggregator_, MonitorOptions{.period_ns = spec_.supervision.monitor_period_ns});
+      *aggregator_, MonitorOptions{.period_ns = spec_.supervision.monitor_period_ns,
+                                   .stack_bytes = spec_.supervision.monitor_stack_bytes});
   monitor_->set_supervisor(supervisor_.get());
   monitor_->set_thresholds(spec_.supervision.thresholds);
 }
@@ -79,7 +81,11 @@ expected<void, Error> System::start() {
   if (spec_.supervision.lock_memory) {
     rt_setup_ = platform::setup_realtime_process();
     log_.push_back(rt_setup_.memory_locked
-                       ? "memory locked and prefaulted"
+                       ? fmt::format("memory locked; {} KiB of heap prefaulted; malloc arenas: {}",
+                                     rt_setup_.heap_prefaulted / 1024,
+                                     rt_setup_.malloc_arena_max > 0
+                                         ? fmt::format("at most {}", rt_setup_.malloc_arena_max)
+                                         : std::string("glibc default"))
                        : fmt::format("memory NOT locked (errno {}): page faults may hit the "
                                      "real-time threads",
                                      rt_setup_.lock_errno));

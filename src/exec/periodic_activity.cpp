@@ -37,7 +37,7 @@ class PeriodicThread {
                               .policy = config_.policy,
                               .priority = config_.priority,
                               .cpu = config_.cpu,
-                              .stack_size = config_.stack_size};
+                              .stack_bytes = config_.stack_bytes};
     auto t = spawn_activity_thread(
         tc, config_.fallback_to_other, [this] { run(); }, realtime_refused_);
     if (!t) return unexpected(t.error());
@@ -86,6 +86,8 @@ class PeriodicThread {
   }
 
   [[nodiscard]] std::size_t live() const noexcept { return live_; }
+  /// Stack of the thread, in bytes, as created (0: the system default).
+  [[nodiscard]] std::size_t stack_bytes() const noexcept { return config_.stack_bytes; }
   [[nodiscard]] bool started_ok(std::size_t i) const noexcept {
     return slots_[i].result.load(std::memory_order_acquire);
   }
@@ -195,6 +197,12 @@ Pool& pool() {
   static Pool p;
   return p;
 }
+/// A shared thread of `have` bytes of stack (0: the system default, taken as large) serves an
+/// activity asking for `want`.
+bool stack_fits(std::size_t want, std::size_t have) {
+  if (have == 0) return true;
+  return want != 0 && want <= have;
+}
 Key key_of(const PeriodicConfig& c) {
   return {static_cast<int>(c.policy), c.period_ns, c.priority, c.cpu,
           static_cast<int>(c.overrun_policy)};
@@ -223,6 +231,14 @@ expected<void, Error> PeriodicActivity::start() {
   if (config_.share_thread) {
     auto& weak = pool.threads[detail::key_of(config_)];
     thread = weak.lock();
+    if (thread && !detail::stack_fits(config_.stack_bytes, thread->stack_bytes())) {
+      return unexpected(Error{
+          EINVAL, "periodic activity '" + config_.name + "' asks for a " +
+                      std::to_string(config_.stack_bytes) + "-byte stack but would share the " +
+                      std::to_string(thread->stack_bytes()) +
+                      "-byte stack of an equal activity's thread: give both the same stack, or "
+                      "this one share_thread = false"});
+    }
     if (!thread) {
       thread = std::make_shared<detail::PeriodicThread>(config_);
       if (auto r = thread->spawn(); !r) return unexpected(r.error());

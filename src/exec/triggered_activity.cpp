@@ -28,7 +28,7 @@ expected<void, Error> TriggeredActivity::start() {
                             .policy = config_.policy,
                             .priority = config_.priority,
                             .cpu = config_.cpu,
-                            .stack_size = config_.stack_size};
+                            .stack_bytes = config_.stack_bytes};
   auto t = detail::spawn_activity_thread(
       tc, config_.fallback_to_other, [this] { run(); }, info_.realtime_refused);
   if (!t) return unexpected(t.error());

@@ -412,7 +412,8 @@ expected<void, Error> Monitor::start() {
     m.quit = false;
   }
   m.running.store(true, std::memory_order_relaxed);
-  auto t = platform::Thread::spawn({.name = m.options.thread_name}, [&m] { m.run(); });
+  auto t = platform::Thread::spawn(
+      {.name = m.options.thread_name, .stack_bytes = m.options.stack_bytes}, [&m] { m.run(); });
   if (!t) {
     m.running.store(false, std::memory_order_relaxed);
     return vigil::unexpected<Error>(t.error());

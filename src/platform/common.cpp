@@ -48,6 +48,8 @@ std::string RealtimeSetupReport::describe() const {
   s += memory_locked ? "yes" : "no (errno " + std::to_string(lock_errno) + ")";
   s += "\nmalloc tuned: ";
   s += malloc_tuned ? "yes" : "no";
+  s += "\nmalloc arenas: ";
+  s += malloc_arena_max > 0 ? "at most " + std::to_string(malloc_arena_max) : "glibc default";
   s += "\nstack prefaulted: " + std::to_string(stack_prefaulted) + " bytes";
   s += "\nheap prefaulted: " + std::to_string(heap_prefaulted) + " bytes";
   s += "\nSCHED_FIFO allowed: ";

@@ -1,5 +1,7 @@
 #include "vigil/config/reloadable.hpp"
 
+#include <pthread.h>
+
 #include <atomic>
 #include <catch2/catch.hpp>
 #include <chrono>
@@ -297,4 +299,32 @@ TEST_CASE("FileWatcher applies an edited file and stops promptly", "[config][rel
     slow.watch(*pair);
   }
   CHECK(std::chrono::steady_clock::now() - start < std::chrono::seconds(5));
+}
+
+TEST_CASE("FileWatcher's thread has the stack it was given", "[config][reload][memory]") {
+  TempDir dir;
+  const fs::path file = dir.path() / "pair.yaml";
+  write_file(file, pair_text(1));
+  auto pair = Reloadable<Pair>::open(file, load_pair);
+  REQUIRE(pair.has_value());
+  std::atomic<std::size_t> stack{0};
+  pair->subscribe([&](const std::shared_ptr<const Pair>&, std::uint64_t) {
+    pthread_attr_t attr;  // read independently of the platform layer
+    std::size_t size = 0;
+    if (pthread_getattr_np(pthread_self(), &attr) == 0) {
+      pthread_attr_getstacksize(&attr, &size);
+      pthread_attr_destroy(&attr);
+    }
+    stack.store(size);
+  });
+  FileWatcher watcher(vigil::kNanosPerMilli, 320 * 1024);
+  watcher.watch(*pair);
+  write_file(file, pair_text(2));  // reloaded, and the subscriber called, on the watcher's thread
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  while (stack.load() == 0 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  // glibc may hand the thread a cached stack of up to 4 x the size asked (tests/support/stack.hpp).
+  CHECK(stack.load() >= 320 * 1024);
+  CHECK(stack.load() <= 4 * 320 * 1024);
 }

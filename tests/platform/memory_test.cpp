@@ -46,11 +46,13 @@ TEST_CASE("setup_realtime_process reports every step and locks memory when privi
 
 TEST_CASE("prefault_stack takes the stack's page faults up front", "[platform][memory]") {
   // Run in a fresh thread whose stack is untouched: faulting 512 KiB of it in costs >= 100 minor
-  // faults the first time and (nearly) none the second.
+  // faults the first time and (nearly) none the second. 12 MiB: larger than any stack an earlier
+  // test's thread had, so glibc cannot hand this thread a cached stack (it reuses one of up to 4x
+  // the size asked) whose pages an earlier mlockall made resident.
   std::uint64_t first = 0;
   std::uint64_t second = 0;
   auto t = Thread::spawn(
-      {.name = "prefault", .stack_size = 2 * 1024 * 1024, .prefault_stack_bytes = 0}, [&] {
+      {.name = "prefault", .stack_bytes = 12 * 1024 * 1024, .prefault_stack_bytes = 0}, [&] {
         const int tid = current_tid();
         auto a = vigil::test::read_proc_thread(tid).minflt;
         prefault_stack(512 * 1024);

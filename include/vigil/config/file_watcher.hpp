@@ -7,11 +7,11 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
-#include <thread>
 #include <vector>
 
 #include "vigil/config/reloadable.hpp"
 #include "vigil/platform/clock.hpp"
+#include "vigil/platform/thread.hpp"
 
 namespace vigil::config {
 
@@ -32,10 +32,12 @@ namespace vigil::config {
  */
 class FileWatcher {
  public:
-  /// Starts the polling thread; `period_ns` is the time between two rounds (at least 1 ms is
-  /// sensible: each round stats every file). Throws std::system_error if the thread cannot be
-  /// created.
-  explicit FileWatcher(Nanos period_ns = 250 * kNanosPerMilli);
+  /// Starts the polling thread (named "vigil-watcher", SCHED_OTHER, a stack of `stack_bytes`;
+  /// 0 keeps the system default); `period_ns` is the time between two rounds (at least 1 ms is
+  /// sensible: each round stats every file). A reload (parsing and validating the file, and the
+  /// subscribers) runs on this thread. Throws std::system_error if the thread cannot be created.
+  explicit FileWatcher(Nanos period_ns = 250 * kNanosPerMilli,
+                       std::size_t stack_bytes = platform::kDefaultStackBytes);
   /// Stops and joins the thread.
   ~FileWatcher();
   FileWatcher(const FileWatcher&) = delete;
@@ -66,7 +68,7 @@ class FileWatcher {
   bool stop_ = false;
   std::once_flag joined_;
   std::atomic<std::uint64_t> rounds_{0};
-  std::thread thread_;  // last: started once every other member exists
+  platform::Thread thread_;  // last: started once every other member exists
 };
 
 }  // namespace vigil::config

@@ -67,6 +67,9 @@ struct SupervisionSpec {
   std::optional<std::filesystem::path> thresholds_file;
   /// mlockall + prefault at start.
   bool lock_memory = true;
+  /// Stacks of the supervisor's and the monitor's threads, in bytes (0: the system default).
+  std::size_t supervisor_stack_bytes = platform::kDefaultStackBytes;
+  std::size_t monitor_stack_bytes = platform::kDefaultStackBytes;
 };
 
 /// `outputs.http`: serve the reports over HTTP while the system runs (docs/guide/http.md).

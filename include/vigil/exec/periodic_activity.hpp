@@ -15,6 +15,7 @@
 
 #include "vigil/error.hpp"
 #include "vigil/exec/schedule.hpp"
+#include "vigil/exec/stack.hpp"
 #include "vigil/expected.hpp"
 #include "vigil/platform/thread.hpp"
 #include "vigil/task/task_core.hpp"
@@ -38,7 +39,11 @@ struct PeriodicConfig {
   /// When SCHED_FIFO is refused (no privilege): run SCHED_OTHER and report it (true), or fail
   /// start() (false).
   bool fallback_to_other = true;
-  std::size_t stack_size = 0;
+  /// Stack of the thread, in bytes; 0 keeps the system default (`ulimit -s`, usually 8 MiB, all
+  /// of it resident under mlockall). Activities that share a thread share its stack: one that
+  /// asks for more than the running thread has fails start() (give it `share_thread = false` or
+  /// the same size).
+  std::size_t stack_bytes = kDefaultActivityStackBytes;
 };
 
 namespace detail {

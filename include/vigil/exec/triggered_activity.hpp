@@ -10,19 +10,27 @@
 #include <string>
 
 #include "vigil/error.hpp"
+#include "vigil/exec/stack.hpp"
 #include "vigil/expected.hpp"
 #include "vigil/platform/thread.hpp"
 #include "vigil/task/task_core.hpp"
 
 namespace vigil {
 
+/// Configuration of a TriggeredActivity.
 struct TriggeredConfig {
   std::string name = "triggered";
   SchedPolicy policy = SchedPolicy::Other;
+  /// 1..99 for FIFO; ignored for OTHER.
   int priority = 0;
+  /// CPU to pin the thread to; -1 = no affinity.
   int cpu = -1;
+  /// When SCHED_FIFO is refused (no privilege): run SCHED_OTHER and report it (true), or fail
+  /// start() (false).
   bool fallback_to_other = true;
-  std::size_t stack_size = 0;
+  /// Stack of the thread, in bytes (kDefaultActivityStackBytes unless set); 0 keeps the system
+  /// default (`ulimit -s`, usually 8 MiB, all of it resident under mlockall).
+  std::size_t stack_bytes = kDefaultActivityStackBytes;
 };
 
 class TriggeredActivity {

@@ -32,6 +32,7 @@
 #include "vigil/monitor/report.hpp"
 #include "vigil/monitor/thresholds.hpp"
 #include "vigil/platform/clock.hpp"
+#include "vigil/platform/thread.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 
 namespace vigil {
@@ -42,6 +43,9 @@ struct MonitorOptions {
   /// publishes at 1 Hz).
   Nanos period_ns = kNanosPerSecond;
   std::string thread_name = "vigil-monitor";
+  /// Stack of the monitor's thread, in bytes (0: the system default, usually 8 MiB). Custom
+  /// checks run on it.
+  std::size_t stack_bytes = platform::kDefaultStackBytes;
   /// The monitor's clock (cycle times, silences, windows). It must be the aggregator's clock
   /// (AggregatorOptions::clock): silences compare it with the aggregator's arrival stamps.
   Clock clock = Clock::system();

@@ -26,6 +26,12 @@ enum class SchedPolicy : std::uint8_t {
 /// "OTHER" or "FIFO".
 [[nodiscard]] const char* to_string(SchedPolicy p) noexcept;
 
+/// Stack of the threads vigil creates for itself (supervisor, monitor, file watcher, the CAN
+/// supervisor), unless their options say otherwise: 256 KiB. Their deepest use measured in the
+/// demo is below 64 KiB (docs/design/memory.md). Under mlockall every byte of a thread's stack is
+/// resident and locked, so the size of a stack is what the thread costs in RAM.
+inline constexpr std::size_t kDefaultStackBytes = 256 * 1024;
+
 /// What a thread is created with.
 struct ThreadConfig {
   /// Thread name (at most 15 characters are kept by Linux; longer names are truncated).
@@ -36,9 +42,13 @@ struct ThreadConfig {
   int priority = 0;
   /// CPU to pin the thread to, or -1 for no affinity.
   int cpu = -1;
-  /// Stack size in bytes; 0 keeps the system default. Raised to PTHREAD_STACK_MIN if smaller.
-  std::size_t stack_size = 0;
-  /// Bytes of stack to touch at thread start so that the first cycles take no page fault.
+  /// Stack size in bytes (kDefaultStackBytes unless set). 0 keeps the system default, which on
+  /// Linux is `ulimit -s` (usually 8 MiB) and is then entirely resident under mlockall. Raised to
+  /// PTHREAD_STACK_MIN (16 KiB on x86-64) if smaller. A thread that needs more than its stack
+  /// overflows into the guard page and the process gets SIGSEGV: size it for the deepest call.
+  std::size_t stack_bytes = kDefaultStackBytes;
+  /// Bytes of stack to touch at thread start so that the first cycles take no page fault; at
+  /// most half of `stack_bytes` is touched (when `stack_bytes` is not 0).
   std::size_t prefault_stack_bytes = 64 * 1024;
 };
 

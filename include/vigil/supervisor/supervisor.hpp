@@ -90,6 +90,8 @@ struct SupervisorOptions {
   /// Messages popped from a port at a time.
   std::size_t batch = 64;
   std::string thread_name = "vigil-supervisor";
+  /// Stack of the supervisor's thread, in bytes (0: the system default, usually 8 MiB).
+  std::size_t stack_bytes = platform::kDefaultStackBytes;
   /// Clock used for the supervisor's own timing.
   Clock clock = Clock::system();
 };
@@ -174,7 +176,8 @@ class Supervisor {
   expected<void, Error> start() {
     if (thread_.joinable()) return {};
     quit_.store(false, std::memory_order_relaxed);
-    auto t = platform::Thread::spawn({.name = options_.thread_name}, [this] { run(); });
+    auto t = platform::Thread::spawn(
+        {.name = options_.thread_name, .stack_bytes = options_.stack_bytes}, [this] { run(); });
     if (!t) return unexpected(t.error());
     thread_ = std::move(*t);
     return {};

@@ -16,6 +16,7 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <climits>
@@ -104,7 +105,10 @@ expected<Thread, Error> Thread::spawn(const ThreadConfig& config, std::function<
   auto state = std::make_unique<State>();
   state->body = std::move(body);
   state->name = config.name.substr(0, 15);
-  state->prefault = config.prefault_stack_bytes;
+  // Never touch more than half of an explicit stack: the rest is the thread's own.
+  state->prefault = config.stack_bytes > 0
+                        ? std::min(config.prefault_stack_bytes, config.stack_bytes / 2)
+                        : config.prefault_stack_bytes;
 
   pthread_attr_t attr;
   // libcobalt's attr_init: glibc's, plus Cobalt's default stack size.
@@ -115,10 +119,10 @@ expected<Thread, Error> Thread::spawn(const ThreadConfig& config, std::function<
   } guard{&attr};
 
   int rc = 0;
-  if (config.stack_size > 0) {
-    const std::size_t size = config.stack_size < static_cast<std::size_t>(PTHREAD_STACK_MIN)
+  if (config.stack_bytes > 0) {
+    const std::size_t size = config.stack_bytes < static_cast<std::size_t>(PTHREAD_STACK_MIN)
                                  ? static_cast<std::size_t>(PTHREAD_STACK_MIN)
-                                 : config.stack_size;
+                                 : config.stack_bytes;
     if ((rc = pthread_attr_setstacksize(&attr, size)) != 0) {
       return unexpected(Error{
           rc, fmt::format("{}: stack size {}: {}", describe(config), size, std::strerror(rc))});

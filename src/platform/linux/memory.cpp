@@ -49,6 +49,10 @@ RealtimeSetupReport setup_realtime_process(const RealtimeSetupOptions& options) 
   // Keep freed memory in the process and never serve allocations with mmap, so that memory
   // prefaulted here stays mapped (and locked).
   report.malloc_tuned = mallopt(M_TRIM_THRESHOLD, -1) == 1 && mallopt(M_MMAP_MAX, 0) == 1;
+  // Bound the arenas before the process's threads start allocating: an arena, once made, stays.
+  if (options.malloc_arena_max > 0 && mallopt(M_ARENA_MAX, options.malloc_arena_max) == 1) {
+    report.malloc_arena_max = options.malloc_arena_max;
+  }
   if (options.prefault_heap_bytes > 0) {
     if (void* p = std::malloc(options.prefault_heap_bytes)) {
       const long page = sysconf(_SC_PAGESIZE);

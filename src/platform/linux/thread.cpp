@@ -7,6 +7,7 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <climits>
@@ -76,7 +77,10 @@ expected<Thread, Error> Thread::spawn(const ThreadConfig& config, std::function<
   auto state = std::make_unique<State>();
   state->body = std::move(body);
   state->name = config.name.substr(0, 15);
-  state->prefault = config.prefault_stack_bytes;
+  // Never touch more than half of an explicit stack: the rest is the thread's own.
+  state->prefault = config.stack_bytes > 0
+                        ? std::min(config.prefault_stack_bytes, config.stack_bytes / 2)
+                        : config.prefault_stack_bytes;
 
   pthread_attr_t attr;
   pthread_attr_init(&attr);
@@ -86,10 +90,10 @@ expected<Thread, Error> Thread::spawn(const ThreadConfig& config, std::function<
   } guard{&attr};
 
   int rc = 0;
-  if (config.stack_size > 0) {
-    const std::size_t size = config.stack_size < static_cast<std::size_t>(PTHREAD_STACK_MIN)
+  if (config.stack_bytes > 0) {
+    const std::size_t size = config.stack_bytes < static_cast<std::size_t>(PTHREAD_STACK_MIN)
                                  ? static_cast<std::size_t>(PTHREAD_STACK_MIN)
-                                 : config.stack_size;
+                                 : config.stack_bytes;
     if ((rc = pthread_attr_setstacksize(&attr, size)) != 0) {
       return unexpected(Error{
           rc, fmt::format("{}: stack size {}: {}", describe(config), size, std::strerror(rc))});
