@@ -39,8 +39,8 @@ function(vigil_clang_tidy_command out)
                           "std::expected needs clang-tidy 16 or newer (scripts/setup.sh installs "
                           "clang-tidy-16)")
     endif()
-    list(APPEND command --extra-arg=-std=gnu++2b
-         --extra-arg=-D__cpp_concepts=202002L --extra-arg=-Wno-macro-redefined)
+    list(APPEND command --extra-arg=-std=gnu++2b --extra-arg=-U__cpp_concepts
+         --extra-arg=-D__cpp_concepts=202002L)
   endif()
   set(${out} "${command}" PARENT_SCOPE)
 endfunction()
