@@ -1,28 +1,40 @@
-# FindXenomai: locates a Xenomai 3 Cobalt installation through xeno-config.
+# FindXenomai: locates a Xenomai 3 Cobalt installation through xeno-config. Installed with vigil
+# (lib/cmake/vigil/) and used by vigil-config.cmake when vigil was built for Cobalt, so a user's
+# project needs only find_package(vigil) and XENOMAI_ROOT.
+#
 # Input: XENOMAI_ROOT (CMake or environment variable: prefix of the install, xeno-config is in
-#   ${XENOMAI_ROOT}/bin), or xeno-config on the PATH. Output: Xenomai_FOUND, Xenomai_VERSION,
-#   XENO_CONFIG, and imported targets
-#   Xenomai::cobalt    - compile flags of `xeno-config --posix --cflags`: include directories
-#                        (SYSTEM for consumers, so Xenomai's headers raise no warnings in ours),
-#                        definitions (__COBALT__, __COBALT_WRAP__, _GNU_SOURCE, _REENTRANT) and
-#                        options. For the platform implementation only (src/platform/cobalt/):
-#                        libcobalt's include directory shadows <pthread.h>, <time.h>, ...
-#   Xenomai::posix_exe - link flags: `xeno-config --posix --ldflags` for executables (libcobalt,
-#                        the --wrap lists, bootstrap.o that runs xenomai_init() before main());
-#                        `... --auto-init-solib` (bootstrap-pic.o, no --wrap=main) when the
-#                        consumer is a shared or module library. Nothing for static libraries.
+#   ${XENOMAI_ROOT}/bin), else xeno-config on the PATH, else Xenomai_DEFAULT_ROOT (set by
+#   vigil-config.cmake to the prefix vigil was built against).
+# Output: Xenomai_FOUND, Xenomai_VERSION, XENO_CONFIG, Xenomai_LIBRARY_DIRS (the -L folders of
+#   the link flags: where libcobalt.so is, for a build RPATH), and imported targets
+#   Xenomai::cobalt      - compile flags of `xeno-config --cobalt --cflags`: include directories
+#                          (SYSTEM for consumers, so Xenomai's headers raise no warnings in ours),
+#                          definitions (__COBALT__, _GNU_SOURCE, _REENTRANT) and options. For the
+#                          platform implementation only (src/platform/cobalt/): libcobalt's
+#                          include directory shadows <pthread.h>, <time.h>, ...
+#   Xenomai::cobalt_link - link flags of `xeno-config --cobalt --ldflags` for executables
+#                          (libcobalt, libmodechk's --wrap of malloc/free, bootstrap.o that runs
+#                          xenomai_init() before main()); `... --auto-init-solib` (bootstrap-pic.o,
+#                          no --wrap=main) for a shared or module library; nothing for static
+#                          libraries. Deliberately not `--posix`: libcobalt's POSIX --wrap list
+#                          would turn every pthread_mutex_lock of the link (std::mutex included)
+#                          into a Cobalt mutex while std::condition_variable and std::shared_mutex
+#                          stay glibc's (docs/design/platform.md, "One kind of thread, one kind
+#                          of lock").
 # Tested with Xenomai v3.2.7 built from source (docs/design/platform.md, "Cobalt: what was checked").
-find_program(XENO_CONFIG xeno-config HINTS ${XENOMAI_ROOT}/bin $ENV{XENOMAI_ROOT}/bin)
+find_program(XENO_CONFIG xeno-config
+  HINTS ${XENOMAI_ROOT}/bin $ENV{XENOMAI_ROOT}/bin
+  PATHS ${Xenomai_DEFAULT_ROOT}/bin)
 if(XENO_CONFIG)
   execute_process(COMMAND ${XENO_CONFIG} --version OUTPUT_VARIABLE Xenomai_VERSION
                   OUTPUT_STRIP_TRAILING_WHITESPACE)
   execute_process(COMMAND ${XENO_CONFIG} --core OUTPUT_VARIABLE Xenomai_CORE
                   OUTPUT_STRIP_TRAILING_WHITESPACE)
-  execute_process(COMMAND ${XENO_CONFIG} --posix --cflags OUTPUT_VARIABLE _xeno_cflags
+  execute_process(COMMAND ${XENO_CONFIG} --cobalt --cflags OUTPUT_VARIABLE _xeno_cflags
                   OUTPUT_STRIP_TRAILING_WHITESPACE)
-  execute_process(COMMAND ${XENO_CONFIG} --posix --ldflags OUTPUT_VARIABLE _xeno_ldflags
+  execute_process(COMMAND ${XENO_CONFIG} --cobalt --ldflags OUTPUT_VARIABLE _xeno_ldflags
                   OUTPUT_STRIP_TRAILING_WHITESPACE)
-  execute_process(COMMAND ${XENO_CONFIG} --posix --ldflags --auto-init-solib
+  execute_process(COMMAND ${XENO_CONFIG} --cobalt --ldflags --auto-init-solib
                   OUTPUT_VARIABLE _xeno_solib_ldflags OUTPUT_STRIP_TRAILING_WHITESPACE)
   separate_arguments(_xeno_cflags UNIX_COMMAND "${_xeno_cflags}")
   separate_arguments(_xeno_ldflags UNIX_COMMAND "${_xeno_ldflags}")
@@ -39,6 +51,12 @@ if(XENO_CONFIG)
       list(APPEND Xenomai_COMPILE_OPTIONS "${_flag}")
     endif()
   endforeach()
+  set(Xenomai_LIBRARY_DIRS "")
+  foreach(_flag IN LISTS _xeno_ldflags)
+    if(_flag MATCHES "^-L(.+)$")
+      list(APPEND Xenomai_LIBRARY_DIRS "${CMAKE_MATCH_1}")
+    endif()
+  endforeach()
 endif()
 include(FindPackageHandleStandardArgs)
 find_package_handle_standard_args(Xenomai
@@ -52,9 +70,9 @@ if(Xenomai_FOUND AND NOT TARGET Xenomai::cobalt)
     INTERFACE_INCLUDE_DIRECTORIES "${Xenomai_INCLUDE_DIRS}"
     INTERFACE_COMPILE_DEFINITIONS "${Xenomai_DEFINITIONS}"
     INTERFACE_COMPILE_OPTIONS "${Xenomai_COMPILE_OPTIONS}")
-  add_library(Xenomai::posix_exe INTERFACE IMPORTED)
+  add_library(Xenomai::cobalt_link INTERFACE IMPORTED)
   set(_is_exe "$<STREQUAL:$<TARGET_PROPERTY:TYPE>,EXECUTABLE>")
   set(_is_solib "$<IN_LIST:$<TARGET_PROPERTY:TYPE>,SHARED_LIBRARY;MODULE_LIBRARY>")
-  set_target_properties(Xenomai::posix_exe PROPERTIES INTERFACE_LINK_OPTIONS
+  set_target_properties(Xenomai::cobalt_link PROPERTIES INTERFACE_LINK_OPTIONS
     "$<${_is_exe}:${_xeno_ldflags}>;$<${_is_solib}:${_xeno_solib_ldflags}>")
 endif()

@@ -9,6 +9,12 @@ option(VIGIL_WERROR "Treat compiler warnings as errors" OFF)
 option(VIGIL_CLANG_TIDY "Run clang-tidy on vigil's own targets" OFF)
 set(VIGIL_SANITIZE "" CACHE STRING "Sanitizers for vigil's targets and tests: '', 'address,undefined' or 'thread'")
 set_property(CACHE VIGIL_SANITIZE PROPERTY STRINGS "" "address,undefined" "thread")
+set(VIGIL_TEST_DISCOVERY "build" CACHE STRING
+  "How CTest learns the Catch2 test cases: build (run each test binary after linking) or sources (read the TEST_CASEs at configure time, for binaries that cannot run here)")
+set_property(CACHE VIGIL_TEST_DISCOVERY PROPERTY STRINGS build sources)
+if(NOT VIGIL_TEST_DISCOVERY MATCHES "^(build|sources)$")
+  message(FATAL_ERROR "VIGIL_TEST_DISCOVERY='${VIGIL_TEST_DISCOVERY}' is not one of: build sources")
+endif()
 set(VIGIL_EXPECTED "auto" CACHE STRING "vigil::expected backend: auto (tl if found), tl, std")
 set_property(CACHE VIGIL_EXPECTED PROPERTY STRINGS auto tl std)
 

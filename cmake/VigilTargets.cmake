@@ -12,9 +12,37 @@ function(vigil_target_options target)
     target_compile_options(${target} PRIVATE -Werror)
   endif()
   if(VIGIL_CLANG_TIDY)
-    find_program(VIGIL_CLANG_TIDY_EXE NAMES clang-tidy-14 clang-tidy REQUIRED)
-    set_target_properties(${target} PROPERTIES CXX_CLANG_TIDY "${VIGIL_CLANG_TIDY_EXE}")
+    vigil_clang_tidy_command(command)
+    set_target_properties(${target} PROPERTIES CXX_CLANG_TIDY "${command}")
   endif()
+endfunction()
+
+# clang-tidy (the tidy preset): the checks are in .clang-tidy at the top of the tree; every check
+# enabled there is an error. The tool parses the compile commands GCC gets, with two additions when
+# vigil::expected is std::expected (C++23): clang spells the standard -std=gnu++2b, and GCC 12's
+# <expected> is only declared for compilers announcing C++20 concepts in full (__cpp_concepts
+# 202002L), which clang 16 implements (conditionally trivial special members, P0848) but does not
+# announce; clang-tidy 16 or newer is therefore required then (clang 14 cannot parse it).
+#
+# vigil_clang_tidy_command(<out>) sets <out> to the CXX_CLANG_TIDY command. Called when the first target is made (after the
+# top-level CMakeLists.txt has chosen VIGIL_EXPECTED_TL).
+function(vigil_clang_tidy_command out)
+  find_program(VIGIL_CLANG_TIDY_EXE NAMES clang-tidy-16 clang-tidy-17 clang-tidy-18 clang-tidy-19
+                                          clang-tidy-14 clang-tidy REQUIRED)
+  execute_process(COMMAND ${VIGIL_CLANG_TIDY_EXE} --version OUTPUT_VARIABLE _tidy_version)
+  string(REGEX MATCH "version ([0-9]+)" _tidy_version "${_tidy_version}")
+  set(_tidy_major "${CMAKE_MATCH_1}")
+  set(command "${VIGIL_CLANG_TIDY_EXE}")
+  if(NOT VIGIL_EXPECTED_TL)
+    if(_tidy_major LESS 16)
+      message(FATAL_ERROR "${VIGIL_CLANG_TIDY_EXE} is version ${_tidy_major}: parsing GCC 12's "
+                          "std::expected needs clang-tidy 16 or newer (scripts/setup.sh installs "
+                          "clang-tidy-16)")
+    endif()
+    list(APPEND command --extra-arg=-std=gnu++2b --extra-arg=-U__cpp_concepts
+         --extra-arg=-D__cpp_concepts=202002L)
+  endif()
+  set(${out} "${command}" PARENT_SCOPE)
 endfunction()
 
 # Sanitizers apply to everything compiled in this build tree (libraries, tests, apps) so that

@@ -9,6 +9,8 @@ set -euo pipefail
 packages=(
   # toolchain
   g++ cmake ninja-build pkg-config clang-format-14 git ccache
+  # static analysis: the tidy preset (.clang-tidy) needs clang-tidy 16 for GCC 12's std::expected
+  clang-tidy-16
   # libraries
   libboost-dev libfmt-dev libyaml-cpp-dev libcpp-httplib-dev libcli11-dev
   # tests and benchmarks

@@ -14,15 +14,17 @@
 namespace vigil {
 template <class T, class E>
 using expected = tl::expected<T, E>;
-template <class E>
-using unexpected = tl::unexpected<E>;
+// A using-declaration, not an alias template: `unexpected(e)` then deduces E on every compiler
+// (class template argument deduction for alias templates is C++20, missing in clang before 19,
+// which clang-tidy uses).
+using tl::unexpected;
 }  // namespace vigil
 #else
 #include <expected>
 namespace vigil {
 template <class T, class E>
 using expected = std::expected<T, E>;
-template <class E>
-using unexpected = std::unexpected<E>;
+// A using-declaration, not an alias template: see above.
+using std::unexpected;
 }  // namespace vigil
 #endif

@@ -86,7 +86,7 @@ supervision: {lock_memory: false, monitor_period: 50ms}
   CHECK(sys->log().size() >= 3);
 }
 
-TEST_CASE("A component that refuses to configure stops the start; nothing is left running",
+TEST_CASE("A component that refuses to configure stops the start, nothing is left running",
           "[deploy][system]") {
   events().clear();
   auto sys = make(R"(

@@ -7,9 +7,12 @@
 #include <string>
 
 #include "support/proc_reader.hpp"
+#include "vigil/config.hpp"
 #include "vigil/platform/thread.hpp"
 
 using namespace vigil::platform;
+
+constexpr bool kCobalt = VIGIL_PLATFORM_COBALT != 0;
 
 TEST_CASE("setup_realtime_process reports every step and locks memory when privileged",
           "[platform][memory]") {
@@ -32,7 +35,9 @@ TEST_CASE("setup_realtime_process reports every step and locks memory when privi
 #else
     (void)vmlck;
 #endif
-    munlockall();  // leave the rest of the suite as it was
+    // Leave the rest of the suite as it was. Never on Cobalt: libcobalt locked memory before
+    // main(), and a thread shadowed while it is unlocked is killed (SIGDEBUG_NOMLOCK).
+    if constexpr (!kCobalt) munlockall();
   } else {
     CHECK(report.lock_errno != 0);
   }
@@ -42,6 +47,18 @@ TEST_CASE("setup_realtime_process reports every step and locks memory when privi
     CHECK(report.cpu_latency_requested);
   }
   CHECK(report.describe().find("zero CPU latency requested: ") != std::string::npos);
+}
+
+TEST_CASE("On Cobalt memory stays locked even when the caller does not ask for it",
+          "[platform][memory]") {
+  const auto report = setup_realtime_process(
+      {.lock_memory = false, .prefault_stack_bytes = 0, .prefault_heap_bytes = 0});
+  if constexpr (kCobalt) {
+    CHECK(report.memory_locked);  // libcobalt locked it; vigil confirms and never unlocks
+  } else {
+    CHECK_FALSE(report.memory_locked);  // not asked for: mlockall is not called
+    CHECK(report.lock_errno == 0);
+  }
 }
 
 TEST_CASE("prefault_stack takes the stack's page faults up front", "[platform][memory]") {

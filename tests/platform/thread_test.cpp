@@ -6,8 +6,12 @@
 #include <catch2/catch.hpp>
 
 #include "support/proc_reader.hpp"
+#include "vigil/config.hpp"
+#include "vigil/platform/rt_loss.hpp"
 
 using namespace vigil::platform;
+
+constexpr bool kCobalt = VIGIL_PLATFORM_COBALT != 0;
 
 TEST_CASE("Thread::spawn runs the body and reports the kernel tid", "[platform][thread]") {
   std::atomic<int> seen_tid{0};
@@ -99,4 +103,32 @@ TEST_CASE("Thread names are set (truncated to 15 characters)", "[platform][threa
   release = true;
   t->join();
   CHECK(name == "vigil-a-very-lo");
+}
+
+TEST_CASE("The platform decides per thread: FIFO threads are Cobalt threads, others are not",
+          "[platform][thread]") {
+  // Only a Cobalt thread can be armed for mode-switch detection (Linux: never).
+  bool other_armed = true;
+  auto other = Thread::spawn({.name = "vigil-other"},
+                             [&] { other_armed = arm_mode_switch_detection(); });
+  REQUIRE(other.has_value());
+  other->join();
+  CHECK_FALSE(other_armed);
+  if (!vigil::test::have_rt_privileges()) {
+    WARN("skipped the FIFO half: no privilege for SCHED_FIFO");
+    return;
+  }
+  bool fifo_armed = !kCobalt;
+  auto fifo = Thread::spawn({.name = "vigil-fifo", .policy = SchedPolicy::Fifo, .priority = 10},
+                            [&] { fifo_armed = arm_mode_switch_detection(); });
+  REQUIRE(fifo.has_value());
+  fifo->join();
+  CHECK(fifo_armed == kCobalt);
+}
+
+TEST_CASE("Errors name the kind of thread that was refused", "[platform][thread]") {
+  auto t = Thread::spawn({.name = "bad", .policy = SchedPolicy::Fifo, .priority = 120}, [] {});
+  REQUIRE_FALSE(t.has_value());
+  // Cobalt: SCHED_FIFO threads are Cobalt threads and say so; nothing is added on Linux.
+  CHECK((t.error().message.find(", Cobalt)") != std::string::npos) == kCobalt);
 }

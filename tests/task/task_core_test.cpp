@@ -97,7 +97,7 @@ TEST_CASE("A hook returning false refuses its transition", "[task][state]") {
   CHECK(p.state_errors.empty());
 }
 
-TEST_CASE("An exception in any hook moves the task to Exception; recover leaves it",
+TEST_CASE("An exception in any hook moves the task to Exception, recover leaves it",
           "[task][state]") {
   Registry<Message> reg;
   Probe p("probe", {}, reg);

@@ -1,7 +1,8 @@
 // Cobalt clock: libcobalt's CLOCK_MONOTONIC (vDSO, no system call) and Cobalt's clock_nanosleep.
 //
-// Every call names the Cobalt implementation explicitly with __RT() (= __cobalt_<name>), so this
-// file resolves to Cobalt whether or not the executable is linked with libcobalt's --wrap list.
+// Every call names the Cobalt implementation explicitly with __RT() (= __cobalt_<name>): vigil's
+// executables are linked without libcobalt's --wrap list, and this file would resolve to Cobalt
+// with it too.
 // With a Dovetail kernel (3.2+) Cobalt's CLOCK_MONOTONIC is Linux's; with an I-pipe kernel it is
 // Cobalt's own timebase, so vigil never mixes it with glibc's clock (XENOMAI.md §3.1).
 #include "vigil/platform/clock.hpp"
@@ -14,6 +15,8 @@
 #include <cerrno>
 #include <ctime>
 
+#include "platform/posix/timespec.hpp"
+
 // Xenomai headers last: they define macros that C++ headers must not see.
 #include <cobalt/wrappers.h>
 #include <time.h>  // through -I<prefix>/include/cobalt: declares __cobalt_clock_*
@@ -22,12 +25,7 @@ namespace vigil::platform {
 
 namespace {
 
-timespec to_timespec(Nanos ns) noexcept {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(ns / kNanosPerSecond);
-  ts.tv_nsec = static_cast<long>(ns % kNanosPerSecond);
-  return ts;
-}
+using detail::to_timespec;
 
 // A thread that is not a Cobalt thread (std::thread, a library's thread) gets EPERM from Cobalt's
 // clock_nanosleep. It sleeps with Linux instead, in relative steps so that the Cobalt timebase of
@@ -37,7 +35,8 @@ int sleep_until_linux(Nanos deadline_ns) noexcept {
     const Nanos left = deadline_ns - now_ns();
     if (left <= 0) return 0;
     const timespec rel = to_timespec(left);
-    // The raw system call: the glibc symbol may be --wrap'ed back to Cobalt in this executable.
+    // The raw system call: Linux's, even in a program that a user linked with libcobalt's --wrap
+    // list (where glibc's name would reach Cobalt again).
     if (::syscall(SYS_clock_nanosleep, CLOCK_MONOTONIC, 0, &rel, nullptr) != 0 && errno != EINTR) {
       return errno;
     }

@@ -10,7 +10,7 @@
 #include "vigil/platform/thread_stats.hpp"
 
 #include "platform/cobalt/build_check.hpp"
-#include "platform/proc_thread_stats.hpp"
+#include "platform/posix/proc_thread_stats.hpp"
 
 // Xenomai headers last: they define macros C++ headers must not see.
 #include <cobalt/sys/cobalt.h>

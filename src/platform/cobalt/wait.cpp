@@ -26,17 +26,17 @@
 
 #include "platform/cobalt/build_check.hpp"
 
-#include <linux/futex.h>
 #include <pthread.h>
 #include <semaphore.h>
-#include <sys/syscall.h>
-#include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
 #include <cstddef>
 #include <cstdint>
 #include <ctime>
+
+#include "platform/posix/futex.hpp"
+#include "platform/posix/timespec.hpp"
 
 // Xenomai headers last: they define macros C++ headers must not see.
 #include <cobalt/sys/cobalt.h>
@@ -47,8 +47,7 @@ namespace vigil::platform {
 
 namespace {
 
-static_assert(sizeof(std::atomic<std::uint32_t>) == sizeof(std::uint32_t));
-static_assert(std::atomic<std::uint32_t>::is_always_lock_free);
+using detail::to_timespec;
 
 // More Cobalt threads than this waiting at the same time still work, through the futex path.
 constexpr std::uint32_t kRecords = 64;
@@ -122,17 +121,6 @@ Kind this_thread_kind() noexcept {
   return tls_kind;
 }
 
-auto* word_address(const std::atomic<std::uint32_t>& word) noexcept {
-  return reinterpret_cast<std::uint32_t*>(const_cast<std::atomic<std::uint32_t>*>(&word));
-}
-
-timespec to_timespec(Nanos ns) noexcept {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(ns / kNanosPerSecond);
-  ts.tv_nsec = static_cast<long>(ns % kNanosPerSecond);
-  return ts;
-}
-
 void wait_cobalt(Record& r, const std::atomic<std::uint32_t>& word, std::uint32_t expected,
                  Nanos deadline_ns) noexcept {
   r.waiting_on.store(&word, std::memory_order_seq_cst);
@@ -164,9 +152,7 @@ void wait_linux(const std::atomic<std::uint32_t>& word, std::uint32_t expected,
     timeout = &rel;
   }
   // The kernel re-checks `word == expected` atomically with going to sleep.
-  if (!expired) {
-    ::syscall(SYS_futex, word_address(word), FUTEX_WAIT_PRIVATE, expected, timeout, nullptr, 0);
-  }
+  if (!expired) detail::futex_wait_for(word, expected, timeout);
   g_futex_waiters.fetch_sub(1, std::memory_order_relaxed);
 }
 
@@ -194,7 +180,7 @@ void wake_one(const std::atomic<std::uint32_t>& word) noexcept {
     if (__RT(sem_getvalue)(&r.sem, &tokens) == 0 && tokens <= 0) __RT(sem_post)(&r.sem);
   }
   if (g_futex_waiters.load(std::memory_order_seq_cst) > 0) {
-    ::syscall(SYS_futex, word_address(word), FUTEX_WAKE_PRIVATE, 1, nullptr, nullptr, 0);
+    detail::futex_wake_one(word);
   }
 }
 

@@ -4,6 +4,8 @@
 #include <cerrno>
 #include <ctime>
 
+#include "platform/posix/timespec.hpp"
+
 namespace vigil::platform {
 
 Nanos now_ns() noexcept {
@@ -14,9 +16,7 @@ Nanos now_ns() noexcept {
 
 int sleep_until(Nanos deadline_ns) noexcept {
   if (deadline_ns < 0) return EINVAL;
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(deadline_ns / kNanosPerSecond);
-  ts.tv_nsec = static_cast<long>(deadline_ns % kNanosPerSecond);
+  const timespec ts = detail::to_timespec(deadline_ns);
   int rc = 0;
   // clock_nanosleep returns the error number itself (not -1/errno); with TIMER_ABSTIME a resumed
   // sleep keeps the same deadline, so looping on EINTR never sleeps too long.

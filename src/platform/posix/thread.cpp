@@ -1,19 +1,12 @@
-// Cobalt threads: libcobalt's pthread_create, which starts a glibc thread, "shadows" it into the
-// Cobalt core and hardens it to primary mode before the start routine runs (XENOMAI.md §3.3).
-//
-// Why real-time threads must be created here: a thread made by std::thread or by any code not
-// linked with libcobalt's wrappers is a plain Linux thread; Cobalt services then fail with EPERM
-// or, when they have a Linux fallback, silently run with Linux timing. vigil calls __RT(name)
-// (= __cobalt_<name>) explicitly, so this file creates Cobalt threads even in an executable that
-// was linked without the --wrap list.
+// Threads on both platforms: pthreads with explicit scheduling, affinity, names and prefaulted
+// stacks. The pthread calls themselves come from the platform's backend (backend.hpp): glibc's on
+// Linux; on Cobalt libcobalt's for SCHED_FIFO threads (Cobalt threads) and glibc's for the others
+// (plain Linux threads). Everything else, checks, attributes and the start protocol, is this file.
 #include "vigil/platform/thread.hpp"
-
-#include "platform/cobalt/build_check.hpp"
 
 #include <fmt/format.h>
 #include <pthread.h>
 #include <sched.h>
-#include <sys/syscall.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -23,18 +16,16 @@
 #include <cstdint>
 #include <cstring>
 
+#include "platform/posix/backend.hpp"
 #include "vigil/platform/memory.hpp"
 #include "vigil/platform/wait.hpp"
-
-// Xenomai headers last: they define macros (list_*, container_of, ...) C++ headers must not see.
-#include <cobalt/sys/cobalt.h>
-#include <cobalt/wrappers.h>
 
 namespace vigil::platform {
 
 struct Thread::State {
   pthread_t handle{};
   bool joinable = false;
+  const detail::ThreadOps* ops = nullptr;
   std::atomic<int> tid{0};
   /// 0 until the new thread has named itself and published its TID (a wait_on word).
   std::atomic<std::uint32_t> started{0};
@@ -45,38 +36,43 @@ struct Thread::State {
 
 namespace {
 
-// Cobalt's SCHED_FIFO accepts 1..256, but libcobalt also sets the Linux side of the thread, where
-// the range is 1..99; vigil keeps the portable range on both platforms (XENOMAI.md §3.3).
-constexpr int kFifoMin = 1;
-constexpr int kFifoMax = 99;
-
 thread_local int tls_tid = 0;
 
-// Runs in primary mode (libcobalt hardened the thread before calling it). Nothing here may issue
-// a Linux system call, which would relax the thread before its first cycle: the name and the TID
-// go through Cobalt system calls, the start signal through a Cobalt semaphore (wait.cpp).
+// On Cobalt a SCHED_FIFO thread runs this in primary mode (libcobalt hardened it before calling
+// it): nothing here may issue a Linux system call, which would relax the thread before its first
+// cycle. The name and the TID go through the backend (Cobalt system calls there), the start
+// signal through wake_one (a Cobalt semaphore there).
 void* thread_main(void* arg) {
   auto* state = static_cast<Thread::State*>(arg);
-  // Sets the Cobalt name and the Linux comm in one Cobalt system call ("current" mode).
-  __RT(pthread_setname_np)(pthread_self(), state->name.c_str());
+  // Linux: writes /proc/self/task/<tid>/comm. Cobalt thread: sets the Cobalt name and the Linux
+  // comm in one Cobalt system call.
+  state->ops->set_name(pthread_self(), state->name.c_str());
   state->tid.store(current_tid(), std::memory_order_relaxed);
   state->started.store(1, std::memory_order_release);
   wake_one(state->started);
   if (state->prefault > 0) prefault_stack(state->prefault);
   state->body();
-  // libcobalt's trampoline clears PTHREAD_WARNSW after we return, so the exit path's Linux
-  // system calls raise no SIGDEBUG.
+  // Cobalt: libcobalt's trampoline clears PTHREAD_WARNSW after we return, so the exit path's
+  // Linux system calls raise no SIGDEBUG.
   return nullptr;
 }
 
-std::string describe(const ThreadConfig& c) {
+std::string describe(const ThreadConfig& c, const char* label) {
   std::string s = fmt::format("thread '{}' ({}", c.name, to_string(c.policy));
   if (c.policy == SchedPolicy::Fifo) s += fmt::format(" priority {}", c.priority);
   if (c.cpu >= 0) s += fmt::format(", cpu {}", c.cpu);
-  return s + ", Cobalt)";
+  return s + label + ")";
 }
 
 }  // namespace
+
+const detail::ThreadOps& detail::glibc_thread_ops() noexcept {
+  // Plain names: vigil's executables are linked without libcobalt's --wrap list (cmake/
+  // FindXenomai.cmake, Xenomai::cobalt_link), so these are glibc's on both platforms.
+  static constexpr ThreadOps ops{"", &pthread_attr_init, &pthread_create, &pthread_join,
+                                 &pthread_setname_np};
+  return ops;
+}
 
 Thread::Thread() noexcept = default;
 Thread::Thread(Thread&&) noexcept = default;
@@ -90,19 +86,27 @@ Thread& Thread::operator=(Thread&& other) noexcept {
 Thread::~Thread() { join(); }
 
 expected<Thread, Error> Thread::spawn(const ThreadConfig& config, std::function<void()> body) {
-  if (config.policy == SchedPolicy::Fifo &&
-      (config.priority < kFifoMin || config.priority > kFifoMax)) {
-    return unexpected(
-        Error{EINVAL, fmt::format("{}: priority {} is outside {}..{}", describe(config),
-                                  config.priority, kFifoMin, kFifoMax)});
+  const detail::ThreadOps& ops = detail::thread_ops(config);
+  if (config.policy == SchedPolicy::Fifo) {
+    // 1..99 on both platforms: Cobalt's SCHED_FIFO accepts up to 256, but libcobalt also sets
+    // the Linux side of the thread, where the range is 1..99 (XENOMAI.md §3.3).
+    const int lo = sched_get_priority_min(SCHED_FIFO);
+    const int hi = sched_get_priority_max(SCHED_FIFO);
+    if (config.priority < lo || config.priority > hi) {
+      return unexpected(Error{EINVAL, fmt::format("{}: priority {} is outside {}..{}",
+                                                  describe(config, ops.label), config.priority,
+                                                  lo, hi)});
+    }
   }
   if (config.cpu >= CPU_SETSIZE || config.cpu < -1 ||
       (config.cpu >= 0 && config.cpu >= cpu_count())) {
     return unexpected(Error{EINVAL, fmt::format("{}: cpu {} does not exist ({} CPUs online)",
-                                                describe(config), config.cpu, cpu_count())});
+                                                describe(config, ops.label), config.cpu,
+                                                cpu_count())});
   }
 
   auto state = std::make_unique<State>();
+  state->ops = &ops;
   state->body = std::move(body);
   state->name = config.name.substr(0, 15);
   // Never touch more than half of an explicit stack: the rest is the thread's own.
@@ -111,8 +115,8 @@ expected<Thread, Error> Thread::spawn(const ThreadConfig& config, std::function<
                         : config.prefault_stack_bytes;
 
   pthread_attr_t attr;
-  // libcobalt's attr_init: glibc's, plus Cobalt's default stack size.
-  __RT(pthread_attr_init)(&attr);
+  // Cobalt thread: libcobalt's attr_init, glibc's plus Cobalt's default stack size.
+  ops.attr_init(&attr);
   struct AttrGuard {
     pthread_attr_t* a;
     ~AttrGuard() { pthread_attr_destroy(a); }
@@ -124,11 +128,11 @@ expected<Thread, Error> Thread::spawn(const ThreadConfig& config, std::function<
                                  ? static_cast<std::size_t>(PTHREAD_STACK_MIN)
                                  : config.stack_bytes;
     if ((rc = pthread_attr_setstacksize(&attr, size)) != 0) {
-      return unexpected(Error{
-          rc, fmt::format("{}: stack size {}: {}", describe(config), size, std::strerror(rc))});
+      return unexpected(Error{rc, fmt::format("{}: stack size {}: {}", describe(config, ops.label),
+                                              size, std::strerror(rc))});
     }
   }
-  // libcobalt reads policy and priority from the attribute when it is PTHREAD_EXPLICIT_SCHED
+  // libcobalt too reads policy and priority from the attribute when it is PTHREAD_EXPLICIT_SCHED
   // and applies them to both the Linux and the Cobalt side of the new thread.
   rc = pthread_attr_setinheritsched(&attr, PTHREAD_EXPLICIT_SCHED);
   if (rc == 0) {
@@ -141,23 +145,24 @@ expected<Thread, Error> Thread::spawn(const ThreadConfig& config, std::function<
     rc = pthread_attr_setschedparam(&attr, &param);
   }
   if (rc == 0 && config.cpu >= 0) {
-    // One CPU, set before creation (glibc call, not wrapped): the Cobalt core pins each thread
-    // to one CPU of the real-time set when it shadows it, and a later change costs a relax.
+    // One CPU, set before creation (glibc's call on both platforms): the Cobalt core pins each
+    // thread to one CPU of the real-time set when it shadows it, and a later change costs a relax.
     cpu_set_t set;
     CPU_ZERO(&set);
     CPU_SET(static_cast<unsigned>(config.cpu), &set);
     rc = pthread_attr_setaffinity_np(&attr, sizeof(set), &set);
   }
   if (rc != 0) {
-    return unexpected(Error{rc, fmt::format("{}: {}", describe(config), std::strerror(rc))});
+    return unexpected(
+        Error{rc, fmt::format("{}: {}", describe(config, ops.label), std::strerror(rc))});
   }
 
-  // Returns the error number itself: EPERM when the Linux side refuses SCHED_FIFO, EAGAIN when
-  // the Cobalt core has no memory left, EINVAL for an attribute it rejects.
-  rc = __RT(pthread_create)(&state->handle, &attr, &thread_main, state.get());
+  // Returns the error number itself: EPERM when Linux refuses SCHED_FIFO; on Cobalt also EAGAIN
+  // when the core has no memory left, EINVAL for an attribute it rejects.
+  rc = ops.create(&state->handle, &attr, &thread_main, state.get());
   if (rc != 0) {
-    return unexpected(
-        Error{rc, fmt::format("pthread_create {}: {}", describe(config), std::strerror(rc))});
+    return unexpected(Error{
+        rc, fmt::format("pthread_create {}: {}", describe(config, ops.label), std::strerror(rc))});
   }
   state->joinable = true;
   while (state->started.load(std::memory_order_acquire) == 0) wait_on(state->started, 0);
@@ -169,8 +174,8 @@ expected<Thread, Error> Thread::spawn(const ThreadConfig& config, std::function<
 
 void Thread::join() noexcept {
   if (state_ && state_->joinable) {
-    // libcobalt's join: glibc's, then waits until the Cobalt core has dropped the thread too.
-    __RT(pthread_join)(state_->handle, nullptr);
+    // Cobalt thread: libcobalt's join, glibc's and then a wait until the core dropped the thread.
+    state_->ops->join(state_->handle, nullptr);
     state_->joinable = false;
   }
 }
@@ -182,12 +187,7 @@ int Thread::tid() const noexcept {
 }
 
 int current_tid() noexcept {
-  if (tls_tid == 0) {
-    // A Cobalt system call in "current" mode: a primary-mode caller stays in primary mode
-    // (gettid() would relax it). A thread unknown to Cobalt gets -ESRCH and asks Linux.
-    const pid_t pid = cobalt_thread_pid(pthread_self());
-    tls_tid = pid > 0 ? static_cast<int>(pid) : static_cast<int>(::syscall(SYS_gettid));
-  }
+  if (tls_tid == 0) tls_tid = detail::query_current_tid();
   return tls_tid;
 }
 
@@ -200,9 +200,7 @@ expected<SchedInfo, Error> current_sched_info() {
   SchedInfo info;
   int policy = 0;
   sched_param param{};
-  // Cobalt's view for a Cobalt thread (libcobalt falls back to glibc's for other threads). A
-  // SCHED_OTHER Cobalt thread reports Cobalt's SCHED_WEAK class, which maps to Other here.
-  if (const int rc = __RT(pthread_getschedparam)(pthread_self(), &policy, &param); rc != 0) {
+  if (const int rc = detail::current_sched_param(&policy, &param); rc != 0) {
     return unexpected(Error{rc, fmt::format("pthread_getschedparam: {}", std::strerror(rc))});
   }
   info.policy = policy == SCHED_FIFO ? SchedPolicy::Fifo : SchedPolicy::Other;

@@ -1,11 +1,11 @@
-// Linux process set-up for real time: mlockall, malloc tuning, stack and heap prefaulting.
+// Process set-up for real time on both platforms: mlockall, malloc tuning, stack and heap
+// prefaulting, the zero-CPU-latency request. The one difference, whether memory may stay
+// unlocked, comes from the backend (backend.hpp): libcobalt has locked it before main() already.
 #include "vigil/platform/memory.hpp"
 
 #include <alloca.h>
 #include <fcntl.h>
 #include <malloc.h>
-#include <pthread.h>
-#include <sched.h>
 #include <sys/mman.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -13,7 +13,8 @@
 #include <cerrno>
 #include <cstdint>
 #include <cstdlib>
-#include <cstring>
+
+#include "platform/posix/backend.hpp"
 
 namespace vigil::platform {
 
@@ -21,6 +22,8 @@ namespace {
 
 bool fifo_allowed() noexcept {
   // Privilege probe without changing anything: root/CAP_SYS_NICE, or an RLIMIT_RTPRIO above 0.
+  // Cobalt too: libcobalt sets the Linux side of every SCHED_FIFO thread with glibc's
+  // pthread_setschedparam, so the Linux rules apply.
   if (geteuid() == 0) return true;
   rlimit rl{};
   return getrlimit(RLIMIT_RTPRIO, &rl) == 0 && rl.rlim_cur > 0;
@@ -30,7 +33,9 @@ bool fifo_allowed() noexcept {
 
 void prefault_stack(std::size_t bytes) noexcept {
   if (bytes == 0) return;
-  // alloca reserves the frame below us; touching one byte per page maps every page of it.
+  // alloca reserves the frame below us; touching one byte per page maps every page of it. No
+  // system call (the page size comes from the auxiliary vector), so a Cobalt thread in primary
+  // mode stays there; with memory locked the pages are normally present already.
   auto* base = static_cast<volatile unsigned char*>(alloca(bytes));
   const auto page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
   for (std::size_t i = 0; i < bytes; i += page) base[i] = 0;
@@ -39,7 +44,10 @@ void prefault_stack(std::size_t bytes) noexcept {
 
 RealtimeSetupReport setup_realtime_process(const RealtimeSetupOptions& options) {
   RealtimeSetupReport report;
-  if (options.lock_memory) {
+  // Cobalt: repeating libcobalt's mlockall is harmless (same flags) and lets the report say what
+  // the kernel answers now rather than assume it; it runs whatever `lock_memory` says, since
+  // memory must never be unlocked under Cobalt (munlockall would break it).
+  if (options.lock_memory || detail::memory_always_locked()) {
     if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
       report.memory_locked = true;
     } else {
@@ -47,7 +55,7 @@ RealtimeSetupReport setup_realtime_process(const RealtimeSetupOptions& options) 
     }
   }
   // Keep freed memory in the process and never serve allocations with mmap, so that memory
-  // prefaulted here stays mapped (and locked).
+  // prefaulted here stays mapped (and locked). glibc's malloc serves Cobalt programs too.
   report.malloc_tuned = mallopt(M_TRIM_THRESHOLD, -1) == 1 && mallopt(M_MMAP_MAX, 0) == 1;
   // Bound the arenas before the process's threads start allocating: an arena, once made, stays.
   if (options.malloc_arena_max > 0 && mallopt(M_ARENA_MAX, options.malloc_arena_max) == 1) {
