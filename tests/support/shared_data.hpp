@@ -21,12 +21,12 @@ inline std::filesystem::path shared_data(const std::string& relative) {
 
 /// Skips the current test (with the reason CTest recognises) when ../shared/data/<relative> is
 /// absent; otherwise does nothing.
-#define VIGIL_REQUIRE_SHARED_DATA(relative)                                                      \
-  do {                                                                                           \
-    const std::filesystem::path vigil_shared_path_ = ::vigil::test::shared_data(relative);       \
-    if (!std::filesystem::exists(vigil_shared_path_)) {                                          \
-      WARN("skipped: ../shared/data/" << (relative) << " absent (looked for "                    \
-                                      << vigil_shared_path_.string() << ")");                    \
-      return;                                                                                    \
-    }                                                                                            \
+#define VIGIL_REQUIRE_SHARED_DATA(relative)                                                \
+  do {                                                                                     \
+    const std::filesystem::path vigil_shared_path_ = ::vigil::test::shared_data(relative); \
+    if (!std::filesystem::exists(vigil_shared_path_)) {                                    \
+      WARN("skipped: ../shared/data/" << (relative) << " absent (looked for "              \
+                                      << vigil_shared_path_.string() << ")");              \
+      return;                                                                              \
+    }                                                                                      \
   } while (false)
