@@ -12,7 +12,10 @@ packages=(
   # libraries
   libboost-dev libfmt-dev libyaml-cpp-dev libcpp-httplib-dev libcli11-dev
   # tests and benchmarks
-  catch2 libbenchmark-dev can-utils rt-tests
+  catch2 libbenchmark-dev can-utils rt-tests python3
+  # fuzzing (the `fuzz` preset: libFuzzer needs clang; clang-14 cannot compile libstdc++ 12's
+  # std::expected, clang-16 can)
+  clang-16 libfuzzer-16-dev libclang-rt-16-dev
 )
 
 missing=()

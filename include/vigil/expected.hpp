@@ -12,17 +12,15 @@
 #if VIGIL_EXPECTED_TL
 #include <tl/expected.hpp>
 namespace vigil {
-template <class T, class E>
-using expected = tl::expected<T, E>;
-template <class E>
-using unexpected = tl::unexpected<E>;
+// Using-declarations, not alias templates: `vigil::unexpected(e)` deduces its argument also with
+// compilers without CTAD for alias templates (clang before 19, used for the fuzz preset).
+using tl::expected;
+using tl::unexpected;
 }  // namespace vigil
 #else
 #include <expected>
 namespace vigil {
-template <class T, class E>
-using expected = std::expected<T, E>;
-template <class E>
-using unexpected = std::unexpected<E>;
+using std::expected;
+using std::unexpected;
 }  // namespace vigil
 #endif
