@@ -15,7 +15,7 @@ struct DemoOptions {
   bool details = false;
   bool print_config = false;
 };
-/// Runs `vigil demo`. Exit codes (docs/guide/demo-and-faults.md):
+/// Runs `vigil demo`. Exit codes (docs/guide/faults.md):
 ///  0 ran for --duration or was stopped by SIGINT/SIGTERM; final report printed, JSON written;
 ///  1 could not run: invalid deployment, the system could not be built or started;
 ///  3 ran, but the final reports could not be written to the JSON file (path and reason on
