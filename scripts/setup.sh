@@ -14,12 +14,15 @@ packages=(
   # libraries
   libboost-dev libfmt-dev libyaml-cpp-dev libcpp-httplib-dev libcli11-dev
   # tests and benchmarks
-  catch2 libbenchmark-dev can-utils rt-tests
+  catch2 libbenchmark-dev can-utils rt-tests python3
   # the dashboard's charts (embedded at build time) and the HTTP end-to-end tests: a real
   # browser, Prometheus (and promtool), the OpenMetrics parser, ss
   libjs-chart.js chromium prometheus python3-prometheus-client iproute2
   # the LTTng-UST comparison row of benches/task (tracepoint provider and session control)
   liblttng-ust-dev lttng-tools
+  # fuzzing (the `fuzz` preset: libFuzzer needs clang; clang-14 cannot compile libstdc++ 12's
+  # std::expected, clang-16 can)
+  clang-16 libfuzzer-16-dev libclang-rt-16-dev
 )
 
 missing=()

@@ -1,5 +1,6 @@
 #pragma once
 // The subcommands of the vigil tool.
+#include <chrono>
 #include <string>
 #include <vector>
 
@@ -16,7 +17,18 @@ struct DemoOptions {
   std::string http;      ///< "[ADDR:]PORT": serve HTTP (overrides the deployment's outputs.http)
   std::string textfile;  ///< node-exporter textfile (.prom) rewritten every monitor cycle
 };
+/// Runs `vigil demo`. Exit codes (docs/guide/faults.md):
+///  0 ran for --duration or was stopped by SIGINT/SIGTERM; final report printed, JSON written;
+///  1 could not run: invalid deployment, the system could not be built or started;
+///  3 ran, but the final reports could not be written to the JSON file (path and reason on
+///    stderr; the report was printed);
+///  4 did not stop within kDemoStopTimeout: a component stuck in on_update; the monitor's latest
+///    reports were printed and written, and the process left without joining that thread.
+/// (2 is a command-line error, from main.)
 int run_demo(const DemoOptions& options);
+inline constexpr int kDemoExitOutput = 3;
+inline constexpr int kDemoExitStuck = 4;
+inline constexpr std::chrono::seconds kDemoStopTimeout{5};
 
 struct CheckConfigOptions {
   std::vector<std::string> files;

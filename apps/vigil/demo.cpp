@@ -3,8 +3,14 @@
 // reports.
 #include <fmt/format.h>
 
+#include <cerrno>
+#include <chrono>
 #include <cstdio>
-#include <fstream>
+#include <cstdlib>
+#include <cstring>
+#include <future>
+#include <memory>
+#include <optional>
 #include <thread>
 
 #include "commands.hpp"
@@ -36,6 +42,55 @@ void print_view(const deploy::System& sys, const ReportSet& reports, double elap
   if (!live_tty) out += '\n';
   std::fwrite(out.data(), 1, out.size(), stdout);
   std::fflush(stdout);
+}
+
+// The reason a write of `text` to `path` failed (strerror of the failing call), or nullopt.
+// fflush and fclose are checked too: a full disk (ENOSPC, /dev/full) shows only there.
+std::optional<std::string> write_file(const std::string& path, const std::string& text) {
+  errno = 0;
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  if (f == nullptr) return std::strerror(errno != 0 ? errno : EIO);
+  bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size() && std::fflush(f) == 0;
+  int err = ok ? 0 : errno;
+  if (std::fclose(f) != 0 && ok) {
+    ok = false;
+    err = errno;
+  }
+  if (!ok) return std::strerror(err != 0 ? err : EIO);
+  return std::nullopt;
+}
+
+// Whether `path` can be opened for writing now (opened to append: an existing file is kept).
+std::optional<std::string> probe_writable(const std::string& path) {
+  errno = 0;
+  std::FILE* f = std::fopen(path.c_str(), "ab");
+  if (f == nullptr) return std::strerror(errno != 0 ? errno : EIO);
+  std::fclose(f);
+  return std::nullopt;
+}
+
+// Writes the final reports; on failure says so on stderr, naming the path and the reason.
+bool write_json(const std::string& path, const ReportSet& reports) {
+  if (auto err = write_file(path, to_json(reports, {.indent = 2}) + "\n")) {
+    std::fprintf(stderr, "vigil demo: cannot write the final reports to %s: %s\n", path.c_str(),
+                 err->c_str());
+    return false;
+  }
+  std::printf("Final reports written to %s\n", path.c_str());
+  return true;
+}
+
+// Stops `system`, waiting at most `timeout`: a component stuck in on_update never returns, and
+// its activity's thread cannot be joined. False when the deadline passed; the stopping thread is
+// then left blocked and the caller must leave the process without destroying `system`.
+bool stop_within(deploy::System& system, std::chrono::seconds timeout) {
+  auto done = std::make_shared<std::promise<void>>();
+  std::future<void> stopped = done->get_future();
+  std::thread([&system, done] {
+    system.stop();
+    done->set_value();
+  }).detach();
+  return stopped.wait_for(timeout) == std::future_status::ready;
 }
 
 }  // namespace
@@ -104,6 +159,14 @@ int run_demo(const DemoOptions& o) {
     std::fprintf(stderr, "vigil demo: cannot start: %s\n", r.error().message.c_str());
     return 1;
   }
+  if (!json_path.empty()) {
+    if (auto err = probe_writable(json_path)) {
+      std::fprintf(stderr,
+                   "vigil demo: cannot write %s: %s; supervision goes on, the final reports "
+                   "will be printed and written there again at the end\n",
+                   json_path.c_str(), err->c_str());
+    }
+  }
   const bool tty = platform::is_terminal(stdout);
   const ColorMode mode = color_mode(o.color);
   const bool color = use_color(mode, stdout);
@@ -130,7 +193,31 @@ int run_demo(const DemoOptions& o) {
     }
   }
   const bool interrupted = platform::stop_requested();
-  system.stop();
+  if (!stop_within(system, kDemoStopTimeout)) {
+    // A component never returned from on_update: report what the monitor (still running, it
+    // stops after the activities) last saw, and leave without joining the blocked thread.
+    const ReportSet last = system.reports();
+    std::string stuck;
+    for (const Report& r : last.components) {
+      if (r.kind == ReportKind::Component && r.status.level() == StatusLevel::Stale) {
+        stuck += stuck.empty() ? r.name : ", " + r.name;
+      }
+    }
+    std::fprintf(stderr,
+                 "vigil demo: the system did not stop within %lld s: a component is stuck in "
+                 "on_update (STALE: %s); its thread cannot be joined. Final reports: the "
+                 "monitor's latest.\n",
+                 static_cast<long long>(kDemoStopTimeout.count()),
+                 stuck.empty() ? "none reported yet" : stuck.c_str());
+    std::printf("\n%s after %.1f s, not stopped. Latest report:\n",
+                interrupted ? "Interrupted" : "Ended",
+                static_cast<double>(platform::now_ns() - start) / 1e9);
+    std::fputs(format_summary(last, color).c_str(), stdout);
+    if (!json_path.empty()) (void)write_json(json_path, last);
+    std::fflush(stdout);
+    std::fflush(stderr);
+    std::_Exit(kDemoExitStuck);
+  }
   const ReportSet final_reports = system.step_monitor();
   if (exporter) {
     exporter->publish(final_reports);  // served until the demo exits
@@ -142,15 +229,8 @@ int run_demo(const DemoOptions& o) {
               static_cast<double>(platform::now_ns() - start) / 1e9);
   std::fputs(format_summary(final_reports, color).c_str(), stdout);
   if (o.details) std::fputs(("\n" + format_details(final_reports, color)).c_str(), stdout);
-  if (!json_path.empty()) {
-    std::ofstream f(json_path);
-    f << to_json(final_reports, {.indent = 2}) << '\n';
-    if (!f) {
-      std::fprintf(stderr, "vigil demo: cannot write %s\n", json_path.c_str());
-      return 1;
-    }
-    std::printf("Final reports written to %s\n", json_path.c_str());
-  }
+  std::fflush(stdout);
+  if (!json_path.empty() && !write_json(json_path, final_reports)) return kDemoExitOutput;
   return 0;
 }
 

@@ -3,9 +3,11 @@
 #include "demo_components.hpp"
 
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <memory>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 #include "vigil/can/sniffer.hpp"
@@ -158,6 +160,30 @@ class Faulty : public Task<Faulty> {
   Nanos start_ns_ = 0;
 };
 
+/// Fault injection: after `after`, on_update never returns (a driver call that hangs). The other
+/// components of its activity's thread starve with it; the monitor reports them STALE, and
+/// `vigil demo` cannot join that thread when it stops (it exits with code 4 after 5 s).
+class Stuck : public Task<Stuck> {
+ public:
+  explicit Stuck(const ComponentContext& c)
+      : Task(c.name, c.supervision, c.registry()),
+        after_ns_(param_duration(c, "after", 2 * kNanosPerSecond)) {}
+  bool on_start() {
+    start_ns_ = platform::now_ns();
+    return true;
+  }
+  void on_update() {
+    if (platform::now_ns() - start_ns_ > after_ns_) {
+      for (;;) std::this_thread::sleep_for(std::chrono::hours(1));
+    }
+    burn(10 * kNanosPerMicro);
+  }
+
+ private:
+  Nanos after_ns_;
+  Nanos start_ns_ = 0;
+};
+
 /// A CAN I/O component: every millisecond it sends SYNC and one RPDO1 (control word) to each of
 /// `drives` simulated CANopen drives and reads their TPDO1 answers, timing every driver call into
 /// the sniffer of the deployment's CAN supervision. Drive `silent_node` stops answering after
@@ -231,6 +257,7 @@ void register_components() {
   f.add<LoadRamp>("demo.load_ramp", "fault: execution time ramping toward the period");
   f.add<Leaky>("demo.leaky", "fault: allocates every N cycles");
   f.add<Faulty>("demo.faulty", "fault: throws after a delay");
+  f.add<Stuck>("demo.stuck", "fault: never returns from on_update after a delay");
   f.add<CanIo>("demo.can_io", "CAN I/O with simulated CANopen drives (needs a `can:` section)");
   deploy::register_can_extension();  // also done by linking vigil::deploy_can
 }

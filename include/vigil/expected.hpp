@@ -12,19 +12,15 @@
 #if VIGIL_EXPECTED_TL
 #include <tl/expected.hpp>
 namespace vigil {
-template <class T, class E>
-using expected = tl::expected<T, E>;
-// A using-declaration, not an alias template: `unexpected(e)` then deduces E on every compiler
-// (class template argument deduction for alias templates is C++20, missing in clang before 19,
-// which clang-tidy uses).
+// Using-declarations, not alias templates: `vigil::unexpected(e)` deduces its argument also with
+// compilers without CTAD for alias templates (clang before 19, used for the fuzz preset).
+using tl::expected;
 using tl::unexpected;
 }  // namespace vigil
 #else
 #include <expected>
 namespace vigil {
-template <class T, class E>
-using expected = std::expected<T, E>;
-// A using-declaration, not an alias template: see above.
+using std::expected;
 using std::unexpected;
 }  // namespace vigil
 #endif

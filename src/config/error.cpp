@@ -76,8 +76,13 @@ std::optional<std::string_view> closest_match(std::string_view word,
   std::optional<std::string_view> best;
   std::size_t best_distance = 0;
   for (std::string_view c : candidates) {
-    const std::size_t distance = edit_distance(word, c);
     const std::size_t limit = std::max<std::size_t>(1, std::max(word.size(), c.size()) / 3);
+    // The distance is at least the difference in length: skip the O(n*m) table when that alone
+    // is too far (a 1 MB key against "period").
+    const std::size_t length_gap =
+        word.size() > c.size() ? word.size() - c.size() : c.size() - word.size();
+    if (length_gap > limit) continue;
+    const std::size_t distance = edit_distance(word, c);
     // A candidate that shares nothing with the word ('x' for 'a') is no hint.
     const bool related = distance < std::max(word.size(), c.size());
     if (distance <= limit && related && (!best || distance < best_distance)) {

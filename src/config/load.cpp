@@ -1,6 +1,7 @@
 #include "vigil/config/load.hpp"
 
 #include <fmt/format.h>
+#include <yaml-cpp/depthguard.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -10,6 +11,9 @@
 #include <system_error>
 #include <unordered_map>
 
+#include "config/document.hpp"
+#include "config/screen.hpp"
+
 namespace vigil::config {
 namespace {
 
@@ -17,23 +21,17 @@ std::string join(std::string_view path, std::string_view key) {
   return path.empty() ? std::string(key) : fmt::format("{}.{}", path, key);
 }
 
-void sort_by_location(ConfigErrors& errors) {
-  std::stable_sort(errors.begin(), errors.end(), [](const ConfigError& a, const ConfigError& b) {
-    return std::pair(a.line, a.column) < std::pair(b.line, b.column);
-  });
-}
-
 // yaml-cpp keeps every pair of a mapping but lookups find only the first: a repeated key would
 // be silently ignored. Walks the whole document and reports each repetition where it is written.
 class DuplicateFinder {
  public:
-  DuplicateFinder(const std::string& file, std::string_view text, ConfigErrors& out)
-      : file_(file), text_(text), out_(out) {}
+  DuplicateFinder(const detail::Document& doc, ConfigErrors& out)
+      : file_(doc.file), doc_(doc), out_(out) {}
 
   void walk(const YAML::Node& n, const std::string& path) {
     if (!n.IsMap() && !n.IsSequence()) return;
-    // An alias is the anchored node itself, and `&a [*a]` is a cycle: visit each container once,
-    // identified by where it starts and what it is.
+    // An alias is the anchored node itself: visit each container once, identified by where it
+    // starts and what it is (recursive aliases are refused before this runs).
     if (!visited_.emplace(n.Mark().pos, static_cast<int>(n.Type())).second) return;
     if (n.IsSequence()) {
       std::size_t index = 0;
@@ -51,8 +49,8 @@ class DuplicateFinder {
       const std::string child = join(path, key.Scalar());
       const auto [previous, inserted] = first.emplace(key.Scalar(), key.Mark());
       if (!inserted) {
-        const auto [line, column] = detail::locate(text_, key.Mark());
-        const auto [first_line, first_column] = detail::locate(text_, previous->second);
+        const auto [line, column] = doc_.locate(key.Mark());
+        const auto [first_line, first_column] = doc_.locate(previous->second);
         out_.push_back({file_, line, column, child,
                         fmt::format("duplicate key (first defined at line {}, column {})",
                                     first_line, first_column)});
@@ -63,7 +61,7 @@ class DuplicateFinder {
 
  private:
   const std::string& file_;
-  std::string_view text_;
+  const detail::Document& doc_;
   ConfigErrors& out_;
   std::set<std::pair<int, int>> visited_;
 };
@@ -79,31 +77,47 @@ vigil::unexpected<ConfigErrors> file_error(const std::string& name, int err) {
                                 std::error_code(err, std::generic_category()).message())}});
 }
 
+vigil::unexpected<ConfigErrors> refuse(const detail::Document& doc, const YAML::Mark& mark,
+                                       std::string message) {
+  const auto [line, column] = doc.locate(mark);
+  return vigil::unexpected<ConfigErrors>(ConfigErrors{{doc.file, line, column, "", message}});
+}
+
+std::string too_large() {
+  return fmt::format("file is larger than {} MiB: not a configuration file", kMaxFileBytes >> 20);
+}
+
 }  // namespace
 
 expected<Node, ConfigErrors> load_string(std::string_view text, std::string name) {
-  std::string owned(text);
-  std::vector<YAML::Node> documents;
+  if (text.size() > kMaxFileBytes) {
+    return vigil::unexpected<ConfigErrors>(ConfigErrors{{name, 0, 0, "", too_large()}});
+  }
+  const std::shared_ptr<detail::Document> doc =
+      detail::NodeAccess::make_document(std::move(name), std::string(text));
+  YAML::Node root;
   try {
-    documents = YAML::LoadAll(owned);
+    // Pass 1 (builds nothing): limits, recursive aliases, a second document; it always ends,
+    // where YAML::LoadAll may loop forever. Pass 2: yaml-cpp builds the first document only.
+    if (std::optional<detail::Refusal> refused = detail::screen_yaml(doc->text)) {
+      return refuse(*doc, refused->mark, std::move(refused->message));
+    }
+    root = YAML::Load(doc->text);
+  } catch (const YAML::DeepRecursion& e) {
+    return refuse(*doc, e.mark,
+                  fmt::format("nesting deeper than {} levels (mappings and sequences inside each "
+                              "other)",
+                              e.depth()));
   } catch (const YAML::Exception& e) {
-    const auto [line, column] = detail::locate(owned, e.mark);
-    return vigil::unexpected<ConfigErrors>(
-        ConfigErrors{{std::move(name), line, column, "", e.msg}});
+    return refuse(*doc, e.mark, e.msg);
   }
   ConfigErrors errors;
-  if (documents.size() > 1) {
-    const auto [line, column] = detail::locate(owned, documents[1].Mark());
-    errors.push_back({name, line, column, "",
-                      "a file must hold a single YAML document; a second one starts here"});
-  }
-  const YAML::Node root = documents.empty() ? YAML::Node(YAML::NodeType::Null) : documents[0];
-  DuplicateFinder(name, owned, errors).walk(root, "");
+  DuplicateFinder(*doc, errors).walk(root, "");
   if (!errors.empty()) {
-    sort_by_location(errors);
+    detail::tidy_errors(errors);
     return vigil::unexpected<ConfigErrors>(std::move(errors));
   }
-  return detail::NodeAccess::make_root(std::move(name), std::move(owned), root);
+  return detail::NodeAccess::make_root(doc, root);
 }
 
 expected<Node, ConfigErrors> load_file(const std::filesystem::path& path) {
@@ -114,8 +128,15 @@ expected<Node, ConfigErrors> load_file(const std::filesystem::path& path) {
   std::string text;
   char buffer[16 * 1024];
   std::size_t n = 0;
-  while ((n = std::fread(buffer, 1, sizeof buffer, file.get())) > 0) text.append(buffer, n);
+  // Never more than the limit plus one byte (a FIFO or /dev/zero never ends).
+  while (text.size() <= kMaxFileBytes &&
+         (n = std::fread(buffer, 1, sizeof buffer, file.get())) > 0) {
+    text.append(buffer, n);
+  }
   if (std::ferror(file.get())) return file_error(name, errno != 0 ? errno : EIO);
+  if (text.size() > kMaxFileBytes) {
+    return vigil::unexpected<ConfigErrors>(ConfigErrors{{name, 0, 0, "", too_large()}});
+  }
   return load_string(text, name);
 }
 
@@ -136,14 +157,14 @@ ConfigError loader_exception_error(const Node& root, std::exception_ptr e) {
 }
 
 ConfigErrors merge_errors(const Node& root, ConfigErrors loader_errors, bool failed) {
-  ConfigErrors all = root.errors();
-  for (ConfigError& e : loader_errors) {
-    if (std::find(all.begin(), all.end(), e) == all.end()) all.push_back(std::move(e));
-  }
-  if (failed && all.empty()) {
+  ConfigErrors all = NodeAccess::document(root).errors;
+  const std::size_t suppressed = NodeAccess::document(root).suppressed;
+  all.insert(all.end(), std::make_move_iterator(loader_errors.begin()),
+             std::make_move_iterator(loader_errors.end()));
+  if (failed && all.empty() && suppressed == 0) {
     all.push_back({root.file(), 0, 0, "", "the loader rejected the document without saying why"});
   }
-  sort_by_location(all);
+  tidy_errors(all, suppressed);
   return all;
 }
 

@@ -1,5 +1,7 @@
 #include "vigil/config/node.hpp"
 
+#include "config/document.hpp"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -11,51 +13,66 @@ namespace vigil::config {
 
 namespace detail {
 
-// The state every Node of one document shares: where it came from and what went wrong.
-struct Document {
-  std::string file;
-  std::string text;  // kept to turn yaml-cpp's byte columns into character columns
-  ConfigErrors errors;
-
-  void add(ConfigError error) {
-    // Accessors may meet the same problem more than once (two keys read under one bad node).
-    if (std::find(errors.begin(), errors.end(), error) == errors.end()) {
-      errors.push_back(std::move(error));
-    }
+void Document::add(ConfigError error) {
+  // Accessors may meet the same problem more than once (two keys read under one bad node).
+  if (std::find(errors.begin(), errors.end(), error) != errors.end()) return;
+  if (errors.size() >= kMaxErrorsKept) {
+    ++suppressed;
+    return;
   }
-};
-
-std::pair<int, int> locate(std::string_view text, const YAML::Mark& mark) {
-  if (mark.is_null() || mark.line < 0 || mark.column < 0) return {0, 0};
-  const int line = mark.line + 1;
-  int column = mark.column + 1;
-  if (mark.pos >= 0 && static_cast<std::size_t>(mark.pos) <= text.size()) {
-    const auto pos = static_cast<std::size_t>(mark.pos);
-    const std::size_t newline = pos == 0 ? std::string_view::npos : text.rfind('\n', pos - 1);
-    const std::size_t start = newline == std::string_view::npos ? 0 : newline + 1;
-    // Only when yaml-cpp's byte column agrees with the text (it may not after a byte-order mark
-    // or for UTF-16 input, which yaml-cpp converts): then count code points instead of bytes.
-    if (pos - start == static_cast<std::size_t>(mark.column)) {
-      int chars = 0;
-      for (std::size_t i = start; i < pos; ++i) {
-        if ((static_cast<unsigned char>(text[i]) & 0xC0) != 0x80) ++chars;
-      }
-      column = chars + 1;
-    }
-  }
-  return {line, column};
+  errors.push_back(std::move(error));
 }
 
-Node NodeAccess::make_root(std::string file, std::string text, const YAML::Node& root) {
-  auto doc = std::make_shared<Document>();
-  doc->file = std::move(file);
-  doc->text = std::move(text);
-  const auto [line, column] = locate(doc->text, root.Mark());
+ConfigError more_errors(const std::string& file, std::size_t more) {
+  return {file, 0, 0, "",
+          fmt::format("{} more error{} not listed (only the first {} are)", more,
+                      more == 1 ? "" : "s", kMaxErrorsKept)};
+}
+
+void tidy_errors(ConfigErrors& errors, std::size_t already_suppressed) {
+  std::stable_sort(errors.begin(), errors.end(), [](const ConfigError& a, const ConfigError& b) {
+    return std::pair(a.line, a.column) < std::pair(b.line, b.column);
+  });
+  // Equal errors have equal locations: compare each with the others at its location only.
+  ConfigErrors kept;
+  std::size_t group = 0;  // index in `kept` where the current location starts
+  std::size_t dropped = already_suppressed;
+  std::string file = errors.empty() ? std::string() : errors.front().file;
+  for (ConfigError& e : errors) {
+    if (group < kept.size() &&
+        std::pair(kept[group].line, kept[group].column) != std::pair(e.line, e.column)) {
+      group = kept.size();
+    }
+    if (std::find(kept.begin() + static_cast<std::ptrdiff_t>(group), kept.end(), e) != kept.end()) {
+      continue;
+    }
+    if (kept.size() >= kMaxErrorsKept) {
+      ++dropped;
+      continue;
+    }
+    kept.push_back(std::move(e));
+  }
+  if (dropped > 0) kept.push_back(more_errors(file, dropped));
+  errors = std::move(kept);
+}
+
+std::shared_ptr<Document> NodeAccess::make_document(std::string file, std::string text) {
+  return std::make_shared<Document>(std::move(file), std::move(text));
+}
+
+std::pair<int, int> NodeAccess::locate(const Document& doc, const YAML::Mark& mark) {
+  return doc.locate(mark);
+}
+
+Node NodeAccess::make_root(std::shared_ptr<Document> doc, const YAML::Node& root) {
+  const auto [line, column] = doc->locate(root.Mark());
   return Node(std::move(doc), root, std::string(), line, column, Node::State::Present);
 }
 
+const Document& NodeAccess::document(const Node& node) { return *node.doc_; }
+
 std::pair<int, int> NodeAccess::text_location(const Node& node, const YAML::Mark& mark) {
-  return locate(node.doc_->text, mark);
+  return node.doc_->locate(mark);
 }
 
 }  // namespace detail
@@ -149,13 +166,13 @@ Node::Node(std::shared_ptr<detail::Document> doc, YAML::Node yaml, std::string p
 namespace {
 // Where errors about a mapping's value point: at the value, except for an empty value
 // (`key:`), which yaml-cpp marks at the next token, often lines below: then at the key.
-std::pair<int, int> value_location(std::string_view text, const YAML::Node& key,
+std::pair<int, int> value_location(const detail::Document& doc, const YAML::Node& key,
                                    const YAML::Node& value) {
   const YAML::Mark v = value.Mark();
   if (value.IsNull() && (v.is_null() || v.line != key.Mark().line)) {
-    return detail::locate(text, key.Mark());
+    return doc.locate(key.Mark());
   }
-  return detail::locate(text, v);
+  return doc.locate(v);
 }
 }  // namespace
 
@@ -175,7 +192,7 @@ Node Node::operator[](std::string_view key) const {
   for (const auto& pair : yaml_) {
     const YAML::Node& k = pair.first;
     if (k.IsScalar() && k.Scalar() == key) {
-      const auto [line, column] = value_location(doc_->text, k, pair.second);
+      const auto [line, column] = value_location(*doc_, k, pair.second);
       return Node(doc_, pair.second, std::move(child_path), line, column, State::Present);
     }
   }
@@ -202,11 +219,11 @@ std::vector<std::pair<std::string, Node>> Node::entries() const {
   for (const auto& pair : yaml_) {
     const YAML::Node& k = pair.first;
     if (!k.IsScalar()) {
-      const auto [line, column] = detail::locate(doc_->text, k.Mark());
+      const auto [line, column] = doc_->locate(k.Mark());
       doc_->add({doc_->file, line, column, path_, key_error(k)});
       continue;
     }
-    const auto [line, column] = value_location(doc_->text, k, pair.second);
+    const auto [line, column] = value_location(*doc_, k, pair.second);
     out.emplace_back(
         k.Scalar(), Node(doc_, pair.second, join(path_, k.Scalar()), line, column, State::Present));
   }
@@ -223,7 +240,7 @@ std::vector<Node> Node::elements() const {
   out.reserve(yaml_.size());
   std::size_t index = 0;
   for (const auto& item : yaml_) {
-    auto [line, column] = detail::locate(doc_->text, item.Mark());
+    auto [line, column] = doc_->locate(item.Mark());
     if (line == 0) std::tie(line, column) = std::pair(line_, column_);
     out.push_back(
         Node(doc_, item, fmt::format("{}[{}]", path_, index++), line, column, State::Present));
@@ -282,6 +299,7 @@ ConfigErrors Node::errors() const {
   std::stable_sort(out.begin(), out.end(), [](const ConfigError& a, const ConfigError& b) {
     return std::pair(a.line, a.column) < std::pair(b.line, b.column);
   });
+  if (doc_->suppressed > 0) out.push_back(detail::more_errors(doc_->file, doc_->suppressed));
   return out;
 }
 
@@ -293,7 +311,7 @@ void Node::reject_unknown_keys_(std::span<const std::string_view> allowed) const
   }
   for (const auto& pair : yaml_) {
     const YAML::Node& k = pair.first;
-    const auto [line, column] = detail::locate(doc_->text, k.Mark());
+    const auto [line, column] = doc_->locate(k.Mark());
     if (!k.IsScalar()) {
       doc_->add({doc_->file, line, column, path_, key_error(k)});
       continue;

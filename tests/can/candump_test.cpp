@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "support/shared_data.hpp"
 #include "vigil/platform/rt_loss.hpp"
 
 using vigil::can::CandumpReader;
@@ -124,10 +125,7 @@ std::size_t make_candump_line(std::uint64_t i, char* out) {
   return static_cast<std::size_t>(p - out);
 }
 
-std::filesystem::path shared_capture() {
-  return std::filesystem::path(VIGIL_SHARED_DATA_DIR) / "can" /
-         "j1939_truck_candump-2022-03-29.log";
-}
+constexpr const char* kTruckLog = "can/j1939_truck_candump-2022-03-29.log";
 
 }  // namespace
 
@@ -581,11 +579,8 @@ TEST_CASE("parse_candump_frame parses a cansend-style frame or says where it is 
 }
 
 TEST_CASE("candump reader reads the real J1939 truck capture exactly", "[can][candump][data]") {
-  const auto path = shared_capture();
-  if (!std::filesystem::exists(path)) {
-    WARN("shared capture not found, skipped: " << path.string());
-    return;
-  }
+  VIGIL_REQUIRE_SHARED_DATA(kTruckLog);
+  const auto path = vigil::test::shared_data(kTruckLog);
   ReaderOptions options;
   options.on_malformed = OnMalformed::Stop;
   const auto log = vigil::can::read_candump_file(path, options);

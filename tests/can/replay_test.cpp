@@ -8,6 +8,7 @@
 
 #include "can_stats.hpp"  // apps/vigil: the can-stats command
 #include "support/json_reader.hpp"
+#include "support/shared_data.hpp"
 #include "vigil/can/log/candump.hpp"
 
 using namespace vigil::can;
@@ -17,10 +18,9 @@ using vigil::Nanos;
 
 namespace {
 
-std::filesystem::path truck_log() {
-  return std::filesystem::path(VIGIL_SHARED_DATA_DIR) / "can" /
-         "j1939_truck_candump-2022-03-29.log";
-}
+// The real capture lives outside the repository: tests that read it skip when it is absent.
+constexpr const char* kTruckLog = "can/j1939_truck_candump-2022-03-29.log";
+std::filesystem::path truck_log() { return vigil::test::shared_data(kTruckLog); }
 
 // Nanoseconds from milliseconds written with 3 decimals (the README's figures are in µs).
 constexpr Nanos ms(double v) { return static_cast<Nanos>(v * 1e6 + (v >= 0 ? 0.5 : -0.5)); }
@@ -60,6 +60,7 @@ Run can_stats(const CanStatsOptions& o) {
 
 TEST_CASE("Replay of the real J1939 truck capture reproduces its independent figures",
           "[can][replay][data]") {
+  VIGIL_REQUIRE_SHARED_DATA(kTruckLog);
   LogReplay replay({.node_map = NodeMap::j1939()});
   const std::vector<std::filesystem::path> files{truck_log()};
   REQUIRE(replay.feed_files(files).has_value());
@@ -139,6 +140,7 @@ std::vector<std::string> row_of(const std::string& text, const std::string& star
 }  // namespace
 
 TEST_CASE("can-stats prints the real capture's exact figures", "[can][replay][cli][data]") {
+  VIGIL_REQUIRE_SHARED_DATA(kTruckLog);
   const Run r = can_stats({.files = {truck_log()}, .node_map = NodeMapKind::J1939});
   INFO(r.out << r.err);
   CHECK(r.code == 0);
@@ -184,6 +186,7 @@ TEST_CASE("can-stats prints the real capture's exact figures", "[can][replay][cl
 }
 
 TEST_CASE("can-stats --json on the real capture", "[can][replay][cli][data]") {
+  VIGIL_REQUIRE_SHARED_DATA(kTruckLog);
   const Run r = can_stats({.files = {truck_log()}, .json = true, .node_map = NodeMapKind::J1939});
   REQUIRE(r.code == 0);
   const auto j = vigil::test::JsonParser::parse(r.out);
@@ -219,6 +222,7 @@ TEST_CASE("can-stats --json on the real capture", "[can][replay][cli][data]") {
 
 TEST_CASE("can-stats with a configuration: groups, names, thresholds, filter",
           "[can][replay][cli][data]") {
+  VIGIL_REQUIRE_SHARED_DATA(kTruckLog);
   const TempDir dir("vigil_can_stats_config");
   const auto config = dir.write("truck.yaml", R"(
 node_map: j1939

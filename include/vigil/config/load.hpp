@@ -8,8 +8,16 @@
 /// at its own location with the first one's position), and when a file holds more than one
 /// document. An empty file loads as a null root, which reads as an empty mapping.
 ///
+/// Whatever the input, loading ends and its memory is bounded: a file is refused, with an error
+/// at the offending place, when it is larger than kMaxFileBytes, nests mappings and sequences
+/// deeper than kMaxNestingDepth, holds more than kMaxNodes values, holds an alias that refers to
+/// a node containing it, or aliases that expand to more than kMaxAliasExpansion values. Past
+/// kMaxErrorsListed errors, the list ends with one saying how many more there were.
+/// (docs/reference/configuration-limits.md.)
+///
 /// Nothing here is RT-safe (file I/O, allocation). Each call is independent and thread-safe.
 
+#include <cstddef>
 #include <exception>
 #include <filesystem>
 #include <functional>
@@ -24,6 +32,20 @@
 #include "vigil/expected.hpp"
 
 namespace vigil::config {
+
+/// Largest configuration file accepted, in bytes (4 MiB). A larger file is refused ("file is
+/// larger than 4 MiB") before it is parsed; load_file reads no more than this plus one byte.
+inline constexpr std::size_t kMaxFileBytes = std::size_t{4} << 20;
+/// Deepest nesting of mappings and sequences accepted (100 levels).
+inline constexpr int kMaxNestingDepth = 100;
+/// Most values (scalars, mappings, sequences, aliases, empty values) in one file (500,000).
+inline constexpr std::size_t kMaxNodes = 500'000;
+/// Most values that aliases may add to a document when expanded, all aliases together (100,000):
+/// `*a` standing for a mapping of 10 values adds 10. Bounds what any reader of the document may
+/// have to walk.
+inline constexpr std::size_t kMaxAliasExpansion = 100'000;
+/// Most errors listed for one file (100); a last error says how many more were found.
+inline constexpr std::size_t kMaxErrorsListed = 100;
 
 /// Reads and parses the YAML file at `path`; errors name the file as `path.string()`.
 /// Fails as described in the file comment.

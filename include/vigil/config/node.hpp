@@ -56,15 +56,18 @@ class Node;
 namespace detail {
 struct Document;
 
-/// 1-based line and column of `mark` in `text`; the column counts characters (UTF-8 code
-/// points), not bytes as yaml-cpp does. {0, 0} for a null mark.
-[[nodiscard]] std::pair<int, int> locate(std::string_view text, const YAML::Mark& mark);
-
-/// What load.cpp needs from a Node's internals.
+/// What load.cpp needs from a Node's internals (the Document is private to src/config).
 struct NodeAccess {
-  /// The root of a new document named `file` with source `text`.
-  [[nodiscard]] static Node make_root(std::string file, std::string text, const YAML::Node& root);
-  /// `locate(text of node's document, mark)`.
+  /// A new document named `file` with source `text`, indexed to locate marks in O(log lines).
+  [[nodiscard]] static std::shared_ptr<Document> make_document(std::string file, std::string text);
+  /// 1-based line and column of `mark` in `doc`'s text; the column counts characters (UTF-8 code
+  /// points), not bytes as yaml-cpp does. {0, 0} for a null mark.
+  [[nodiscard]] static std::pair<int, int> locate(const Document& doc, const YAML::Mark& mark);
+  /// The root of `doc`, whose parsed tree is `root`.
+  [[nodiscard]] static Node make_root(std::shared_ptr<Document> doc, const YAML::Node& root);
+  /// The document `node` belongs to.
+  [[nodiscard]] static const Document& document(const Node& node);
+  /// `locate(node's document, mark)`.
   [[nodiscard]] static std::pair<int, int> text_location(const Node& node, const YAML::Mark& mark);
 };
 
@@ -454,7 +457,8 @@ class Node {
 
   /// True when any error has been recorded in this node's document.
   [[nodiscard]] bool has_errors() const noexcept;
-  /// Every error recorded in this node's document so far, in file order.
+  /// Every error recorded in this node's document so far, in file order: at most
+  /// kMaxErrorsListed (load.hpp), then one saying how many more were found.
   [[nodiscard]] ConfigErrors errors() const;
 
   /// `value` when the document has no error, otherwise every error of the document. The usual
