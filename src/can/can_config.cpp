@@ -3,11 +3,13 @@
 #include <fmt/format.h>
 
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <utility>
 
 #include "vigil/config/load.hpp"
 #include "vigil/config/node.hpp"
+#include "vigil/config/units.hpp"
 
 namespace vigil::can {
 
@@ -310,8 +312,13 @@ ThresholdOverrides load_thresholds(const cfg::Node& n) {
                             "min_gaps", "answer_within"});
     if (nr.has("enabled")) t.not_responding_enabled = nr.required<bool>("enabled");
     if (const cfg::Node after = nr["after"]; after.defined()) {
-      if (after.is_scalar() && after.get<std::string>() == "learned") {
+      const std::string text = after.is_scalar() ? after.get<std::string>() : std::string();
+      if (text == "learned") {
         t.not_responding_after_ns = std::optional<Nanos>{};
+      } else if (after.is_scalar() && !cfg::parse_duration(text).has_value() &&
+                 !std::isdigit(static_cast<unsigned char>(text.empty() ? ' ' : text[0]))) {
+        after.error(fmt::format("expected a duration such as '100ms', or 'learned', got '{}'",
+                                text));
       } else {
         t.not_responding_after_ns =
             std::optional<Nanos>{nr.required_duration("after", cfg::positive())};

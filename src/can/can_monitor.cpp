@@ -94,8 +94,9 @@ void judge_ids(CanReport& r, const CanConfig& cfg, Nanos now) {
       v.traffic = Traffic::Sent;
     } else if ((s.flags & node_flags::kToNode) != 0) {
       v.traffic = Traffic::ToNode;
-    } else if ((s.flags & (node_flags::kResponse | node_flags::kRequest)) != 0 ||
-               asked.contains({s.bus, s.id, s.extended})) {
+    } else if ((s.flags & node_flags::kRequest) != 0) {
+      v.traffic = Traffic::Requests;
+    } else if ((s.flags & node_flags::kResponse) != 0 || asked.contains({s.bus, s.id, s.extended})) {
       v.traffic = Traffic::OnRequest;
     } else {
       const LearnRule& rule = cfg.thresholds_for(s.bus, s.node).learn;
@@ -126,7 +127,7 @@ NodeIds ids_of(const CanReport& r, std::optional<std::uint8_t> bus, std::uint32_
     if (s.node != node) continue;
     if (v.traffic == Traffic::ToNode || v.traffic == Traffic::Sent) n.to_node += s.frames;
     if (v.traffic == Traffic::Periodic || v.traffic == Traffic::Learning ||
-        v.traffic == Traffic::OnRequest) {
+        v.traffic == Traffic::OnRequest || v.traffic == Traffic::Requests) {
       n.from.push_back(i);
       n.last_from = std::max(n.last_from, s.last_ns);
       if (v.traffic == Traffic::OnRequest) n.last_answer = std::max(n.last_answer, s.last_ns);
@@ -178,11 +179,9 @@ void builtin_checks(NodeReport& n, const CanReport& r, Nanos now) {
   } else {
     // Learned: the largest limit of the node's periodic ids.
     std::size_t learning = 0;
-    std::size_t answering = 0;
     for (const std::size_t i : ids.from) {
       const IdVerdict& v = r.ids[i];
       if (v.traffic == Traffic::Learning) ++learning;
-      if (v.traffic == Traffic::OnRequest) ++answering;
       if (v.traffic == Traffic::Periodic && v.limit_ns > n.silence_limit_ns) {
         n.silence_limit_ns = v.limit_ns;
         n.limit_id = static_cast<std::ptrdiff_t>(i);
@@ -212,8 +211,8 @@ void builtin_checks(NodeReport& n, const CanReport& r, Nanos now) {
       }
       n.status.merge(StatusLevel::Ok,
                      fmt::format("learning its period: {} of {} gaps", most, t.learn.min_gaps));
-    } else if (answering > 0) {
-      n.liveness = Liveness::OnRequest;
+    } else {
+      n.liveness = Liveness::OnRequest;  // it only answers (or asks): silence is no fault
     }
   }
   if (heard && unanswered) {
@@ -326,6 +325,8 @@ std::string_view to_string(Traffic t) noexcept {
       return "learning";
     case Traffic::OnRequest:
       return "on request";
+    case Traffic::Requests:
+      return "requests";
     case Traffic::ToNode:
       return "to node";
     case Traffic::Network:

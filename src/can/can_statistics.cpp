@@ -572,7 +572,7 @@ CanSnapshot CanAggregator::snapshot(std::span<const GroupSpec> groups) const {
       const Counted counted = sum(a->from);
       const std::uint64_t frames = counted.any ? counted.frames : a->timing.records;
       if (frames == 0) continue;
-      ++c.nodes;
+      if (a->key.node != kNoNode) ++c.nodes;  // the frames of no node count, not as a node
       c.frames += frames;
       for (const auto& [port, n] : a->remote) c.remote_frames += n;
       c.records += a->timing.records;

@@ -217,3 +217,44 @@ TEST_CASE("CAN config: LimitStat names and values", "[can][config]") {
   CHECK(stat_value(s, LimitStat::P999) == 8);
   CHECK(to_string(LimitStat::P999) == "p999");
 }
+
+TEST_CASE("CAN config: learned deadlines, configured limits win, `after: learned` restores",
+          "[can][config]") {
+  const CanConfig c = ok(R"(
+node_map: dronecan
+defaults:
+  not_responding: {after: 1s}
+groups:
+  escs: {node_range: [20, 23], expected: false,
+         thresholds: {not_responding: {after: learned, factor: 3, floor: 100ms, min_gaps: 8,
+                                       percentile: max, answer_within: 500ms}}}
+nodes:
+  esc_23: {node: 23, thresholds: {not_responding: {after: 2s}}}
+)");
+  CHECK(c.node_map == NodeMapKind::DroneCan);
+  CHECK(c.thresholds_for(0, 10).not_responding_after_ns == vigil::kNanosPerSecond);
+  const NodeThresholds esc = c.thresholds_for(0, 20);
+  CHECK_FALSE(esc.not_responding_after_ns.has_value());  // learned again in the group
+  CHECK(esc.learn.factor == 3.0);
+  CHECK(esc.learn.floor_ns == 100 * vigil::kNanosPerMilli);
+  CHECK(esc.learn.min_gaps == 8);
+  CHECK(esc.learn.percentile == LimitStat::Max);
+  CHECK(esc.answer_within_ns == 500 * vigil::kNanosPerMilli);
+  CHECK(c.thresholds_for(0, 23).not_responding_after_ns == 2 * vigil::kNanosPerSecond);
+
+  const auto e = errors(R"(defaults:
+  not_responding: {after: learnt, factor: 0.5, floor: -1ms, min_gaps: 0, percentile: p95}
+)");
+  for (const std::string& line : e) UNSCOPED_INFO(line);
+  REQUIRE(e.size() == 5);
+  INFO(e[0]);
+  CHECK(e[0] == "can.yaml:2:27: defaults.not_responding.after: expected a duration such as "
+                "'100ms', or 'learned', got 'learnt'");
+  CHECK(e[1] == "can.yaml:2:43: defaults.not_responding.factor: must be between 1 and 100, "
+                "got '0.5'");
+  CHECK(e[2].rfind("can.yaml:2:55: defaults.not_responding.floor:", 0) == 0);
+  CHECK(e[3].rfind("can.yaml:2:71: defaults.not_responding.min_gaps: must be between 1 and", 0) ==
+        0);
+  CHECK(e[4].rfind("can.yaml:2:86: defaults.not_responding.percentile: 'p95' is not one of", 0) ==
+        0);
+}

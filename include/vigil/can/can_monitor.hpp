@@ -65,13 +65,14 @@ enum class Traffic : std::uint8_t {
   Periodic,   ///< from its node on its own; period learned (`IdVerdict::period_ns`)
   Learning,   ///< from its node on its own; fewer gaps than `min_gaps` so far
   OnRequest,  ///< from its node, answering requests (responses, RTR answers)
+  Requests,   ///< from its node, asking another node (e.g. DroneCAN service requests)
   ToNode,     ///< addressed to its node (requests, commands such as CANopen RPDOs)
   Network,    ///< belongs to no node (NMT, SYNC, TIME, LSS, "other", anonymous)
   Sent,       ///< sent by the supervising side itself (direction Tx)
   Errors,     ///< error frames
 };
 
-/// "periodic", "learning", "on request", "to node", "network", "sent", "errors".
+/// "periodic", "learning", "on request", "requests", "to node", "network", "sent", "errors".
 [[nodiscard]] std::string_view to_string(Traffic t) noexcept;
 
 /// What the monitor says about one id key (same order as `CanSnapshot::ids`).

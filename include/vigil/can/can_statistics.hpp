@@ -112,7 +112,7 @@ struct CategoryStats {
   std::string name;  ///< "all" or the group's name
   bool group = false;
   Direction direction = Direction::Rx;
-  std::size_t nodes = 0;            ///< member nodes with frames in this direction
+  std::size_t nodes = 0;            ///< member nodes with frames in this direction (not kNoNode)
   std::uint64_t frames = 0;         ///< sum over the members
   std::uint64_t remote_frames = 0;  ///< sum over the members
   std::uint64_t records = 0;        ///< sum over the members

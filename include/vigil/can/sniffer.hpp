@@ -36,8 +36,9 @@
 ///
 /// Times: `begin`/`end` are on the clock of the CAN supervisor and monitor (vigil's monotonic
 /// clock at run time, the log's timestamps in replay). A frame's time is `end`: when the read
-/// returned it or the write handed it over. Error frames are counted (`error_frames`) and not
-/// otherwise supervised.
+/// returned it or the write handed it over. Error frames are counted (`error_frames`, and per
+/// bus and error class in the id table, with no node) and not otherwise supervised; remote
+/// frames have id keys of their own and are counted per node (`remote`).
 
 #include <cstddef>
 #include <cstdint>
