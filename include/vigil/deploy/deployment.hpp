@@ -33,6 +33,7 @@
 #include "vigil/exec/periodic_activity.hpp"
 #include "vigil/expected.hpp"
 #include "vigil/monitor/thresholds.hpp"
+#include "vigil/supervisor/running_stats.hpp"
 
 namespace vigil::deploy {
 
@@ -55,7 +56,7 @@ struct ComponentSpec {
 struct SupervisionSpec {
   Nanos supervisor_period_ns = 10 * kNanosPerMilli;
   Nanos monitor_period_ns = kNanosPerSecond;
-  double ewma_weight = 0.05;
+  double ewma_weight = kDefaultEwmaWeight;
   /// Thresholds embedded in the deployment, or loaded from `thresholds_file` (watched and
   /// reloaded at run time when it changes).
   ThresholdSet thresholds;
