@@ -98,11 +98,11 @@ struct World {
     for (std::size_t k = 0; k < kSamplesPerCycle; ++k, t += kNanosPerMilli) {
       for (std::size_t i = 0; i < members.size(); ++i) {
         CycleSample s;
-        s.cycle = ++cycles[i];
+        s.counters.cycles = ++cycles[i];
         s.release_ns = t;
         s.start_ns = t + 3'000;
         s.end_ns = s.start_ns + 40'000;
-        s.overhead_ns = s.cycle % 16 == 1 ? 150 : 0;
+        s.overhead_ns = s.cycle() % 16 == 1 ? 150 : 0;
         (void)members[i].port()->try_push(Message{s});
       }
     }

@@ -45,7 +45,7 @@ struct Components {
   Message sample(std::size_t i, Nanos now) {
     const std::uint64_t c = ++next[i];
     CycleSample s;
-    s.cycle = c;
+    s.counters.cycles = c;
     s.release_ns = now;
     s.start_ns = now + 2'000 + static_cast<Nanos>(c % 7) * 100;
     s.end_ns = s.start_ns + 50'000 + static_cast<Nanos>(c % 13) * 1'000;

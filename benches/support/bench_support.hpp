@@ -175,7 +175,7 @@ class Floor {
     empty_update();
     const Nanos t1 = platform::now_ns();
     CycleSample s;
-    s.cycle = ++cycles_;
+    s.counters.cycles = ++cycles_;
     s.start_ns = t0;
     s.end_ns = t1;
     pushed_ += queue_.push(Message{s}) ? 1 : 0;
@@ -205,14 +205,15 @@ class Floor128 {
     empty_update();
     const Nanos t1 = platform::now_ns();
     Slot s;
-    s.sample.cycle = ++cycles_;
+    s.sample.counters.cycles = ++cycles_;
     s.sample.start_ns = t0;
     s.sample.end_ns = t1;
     pushed_ += queue_.push(s) ? 1 : 0;
   }
   [[nodiscard]] Poller::Drain drain() {
     return [this](Message*, std::size_t) {
-      return queue_.consume_all([](const Slot& s) { benchmark::DoNotOptimize(s.sample.cycle); });
+      return queue_.consume_all(
+          [](const Slot& s) { benchmark::DoNotOptimize(s.sample.counters.cycles); });
     };
   }
   [[nodiscard]] std::uint64_t dropped() const noexcept { return cycles_ - pushed_; }

@@ -22,7 +22,7 @@ namespace {
 // The counters of a component at an earlier monitor cycle: the start of a window.
 struct Baseline {
   Nanos time = 0;
-  ComponentCounters counters;
+  Counters counters;
 };
 
 // What the monitor remembers about one component between cycles.
@@ -35,25 +35,17 @@ struct Memory {
 
 std::uint64_t minus(std::uint64_t a, std::uint64_t b) noexcept { return a >= b ? a - b : 0; }
 
-Window delta(const ComponentCounters& now, const ComponentCounters& then) noexcept {
+Window delta(const Counters& now, const Counters& then) noexcept {
   Window w;
-  w.cycles = minus(now.cycles, then.cycles);
-  w.overruns = minus(now.overruns, then.overruns);
-  w.missed_cycles = minus(now.missed_cycles, then.missed_cycles);
-  for (std::size_t i = 0; i < w.losses.size(); ++i) {
-    w.losses[i] = minus(now.losses[i], then.losses[i]);
-  }
-  w.exceptions = minus(now.exceptions, then.exceptions);
-  w.dropped = minus(now.dropped, then.dropped);
+  static_cast<Counters&>(w) = now.since(then);
   return w;
 }
 
 // The window ending now: from the newest baseline at least `window_ns` old (the previous cycle
 // when window_ns is 0), or from the oldest one kept; from the counters' origin the first time.
-Window window_of(const Memory& m, const ComponentCounters& now_counters, Nanos now,
-                 Nanos window_ns) {
+Window window_of(const Memory& m, const Counters& now_counters, Nanos now, Nanos window_ns) {
   if (m.history.empty()) {
-    Window w = delta(now_counters, ComponentCounters{});
+    Window w = delta(now_counters, Counters{});
     w.first = true;
     return w;
   }
@@ -70,7 +62,7 @@ Window window_of(const Memory& m, const ComponentCounters& now_counters, Nanos n
   return w;
 }
 
-void remember(Memory& m, const ComponentCounters& counters, Nanos now, Nanos window_ns) {
+void remember(Memory& m, const Counters& counters, Nanos now, Nanos window_ns) {
   m.history.push_back(Baseline{now, counters});
   // A baseline older than the newest one that is already window_ns old can never be chosen again.
   while (m.history.size() >= 2 && m.history[1].time <= now - window_ns) m.history.pop_front();

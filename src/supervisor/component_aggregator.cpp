@@ -9,39 +9,22 @@ namespace vigil {
 
 namespace {
 // Total time is user time plus the latest measured supervision overhead: its count, extremes,
-// mean and EWMA are kept exactly here, and its percentiles are user time's plus that overhead,
-// so the aggregator keeps no fifth histogram per component (9 KiB and one more bucket update per
-// message).
+// mean and EWMA are kept exactly here (ScalarStats), and its percentiles are user time's plus that
+// overhead, so the aggregator keeps no fifth histogram per component (9 KiB and one more bucket
+// update per message).
 struct TotalStats {
-  std::uint64_t count = 0;
-  Nanos last = 0;
-  Nanos min = 0;
-  Nanos max = 0;
-  long double sum = 0;
-  double ewma = 0;
-  double weight = RunningStats::kDefaultEwmaWeight;
+  ScalarStats stats;  // count, last, min, max, mean, EWMA: the same code as RunningStats'
 
-  void add(Nanos v) noexcept {
-    min = count == 0 || v < min ? v : min;
-    max = count == 0 || v > max ? v : max;
-    ewma = count == 0 ? static_cast<double>(v) : ewma + weight * (static_cast<double>(v) - ewma);
-    sum += static_cast<long double>(v);
-    last = v;
-    ++count;
-  }
+  void add(Nanos v) noexcept { stats.add(v); }
   [[nodiscard]] StatsSummary summary(const StatsSummary& user, Nanos overhead) const noexcept {
-    if (count == 0) return {};
-    auto shifted = [&](Nanos p) { return std::min(p + overhead, max); };
-    return StatsSummary{.count = count,
-                        .last = last,
-                        .min = min,
-                        .max = max,
-                        .mean = static_cast<double>(sum / static_cast<long double>(count)),
-                        .ewma = ewma,
-                        .p50 = shifted(user.p50),
-                        .p90 = shifted(user.p90),
-                        .p99 = shifted(user.p99),
-                        .p999 = shifted(user.p999)};
+    StatsSummary s = stats.summary();
+    if (s.count == 0) return s;
+    auto shifted = [&](Nanos p) { return std::min(p + overhead, s.max); };
+    s.p50 = shifted(user.p50);
+    s.p90 = shifted(user.p90);
+    s.p99 = shifted(user.p99);
+    s.p999 = shifted(user.p999);
+    return s;
   }
 };
 }  // namespace
@@ -52,7 +35,6 @@ struct ComponentAggregator::Slot {
   RunningStats user, latency, period, overhead;
   TotalStats total;
   Nanos last_overhead = 0;
-  std::uint64_t exceptions_reported = 0;
 };
 
 namespace {
@@ -94,7 +76,7 @@ void ComponentAggregator::on_join(const Entry& e) {
   for (RunningStats* s : {&slot->user, &slot->latency, &slot->period, &slot->overhead}) {
     (void)s->set_ewma_weight(ewma_weight_.load(std::memory_order_relaxed));
   }
-  slot->total.weight = ewma_weight_.load(std::memory_order_relaxed);
+  (void)slot->total.stats.set_ewma_weight(ewma_weight_.load(std::memory_order_relaxed));
   std::unique_lock lock(list_mutex_);
   const auto at = std::lower_bound(ids_.begin(), ids_.end(), e.id) - ids_.begin();
   ids_.insert(ids_.begin() + at, e.id);
@@ -137,19 +119,14 @@ void ComponentAggregator::on(const Entry& /*e*/, const CycleSample& m) {
   if (current_ == nullptr) return;
   Slot& s = *current_;
   auto& d = s.data;
-  if (m.totals_only) {
-    d.state = m.state;
-    d.counters.cycles = std::max(d.counters.cycles, m.cycle);
-    d.counters.overruns = std::max(d.counters.overruns, m.overruns);
-    d.counters.missed_cycles = std::max(d.counters.missed_cycles, m.missed_cycles);
-    for (std::size_t i = 0; i < m.losses.size(); ++i) {
-      d.counters.losses[i] = std::max(d.counters.losses[i], m.losses[i]);
-    }
-    d.counters.exceptions = std::max(d.counters.exceptions, m.exceptions);
-    d.counters.dropped = std::max(d.counters.dropped, m.dropped);
-    return;
+  // Counters only grow: merging keeps the larger of each, so a late totals-only sample or an
+  // exception report counted before its sample never moves one back.
+  d.counters.merge(m.counters);
+  d.state = m.state;
+  if (m.totals_only) return;
+  if (d.has_sample && m.cycle() == d.last.cycle() + 1) {
+    s.period.add(m.start_ns - d.last.start_ns);
   }
-  if (d.has_sample && m.cycle == d.last.cycle + 1) s.period.add(m.start_ns - d.last.start_ns);
   if (m.overhead_ns > 0) {
     s.last_overhead = m.overhead_ns;
     s.overhead.add(m.overhead_ns);
@@ -161,13 +138,6 @@ void ComponentAggregator::on(const Entry& /*e*/, const CycleSample& m) {
   d.has_sample = true;
   d.last = m;
   ++d.samples;
-  d.state = m.state;
-  d.counters.cycles = m.cycle;
-  d.counters.overruns = m.overruns;
-  d.counters.missed_cycles = m.missed_cycles;
-  d.counters.losses = m.losses;
-  d.counters.exceptions = std::max(m.exceptions, s.exceptions_reported);
-  d.counters.dropped = std::max(d.counters.dropped, m.dropped);
   d.last_sample_at = drain_time_;
 }
 
@@ -183,7 +153,6 @@ void ComponentAggregator::on(const Entry& /*e*/, const ExceptionReport& m) {
   s.data.has_exception = true;
   s.data.last_exception = m;
   s.data.last_exception_type = demangle(m.type.c_str());
-  s.exceptions_reported = std::max(s.exceptions_reported, std::uint64_t{m.count});
   s.data.counters.exceptions = std::max(s.data.counters.exceptions, std::uint64_t{m.count});
 }
 
@@ -280,7 +249,7 @@ void ComponentAggregator::set_ewma_weight(double w) {
     for (RunningStats* r : {&s->user, &s->latency, &s->period, &s->overhead}) {
       (void)r->set_ewma_weight(w);
     }
-    s->total.weight = w;
+    (void)s->total.stats.set_ewma_weight(w);
   }
   ewma_weight_.store(w, std::memory_order_relaxed);
 }

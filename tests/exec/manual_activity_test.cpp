@@ -33,10 +33,11 @@ TEST_CASE("ManualActivity counts overruns and missed cycles exactly (Skip)", "[e
   }
   const auto samples = vigil::test::cycles_of(drain(*p.port()));
   REQUIRE(samples.size() == 100);
-  CHECK(samples.back().overruns == static_cast<std::uint64_t>(overruns));
-  CHECK(samples.back().missed_cycles == missed - 2);  // the last 2 are carried to cycle 101
+  CHECK(samples.back().counters.overruns == static_cast<std::uint64_t>(overruns));
+  CHECK(samples.back().counters.missed_cycles ==
+        missed - 2);  // the last 2 are carried to cycle 101
   CHECK(act.schedule().missed() == missed);
-  for (const auto& s : samples) CHECK(s.overrun == (s.cycle % 10 == 0));
+  for (const auto& s : samples) CHECK(s.overrun == (s.cycle() % 10 == 0));
 }
 
 TEST_CASE("ManualActivity CatchUp runs late cycles back to back", "[exec][manual]") {
@@ -59,7 +60,7 @@ TEST_CASE("ManualActivity CatchUp runs late cycles back to back", "[exec][manual
   }
   CHECK(act.next_release() == t0 + 4000);
   const auto samples = vigil::test::cycles_of(drain(*p.port()));
-  CHECK(samples.back().missed_cycles == 0);
+  CHECK(samples.back().counters.missed_cycles == 0);
   CHECK(samples[1].start_ns - samples[1].release_ns == 2500);  // late, not skipped
 }
 

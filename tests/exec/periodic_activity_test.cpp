@@ -189,8 +189,8 @@ TEST_CASE("Overruns and skipped cycles are counted on a real thread", "[exec][pe
   const auto samples = vigil::test::cycles_of(drain(*a.port()));
   REQUIRE(samples.size() >= 10);
   CHECK(samples[4].overrun);
-  CHECK(samples.back().overruns >= 1);
-  CHECK(samples.back().missed_cycles >= 4);  // 10 ms late at 2 ms: 4 or 5 releases skipped
+  CHECK(samples.back().counters.overruns >= 1);
+  CHECK(samples.back().counters.missed_cycles >= 4);  // 10 ms late at 2 ms: 4 or 5 releases skipped
   CHECK(samples[5].missed_before >= 4);
 }
 

@@ -34,8 +34,8 @@ Run run(Probe& p, std::uint64_t cycles) {
     for (const auto& m : vigil::test::drain(*p.port())) {
       if (const auto* l = std::get_if<RealTimeLoss>(&m)) r.losses.push_back(*l);
       if (const auto* s = std::get_if<CycleSample>(&m)) {
-        r.totals = s->losses;
-        r.cycles = s->cycle;
+        r.totals = s->counters.losses;
+        r.cycles = s->cycle();
       }
     }
   };

@@ -42,14 +42,14 @@ TEST_CASE("ComponentSupervisor produces the same samples as Task<Derived>",
   REQUIRE(a.size() == 10);
   REQUIRE(b.size() == 10);
   for (std::size_t i = 0; i < a.size(); ++i) {
-    CHECK(a[i].cycle == b[i].cycle);
+    CHECK(a[i].cycle() == b[i].cycle());
     CHECK(a[i].release_ns == b[i].release_ns);
     CHECK(a[i].start_ns == b[i].start_ns);
     CHECK(a[i].end_ns == b[i].end_ns);
     CHECK(a[i].user_ns() == 300);
     CHECK(a[i].overrun == b[i].overrun);
 
-    CHECK(a[i].overruns == b[i].overruns);
+    CHECK(a[i].counters.overruns == b[i].counters.overruns);
   }
 }
 
@@ -84,7 +84,7 @@ TEST_CASE("ComponentSupervisor::run catches and reports exceptions exactly",
   const auto ex = only<ExceptionReport>(ms);
   REQUIRE(ex.size() == 1);
   CHECK(ex[0].message == std::string_view("bad setpoint"));
-  CHECK(vigil::test::cycles_of(ms).back().exceptions == 1);
+  CHECK(vigil::test::cycles_of(ms).back().counters.exceptions == 1);
   sup.recover();
   CHECK(sup.state() == TaskState::Running);
 }
@@ -102,5 +102,5 @@ TEST_CASE("An exception leaving an UpdateGuard is counted", "[task][component_su
   const auto ms = drain(*sup.port());
   REQUIRE(only<ExceptionReport>(ms).size() == 1);
   REQUIRE(vigil::test::cycles_of(ms).size() == 1);
-  CHECK(vigil::test::cycles_of(ms)[0].exceptions == 1);
+  CHECK(vigil::test::cycles_of(ms)[0].counters.exceptions == 1);
 }

@@ -47,8 +47,8 @@ TEST_CASE("Every cycle sends a sample with exact cumulative counters", "[task][t
   const auto samples = vigil::test::cycles_of(drain(*p.port()));
   REQUIRE(samples.size() == 5);
   for (std::size_t i = 0; i < samples.size(); ++i) {
-    CHECK(samples[i].cycle == i + 1);
-    CHECK(samples[i].cycle == i + 1);
+    CHECK(samples[i].cycle() == i + 1);
+    CHECK(samples[i].cycle() == i + 1);
     CHECK(samples[i].start_ns - samples[i].release_ns == 10);  // wake-up latency
     CHECK(samples[i].user_ns() == 0);                          // the fake clock stood still
     CHECK_FALSE(samples[i].overrun);
@@ -76,7 +76,7 @@ TEST_CASE("An exception in on_update is reported with hook, type and what()", "[
   const auto samples = vigil::test::cycles_of(ms);
   REQUIRE(samples.size() == 3);
   CHECK(samples[2].state == TaskState::Exception);
-  CHECK(samples[2].exceptions == 1);
+  CHECK(samples[2].counters.exceptions == 1);
   const auto changes = only<StateChange>(ms);
   REQUIRE(changes.size() == 1);
   CHECK(changes[0].to == TaskState::Exception);

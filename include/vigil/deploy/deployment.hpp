@@ -38,6 +38,7 @@
 #include "vigil/expected.hpp"
 #include "vigil/export/http_server.hpp"
 #include "vigil/monitor/thresholds.hpp"
+#include "vigil/supervisor/running_stats.hpp"
 
 namespace vigil::deploy {
 
@@ -60,7 +61,7 @@ struct ComponentSpec {
 struct SupervisionSpec {
   Nanos supervisor_period_ns = 10 * kNanosPerMilli;
   Nanos monitor_period_ns = kNanosPerSecond;
-  double ewma_weight = 0.05;
+  double ewma_weight = kDefaultEwmaWeight;
   /// Thresholds embedded in the deployment, or loaded from `thresholds_file` (watched and
   /// reloaded at run time when it changes).
   ThresholdSet thresholds;

@@ -56,23 +56,13 @@ struct KeyValue {
 };
 
 /// The deltas of a component's cumulative counters over the recent window (see
-/// `Thresholds::window_ns`). On the first observation of a component the window starts when the
-/// component joined (the counters' origin), and `first` is true.
-struct Window {
+/// `Thresholds::window_ns`): the `Counters` counted since the window's start (`Counters::since`).
+/// On the first observation of a component the window starts when the component joined (the
+/// counters' origin), and `first` is true.
+struct Window : Counters {
   Nanos duration_ns = 0;  ///< monitor time covered (0 on the first observation)
   bool first = true;
-  std::uint64_t cycles = 0;
-  std::uint64_t overruns = 0;
-  std::uint64_t missed_cycles = 0;
-  std::array<std::uint64_t, kLossCauses> losses{};
-  std::uint64_t exceptions = 0;
-  std::uint64_t dropped = 0;
 
-  [[nodiscard]] std::uint64_t total_losses() const noexcept {
-    std::uint64_t n = 0;
-    for (auto v : losses) n += v;
-    return n;
-  }
   /// overruns / cycles in the window; 0 without cycles.
   [[nodiscard]] double overrun_rate() const noexcept {
     return cycles == 0 ? 0.0 : static_cast<double>(overruns) / static_cast<double>(cycles);
@@ -114,9 +104,9 @@ struct Report {
   /// For reports that are not components (CAN nodes, groups): the state in words
   /// ("responding", "silent", "never seen"), shown and exported instead of `state`.
   std::string state_label;
-  ComponentCounters counters;  ///< cumulative, exact
-  std::uint64_t samples = 0;   ///< cycle samples received (fewer than cycles when some dropped)
-  Window window;               ///< counter deltas over the recent window
+  Counters counters;          ///< cumulative, exact
+  std::uint64_t samples = 0;  ///< cycle samples received (fewer than cycles when some dropped)
+  Window window;              ///< counter deltas over the recent window
 
   // --- timing statistics (ns) ---
   StatsSummary user_ns;             ///< on_update() alone

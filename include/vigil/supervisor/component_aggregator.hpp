@@ -31,22 +31,6 @@
 
 namespace vigil {
 
-/// The cumulative counters of a component (exact even when samples were dropped).
-struct ComponentCounters {
-  std::uint64_t cycles = 0;
-  std::uint64_t overruns = 0;
-  std::uint64_t missed_cycles = 0;
-  std::array<std::uint64_t, kLossCauses> losses{};
-  std::uint64_t exceptions = 0;
-  std::uint64_t dropped = 0;  ///< messages its port dropped
-
-  [[nodiscard]] std::uint64_t total_losses() const noexcept {
-    std::uint64_t n = 0;
-    for (auto v : losses) n += v;
-    return n;
-  }
-};
-
 /// Everything known about one component at one moment. Plain data: copy it freely.
 struct ComponentSnapshot {
   std::uint32_t id = 0;
@@ -58,7 +42,7 @@ struct ComponentSnapshot {
   bool has_sample = false;
   CycleSample last;  ///< latest cycle sample received
   std::uint64_t samples = 0;
-  ComponentCounters counters;
+  Counters counters;     ///< cumulative, exact even when samples were dropped
   StatsSummary user_ns;  ///< on_update() alone
   /// user + the latest measured supervision overhead: count, min, max, mean and EWMA exact;
   /// percentiles are user_ns's plus that overhead (capped at max).
@@ -102,7 +86,7 @@ struct ComponentDistributions {
 /// Options of the aggregator.
 struct AggregatorOptions {
   /// Weight of the newest sample in the EWMAs (0 < w <= 1).
-  double ewma_weight = 0.05;
+  double ewma_weight = kDefaultEwmaWeight;
   /// How long a component that left stays in snapshots.
   Nanos retain_left_ns = 60 * kNanosPerSecond;
   /// Supervisor-side clock used to stamp arrivals (for staleness checks).

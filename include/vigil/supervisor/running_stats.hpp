@@ -71,9 +71,113 @@ struct WideSum {
 
 }  // namespace detail
 
+/// Default weight of the newest sample in every EWMA vigil keeps (`RunningStats`,
+/// `AggregatorOptions::ewma_weight`, a deployment's `supervision.ewma_weight`, CAN statistics):
+/// 0.05, so a change of level is followed within about 1 / 0.05 = 20 samples. The one place this
+/// default is stated.
+inline constexpr double kDefaultEwmaWeight = 0.05;
+
+/**
+ * The histogram-free part of `RunningStats`: count, last, min, max, an exact mean and an EWMA of
+ * a stream of nanosecond values, in 72 bytes. `RunningStats` is this plus a histogram; use this
+ * alone where percentiles come from elsewhere (the aggregator's total time).
+ *
+ * Precision, thread-safety and RT-safety: as `RunningStats` (every member is allocation-free,
+ * lock-free, noexcept and O(1)).
+ */
+class ScalarStats {
+ public:
+  /// Counts sample `value` (a duration in ns). O(1), allocation-free, RT-safe.
+  constexpr void add(Nanos value) noexcept {
+    if (count_ == 0) [[unlikely]] {
+      first_ = value;
+      ewma_ = static_cast<double>(value);
+    } else {
+      ewma_ += ewma_weight_ * (static_cast<double>(value) - ewma_);
+    }
+    ++count_;
+    last_ = value;
+    min_ = value < min_ ? value : min_;
+    max_ = value > max_ ? value : max_;
+    sum_.add(value);
+  }
+
+  /// Merges `other` as if its samples had been added after this one's (see RunningStats::merge).
+  void merge(const ScalarStats& other) noexcept {
+    if (other.count_ == 0) return;
+    if (count_ == 0) {
+      const double weight = ewma_weight_;
+      *this = other;
+      ewma_weight_ = weight;
+      return;
+    }
+    // The EWMA recursion is linear in its start value: other's stream began at first_other
+    // instead of at our EWMA, and that difference decays by (1 - alpha) per sample.
+    const double decay = std::pow(1.0 - ewma_weight_, static_cast<double>(other.count_));
+    ewma_ = other.ewma_ + decay * (ewma_ - static_cast<double>(other.first_));
+    count_ += other.count_;
+    last_ = other.last_;
+    min_ = other.min_ < min_ ? other.min_ : min_;
+    max_ = other.max_ > max_ ? other.max_ : max_;
+    sum_.add(other.sum_);
+  }
+
+  /// Forgets every sample; keeps the EWMA weight.
+  constexpr void reset() noexcept {
+    const double weight = ewma_weight_;
+    *this = ScalarStats{};
+    ewma_weight_ = weight;
+  }
+
+  /// Sets the EWMA weight alpha of the samples to come (the current EWMA is kept). Returns false
+  /// and changes nothing unless 0 < alpha <= 1.
+  [[nodiscard]] constexpr bool set_ewma_weight(double alpha) noexcept {
+    if (!(alpha > 0.0 && alpha <= 1.0)) return false;  // also rejects NaN
+    ewma_weight_ = alpha;
+    return true;
+  }
+
+  [[nodiscard]] constexpr double ewma_weight() const noexcept { return ewma_weight_; }
+  [[nodiscard]] constexpr std::uint64_t count() const noexcept { return count_; }
+  [[nodiscard]] constexpr Nanos last() const noexcept { return last_; }
+  [[nodiscard]] constexpr Nanos min() const noexcept { return count_ == 0 ? 0 : min_; }
+  [[nodiscard]] constexpr Nanos max() const noexcept { return count_ == 0 ? 0 : max_; }
+  [[nodiscard]] constexpr double mean() const noexcept {
+    return count_ == 0 ? 0.0 : sum_.to_double() / static_cast<double>(count_);
+  }
+  [[nodiscard]] constexpr double ewma() const noexcept { return ewma_; }
+
+  /// count, last, min, max, mean and ewma; the percentiles are 0 (this keeps no histogram).
+  [[nodiscard]] constexpr StatsSummary summary() const noexcept {
+    if (count_ == 0) return {};
+    return StatsSummary{.count = count_,
+                        .last = last_,
+                        .min = min_,
+                        .max = max_,
+                        .mean = mean(),
+                        .ewma = ewma_,
+                        .p50 = 0,
+                        .p90 = 0,
+                        .p99 = 0,
+                        .p999 = 0};
+  }
+
+ private:
+  std::uint64_t count_ = 0;
+  Nanos last_ = 0;
+  Nanos min_ = std::numeric_limits<Nanos>::max();  // sentinels make add() branch-free
+  Nanos max_ = std::numeric_limits<Nanos>::min();
+  Nanos first_ = 0;  // for merge(): where the EWMA of this stream started
+  double ewma_ = 0.0;
+  double ewma_weight_ = kDefaultEwmaWeight;
+  detail::WideSum sum_;
+};
+
+static_assert(std::is_trivially_copyable_v<ScalarStats> && sizeof(ScalarStats) == 72);
+
 /**
  * Running statistics of a stream of nanosecond values: count, last, min, max, mean, an EWMA
- * and a `LogLinearHistogram<>` for percentiles.
+ * (`ScalarStats`) and a `LogLinearHistogram<>` for percentiles.
  *
  * Precision:
  *  - count, last, min, max are exact; the sum behind `mean()` is exact (128 bits), so the mean
@@ -103,22 +207,12 @@ class RunningStats {
  public:
   /// The histogram type: 5 sub-bucket bits, values up to 2^40 - 1 ns.
   using Histogram = LogLinearHistogram<5, 40>;
-  /// Default EWMA weight: 1/8, as TCP's smoothed round-trip time (RFC 6298).
-  static constexpr double kDefaultEwmaWeight = 0.125;
+  /// Default EWMA weight (vigil::kDefaultEwmaWeight).
+  static constexpr double kDefaultEwmaWeight = vigil::kDefaultEwmaWeight;
 
   /// Counts sample `value` (a duration in ns). O(1), allocation-free, RT-safe.
   constexpr void add(Nanos value) noexcept {
-    if (count_ == 0) [[unlikely]] {
-      first_ = value;
-      ewma_ = static_cast<double>(value);
-    } else {
-      ewma_ += ewma_weight_ * (static_cast<double>(value) - ewma_);
-    }
-    ++count_;
-    last_ = value;
-    min_ = value < min_ ? value : min_;
-    max_ = value > max_ ? value : max_;
-    sum_.add(value);
+    scalars_.add(value);
     histogram_.add(value);
   }
 
@@ -131,64 +225,48 @@ class RunningStats {
    * kept and used. O(buckets), allocation-free.
    */
   void merge(const RunningStats& other) noexcept {
-    if (other.count_ == 0) return;
-    if (count_ == 0) {
-      const double weight = ewma_weight_;
-      *this = other;
-      ewma_weight_ = weight;
-      return;
-    }
-    // The EWMA recursion is linear in its start value: other's stream began at first_other
-    // instead of at our EWMA, and that difference decays by (1 - alpha) per sample.
-    const double decay = std::pow(1.0 - ewma_weight_, static_cast<double>(other.count_));
-    ewma_ = other.ewma_ + decay * (ewma_ - static_cast<double>(other.first_));
-    count_ += other.count_;
-    last_ = other.last_;
-    min_ = other.min_ < min_ ? other.min_ : min_;
-    max_ = other.max_ > max_ ? other.max_ : max_;
-    sum_.add(other.sum_);
+    if (other.count() == 0) return;
+    scalars_.merge(other.scalars_);
     histogram_.merge(other.histogram_);
   }
 
   /// Forgets every sample; keeps the EWMA weight. O(buckets), allocation-free.
   constexpr void reset() noexcept {
-    const double weight = ewma_weight_;
-    *this = RunningStats{};
-    ewma_weight_ = weight;
+    scalars_.reset();
+    histogram_.reset();
   }
 
   /// Sets the EWMA weight alpha of the samples to come (the current EWMA is kept): a larger
   /// alpha follows changes faster. Returns false and changes nothing unless 0 < alpha <= 1.
   [[nodiscard]] constexpr bool set_ewma_weight(double alpha) noexcept {
-    if (!(alpha > 0.0 && alpha <= 1.0)) return false;  // also rejects NaN
-    ewma_weight_ = alpha;
-    return true;
+    return scalars_.set_ewma_weight(alpha);
   }
 
   /// The EWMA weight alpha, in (0, 1].
-  [[nodiscard]] constexpr double ewma_weight() const noexcept { return ewma_weight_; }
+  [[nodiscard]] constexpr double ewma_weight() const noexcept { return scalars_.ewma_weight(); }
   /// Number of samples. O(1).
-  [[nodiscard]] constexpr std::uint64_t count() const noexcept { return count_; }
+  [[nodiscard]] constexpr std::uint64_t count() const noexcept { return scalars_.count(); }
   /// Most recent sample, 0 when empty. O(1).
-  [[nodiscard]] constexpr Nanos last() const noexcept { return last_; }
+  [[nodiscard]] constexpr Nanos last() const noexcept { return scalars_.last(); }
   /// Smallest sample, 0 when empty. O(1).
-  [[nodiscard]] constexpr Nanos min() const noexcept { return count_ == 0 ? 0 : min_; }
+  [[nodiscard]] constexpr Nanos min() const noexcept { return scalars_.min(); }
   /// Largest sample, 0 when empty. O(1).
-  [[nodiscard]] constexpr Nanos max() const noexcept { return count_ == 0 ? 0 : max_; }
+  [[nodiscard]] constexpr Nanos max() const noexcept { return scalars_.max(); }
   /// Arithmetic mean (relative error < 1e-15), 0 when empty. O(1).
-  [[nodiscard]] constexpr double mean() const noexcept {
-    return count_ == 0 ? 0.0 : sum_.to_double() / static_cast<double>(count_);
-  }
+  [[nodiscard]] constexpr double mean() const noexcept { return scalars_.mean(); }
   /// Exponentially weighted moving average, 0 when empty. O(1).
-  [[nodiscard]] constexpr double ewma() const noexcept { return ewma_; }
+  [[nodiscard]] constexpr double ewma() const noexcept { return scalars_.ewma(); }
+  /// The scalar statistics alone.
+  [[nodiscard]] constexpr const ScalarStats& scalars() const noexcept { return scalars_; }
 
   /// The q-quantile (nearest rank) as an upper bound with relative error < 1/32, never above
   /// `max()`; 0 when empty. q is clamped to [0, 1]: q = 0 is the minimum's bucket, q = 1 the
   /// exact maximum. O(buckets).
   [[nodiscard]] Nanos value_at_quantile(double q) const noexcept {
-    if (count_ == 0) return 0;
+    if (count() == 0) return 0;
     const Nanos v = histogram_.value_at_quantile(q);
-    return v < max_ ? v : max_;  // the true quantile is <= max: clamping only removes error
+    const Nanos max = scalars_.max();
+    return v < max ? v : max;  // the true quantile is <= max: clamping only removes error
   }
 
   /// The histogram behind the percentiles, e.g. for exporters. O(1).
@@ -198,37 +276,26 @@ class RunningStats {
   /// percentiles come from one pass over the buckets between the minimum's and the maximum's
   /// (typically a few dozen of the 1,152).
   [[nodiscard]] StatsSummary summary() const noexcept {
-    if (count_ == 0) return {};
+    StatsSummary s = scalars_.summary();
+    if (s.count == 0) return s;
     static constexpr std::array<double, 4> kQs{0.5, 0.9, 0.99, 0.999};
     std::array<std::int64_t, 4> q{};
-    const std::size_t first = Histogram::bucket_index(min_ > 0 ? min_ : 0);
-    const std::size_t last = max_ > Histogram::kMaxTrackable
+    const std::size_t first = Histogram::bucket_index(s.min > 0 ? s.min : 0);
+    const std::size_t last = s.max > Histogram::kMaxTrackable
                                  ? Histogram::kBucketCount - 1
-                                 : Histogram::bucket_index(max_ > 0 ? max_ : 0);
+                                 : Histogram::bucket_index(s.max > 0 ? s.max : 0);
     histogram_.values_at_quantiles(kQs, q, first, last);
-    for (auto& v : q) v = v < max_ ? v : max_;  // the true quantile is <= max
-    return StatsSummary{.count = count_,
-                        .last = last_,
-                        .min = min_,
-                        .max = max_,
-                        .mean = mean(),
-                        .ewma = ewma_,
-                        .p50 = q[0],
-                        .p90 = q[1],
-                        .p99 = q[2],
-                        .p999 = q[3]};
+    for (auto& v : q) v = v < s.max ? v : s.max;  // the true quantile is <= max
+    s.p50 = q[0];
+    s.p90 = q[1];
+    s.p99 = q[2];
+    s.p999 = q[3];
+    return s;
   }
 
  private:
   // Scalars first: add() touches them and one histogram counter, nothing else.
-  std::uint64_t count_ = 0;
-  Nanos last_ = 0;
-  Nanos min_ = std::numeric_limits<Nanos>::max();  // sentinels make add() branch-free
-  Nanos max_ = std::numeric_limits<Nanos>::min();
-  Nanos first_ = 0;  // for merge(): where the EWMA of this stream started
-  double ewma_ = 0.0;
-  double ewma_weight_ = kDefaultEwmaWeight;
-  detail::WideSum sum_;
+  ScalarStats scalars_;
   Histogram histogram_;
 };
 

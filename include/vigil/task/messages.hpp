@@ -21,13 +21,13 @@
 #include "vigil/platform/clock.hpp"
 #include "vigil/platform/rt_loss.hpp"
 #include "vigil/platform/thread.hpp"
+#include "vigil/task/counters.hpp"
 #include "vigil/task/state.hpp"
 
 namespace vigil {
 
 using platform::LossCause;
 using platform::SchedPolicy;
-inline constexpr int kLossCauses = platform::kLossCauseCount;
 
 /// What happens when a cycle ends after the next release.
 enum class OverrunPolicy : std::uint8_t {
@@ -84,10 +84,9 @@ struct TaskInfo {
 
 /// One cycle of a component's update, with its cumulative counters.
 struct CycleSample {
-  std::uint64_t cycle = 0;  ///< 1-based number of this cycle
-  Nanos release_ns = 0;     ///< scheduled release (= start when there is no schedule)
-  Nanos start_ns = 0;       ///< on_update() began
-  Nanos end_ns = 0;         ///< on_update() ended
+  Nanos release_ns = 0;  ///< scheduled release (= start when there is no schedule)
+  Nanos start_ns = 0;    ///< on_update() began
+  Nanos end_ns = 0;      ///< on_update() ended
   /// Supervision's own time (pre + post, including the push) measured on an earlier sampled
   /// cycle; 0 when no new measurement is available. See SupervisionOptions.
   Nanos overhead_ns = 0;
@@ -97,14 +96,13 @@ struct CycleSample {
   /// leaves, so that totals are exact even if the latest samples were dropped).
   bool totals_only = false;
   TaskState state = TaskState::Running;
-  // Cumulative since the component joined; exact even when earlier samples were dropped
-  // (the cumulative number of cycles is `cycle`).
-  std::uint64_t overruns = 0;
-  std::uint64_t missed_cycles = 0;
-  std::array<std::uint64_t, kLossCauses> losses{};
-  std::uint64_t exceptions = 0;
-  std::uint64_t dropped = 0;  ///< messages this component's port dropped before this one
+  /// Cumulative since the component joined; exact even when earlier samples were dropped.
+  /// `counters.cycles` is the 1-based number of this cycle; `counters.dropped` counts the
+  /// messages this component's port dropped before this one.
+  Counters counters;
 
+  /// The 1-based number of this cycle (`counters.cycles`).
+  [[nodiscard]] std::uint64_t cycle() const noexcept { return counters.cycles; }
   [[nodiscard]] Nanos user_ns() const noexcept { return end_ns - start_ns; }
 };
 

@@ -122,16 +122,16 @@ class CycleRecorder {
     state_ = refused ? from : to;
     pending_ |= kChange;
     // Leaving Running: send the totals again, in case the latest samples were dropped.
-    if (!refused && from == TaskState::Running && cycles_ > 0) pending_ |= kTotals;
+    if (!refused && from == TaskState::Running && counters_.cycles > 0) pending_ |= kTotals;
     flush();
   }
 
   /// Reports an exception caught at a hook boundary. RT-safe.
   void on_exception(Hook hook, std::string_view type, std::string_view what) noexcept {
-    ++exceptions_;
-    exception_.cycle = cycles_;
+    ++counters_.exceptions;
+    exception_.cycle = counters_.cycles;
     exception_.hook = hook;
-    exception_.count = static_cast<std::uint32_t>(exceptions_);
+    exception_.count = static_cast<std::uint32_t>(counters_.exceptions);
     exception_.type.assign(type);
     exception_.message.assign(what);
     pending_ |= kException;
@@ -143,7 +143,7 @@ class CycleRecorder {
     clock_ = c.clock != nullptr ? c.clock : &system_clock_;
     // The system clock is read directly, not through the Clock's function pointer.
     direct_clock_ = clock_->fn == &Clock::system_now;
-    measure_ = !sample_never_ && (cycles_ & sample_mask_) == 0;
+    measure_ = !sample_never_ && (counters_.cycles & sample_mask_) == 0;
     if (measure_) pre_begin_ = now();
     if (options_.detectors != Detectors::None) arm();
     c.start_ns = now();
@@ -154,16 +154,15 @@ class CycleRecorder {
     const Nanos end = now();
     c.end_ns = end;
     if (options_.detectors != Detectors::None) collect();
-    ++cycles_;
+    ++counters_.cycles;
     const Nanos release = c.release_ns != 0 ? c.release_ns : c.start_ns;
     const bool overrun = c.period_ns > 0 && end > release + c.period_ns;
-    overruns_ += overrun ? 1 : 0;
-    missed_ += c.missed_before;
+    counters_.overruns += overrun ? 1 : 0;
+    counters_.missed_cycles += c.missed_before;
     if (pending_ != 0) flush();
     auto* port = membership_.port();
     // The sample is built in place inside a Message: the push is its only copy.
     CycleSample& s = *std::get_if<CycleSample>(&sample_);
-    s.cycle = cycles_;
     s.release_ns = release;
     s.start_ns = c.start_ns;
     s.end_ns = end;
@@ -171,13 +170,10 @@ class CycleRecorder {
     s.missed_before = c.missed_before;
     s.overrun = overrun;
     s.state = state;
-    s.overruns = overruns_;
-    s.missed_cycles = missed_;
-    s.losses = losses_;
-    s.exceptions = exceptions_;
-    s.dropped = port->dropped();
+    s.counters = counters_;
+    s.counters.dropped = port->dropped();
     (void)port->try_push(sample_);
-    published_cycles_.store(cycles_, std::memory_order_relaxed);
+    published_cycles_.store(counters_.cycles, std::memory_order_relaxed);
     overhead_ = 0;
     if (measure_) overhead_ = (c.start_ns - pre_begin_) + (now() - end);
   }
@@ -186,11 +182,9 @@ class CycleRecorder {
   [[nodiscard]] std::uint64_t cycles() const noexcept {
     return published_cycles_.load(std::memory_order_relaxed);
   }
-  [[nodiscard]] std::uint64_t overruns() const noexcept { return overruns_; }
-  [[nodiscard]] std::uint64_t exceptions() const noexcept { return exceptions_; }
-  [[nodiscard]] std::uint64_t losses(LossCause c) const noexcept {
-    return losses_[static_cast<std::size_t>(c)];
-  }
+  [[nodiscard]] std::uint64_t overruns() const noexcept { return counters_.overruns; }
+  [[nodiscard]] std::uint64_t exceptions() const noexcept { return counters_.exceptions; }
+  [[nodiscard]] std::uint64_t losses(LossCause c) const noexcept { return counters_.loss(c); }
 
  private:
   static constexpr std::uint8_t kInfo = 1;
@@ -206,11 +200,8 @@ class CycleRecorder {
     CycleSample t = *std::get_if<CycleSample>(&sample_);
     t.totals_only = true;
     t.state = state_;
-    t.overruns = overruns_;
-    t.missed_cycles = missed_;
-    t.losses = losses_;
-    t.exceptions = exceptions_;
-    t.dropped = membership_.port() != nullptr ? membership_.port()->dropped() : 0;
+    t.counters = counters_;
+    t.counters.dropped = membership_.port() != nullptr ? membership_.port()->dropped() : 0;
     return t;
   }
 
@@ -269,8 +260,8 @@ class CycleRecorder {
   }
 
   void record_loss(LossCause cause, std::uint64_t n) noexcept {
-    losses_[static_cast<std::size_t>(cause)] += n;
-    const RealTimeLoss loss{cycles_ + 1, cause, static_cast<std::uint32_t>(n)};
+    counters_.losses[static_cast<std::size_t>(cause)] += n;
+    const RealTimeLoss loss{counters_.cycles + 1, cause, static_cast<std::uint32_t>(n)};
     (void)membership_.port()->try_push(Message{loss});
   }
 
@@ -285,12 +276,8 @@ class CycleRecorder {
   bool measure_ = false;
   Nanos pre_begin_ = 0;
   Nanos overhead_ = 0;
-  std::uint64_t cycles_ = 0;
+  Counters counters_;  // `dropped` is the port's, read when a sample is built
   std::atomic<std::uint64_t> published_cycles_{0};  // single writer: a plain store on x86
-  std::uint64_t overruns_ = 0;
-  std::uint64_t missed_ = 0;
-  std::uint64_t exceptions_ = 0;
-  std::array<std::uint64_t, kLossCauses> losses_{};
   std::uint64_t alloc0_ = 0;
   std::uint64_t modesw0_ = 0;
   platform::ThreadUsage usage0_{};
