@@ -11,8 +11,8 @@ packages=(
   g++ cmake ninja-build pkg-config clang-format-14 git ccache
   # libraries
   libboost-dev libfmt-dev libyaml-cpp-dev libcpp-httplib-dev libcli11-dev
-  # tests and benchmarks
-  catch2 libbenchmark-dev can-utils rt-tests
+  # tests and benchmarks (libspdlog-dev: the logging benchmark's peer only, never linked by vigil)
+  catch2 libbenchmark-dev can-utils rt-tests libspdlog-dev
 )
 
 missing=()

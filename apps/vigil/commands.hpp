@@ -13,6 +13,8 @@ struct DemoOptions {
   bool no_live = false;
   bool details = false;
   bool print_config = false;
+  std::string log_file;             ///< rotating log file (empty: none)
+  std::string log_level = "info";  ///< the components' run-time log level
 };
 int run_demo(const DemoOptions& options);
 

@@ -40,6 +40,11 @@ int main(int argc, char** argv) {
   demo_cmd->add_flag("--no-live", demo.no_live, "Print only the final report, no live view");
   demo_cmd->add_flag("--details", demo.details, "End with the detail view of every component");
   demo_cmd->add_flag("--print-config", demo.print_config, "Print the built-in deployment and exit");
+  demo_cmd->add_option("--log-file", demo.log_file,
+                       "Also write the components' log lines to FILE (rotated at 1 MiB, 3 files)");
+  demo_cmd->add_option("--log-level", demo.log_level,
+                       "The components' log level: debug, info (default), warn, error or off")
+      ->check(CLI::IsMember({"debug", "info", "warn", "error", "off"}));
 
   vigil::app::CheckConfigOptions check;
   auto* check_cmd = app.add_subcommand(
