@@ -11,7 +11,8 @@
 //            without any queue.
 //   spdlog   spdlog's async logger (Debian's libspdlog-dev): formats on the caller's thread, then
 //            a mutex-protected queue and a condition variable; one worker thread (pinned to the
-//            consumer CPU) writing to a null sink; queue 8192, overflow policy block.
+//            consumer CPU, SCHED_OTHER) writing to a null sink; queue 8192, overflow policy
+//            block.
 //
 // Method. The measuring thread is pinned (VIGIL_BENCH_CPU, default 1). A single call costs a few
 // nanoseconds, less than a clock read, so calls are timed in batches of 32 between two reads of
@@ -31,6 +32,8 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <chrono>
 #include <cstring>
 #include <memory>
 #include <string>
@@ -113,20 +116,32 @@ struct Vigil {
 #if VIGIL_BENCH_HAVE_SPDLOG
 struct Spdlog {
   Spdlog()
-      : pool(std::make_shared<spdlog::details::thread_pool>(
-            8192, 1, [] { pin_to_cpu(consumer_cpu()); })),
+      : pool(std::make_shared<spdlog::details::thread_pool>(8192, 1,
+                                                            [this] { on_worker_start(); })),
         logger(std::make_shared<spdlog::async_logger>(
             "bench", std::make_shared<spdlog::sinks::null_sink_mt>(), pool,
             spdlog::async_overflow_policy::block)) {
     logger->set_level(spdlog::level::info);
+    // The worker inherits this thread's CPU (and SCHED_FIFO with --fifo): let it run and move
+    // to the consumer CPU before anything is timed, by sleeping rather than spinning.
+    while (!started.load()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  /// The worker runs where a user's would: on another CPU, SCHED_OTHER (it is created by the
+  /// measuring thread, whose SCHED_FIFO it would otherwise inherit with --fifo).
+  void on_worker_start() {
+    pin_to_cpu(consumer_cpu());
+    sched_param p{};
+    p.sched_priority = 0;
+    pthread_setschedparam(pthread_self(), SCHED_OTHER, &p);
+    started.store(true);
   }
   [[gnu::noinline]] void call(int i, int j, double d) { logger->info("x {} y {} v {:.3f}", i, j, d); }
   /// Waits (spinning, untimed) while the worker is far behind, so that a timed call never
   /// blocks on a full queue. The worker usually keeps up: this rarely waits.
   void wait_room() const {
-    while (pool->queue_size() > 1024) {
-    }
+    while (pool->queue_size() > 1024) std::this_thread::sleep_for(std::chrono::microseconds(100));
   }
+  std::atomic<bool> started{false};
   std::shared_ptr<spdlog::details::thread_pool> pool;
   std::shared_ptr<spdlog::async_logger> logger;
 };
@@ -243,9 +258,9 @@ void fmt_vs_floor(benchmark::State& state) {
 void spdlog_async_vs_vigil(benchmark::State& state) {
 #if VIGIL_BENCH_HAVE_SPDLOG
   const Nanos cost = clock_pair_cost();
+  Spdlog s;  // first: its worker thread moves to the consumer CPU before the rest is built
   Vigil v;
   Floor f;
-  Spdlog s;
   std::vector<double> sv, sf, ss;
   int j = 0;
   for (auto _ : state) {
