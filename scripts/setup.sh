@@ -23,6 +23,8 @@ packages=(
   # fuzzing (the `fuzz` preset: libFuzzer needs clang; clang-14 cannot compile libstdc++ 12's
   # std::expected, clang-16 can)
   clang-16 libfuzzer-16-dev libclang-rt-16-dev
+  # the logging benchmark's peer only, never linked by vigil
+  libspdlog-dev
 )
 
 missing=()

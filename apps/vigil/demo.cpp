@@ -1,6 +1,7 @@
 // `vigil demo`: builds a System from the built-in deployment (or --config), runs it with a live
 // view refreshed every second, stops cleanly on Ctrl-C or after --duration, and writes the final
-// reports.
+// reports. The components' log lines appear below the live view's table (or on stderr without a
+// live view), and in the final reports.
 #include <fmt/format.h>
 
 #include <cerrno>
@@ -18,7 +19,10 @@
 #include "vigil/deploy/system.hpp"
 #include "vigil/export/http_service.hpp"
 #include "vigil/export/json_report.hpp"
+#include "vigil/export/log_report.hpp"
 #include "vigil/export/text_report.hpp"
+#include "vigil/log/service.hpp"
+#include "vigil/log/source.hpp"
 #include "vigil/platform/process.hpp"
 #include "vigil/version.hpp"
 
@@ -32,13 +36,26 @@ ColorMode color_mode(const std::string& s) {
   return ColorMode::Auto;
 }
 
+/// Lines of the components' log shown under the live view's table.
+constexpr std::size_t kLogPanelLines = 8;
+
+void print_log_panel(std::string& out, const log::TailSink& tail) {
+  const auto lines = tail.lines();
+  out += fmt::format("\nlog ({} line{} so far; the last {} here):\n", tail.total(),
+                     tail.total() == 1 ? "" : "s", kLogPanelLines);
+  for (const auto& l : lines) out += "  " + l + '\n';
+}
+
 void print_view(const deploy::System& sys, const ReportSet& reports, double elapsed_s,
-                bool live_tty, bool color) {
+                bool live_tty, bool color, const log::TailSink* log_tail) {
   std::string out;
   if (live_tty) out += "\x1b[H\x1b[2J";  // home + clear: redraw in place
   out += fmt::format("vigil demo — {} — {:.0f} s — worst: {}\n", sys.spec().name, elapsed_s,
                      to_string(reports.worst()));
   out += format_summary(reports, color);
+  // The log stays below the table: a line written to the terminal between two redraws would
+  // push the view down, so while the view is live the lines are shown here instead.
+  if (log_tail != nullptr) print_log_panel(out, *log_tail);
   if (!live_tty) out += '\n';
   std::fwrite(out.data(), 1, out.size(), stdout);
   std::fflush(stdout);
@@ -109,6 +126,13 @@ int run_demo(const DemoOptions& o) {
                  config::to_string(spec.error()).c_str());
     return 1;
   }
+  const auto level = log::parse_level(o.log_level);
+  if (!level) {
+    std::fprintf(stderr, "vigil demo: --log-level %s: expected debug, info, warn, error or off\n",
+                 o.log_level.c_str());
+    return 1;
+  }
+  log::set_default_level(*level);
   std::string json_path = o.json;
   if (json_path.empty() && spec->outputs.json) json_path = spec->outputs.json->string();
 
@@ -153,6 +177,33 @@ int run_demo(const DemoOptions& o) {
     std::fflush(stdout);
   }
 
+  // The components' log: formatted on the supervisor thread, never on theirs.
+  const bool tty = platform::is_terminal(stdout);
+  const bool live_tty = tty && !o.no_live;
+  // Destroyed before the system (declared after it): `detach` unhooks it first.
+  log::LogService logs;
+  std::shared_ptr<log::TailSink> log_tail;
+  if (live_tty) {
+    log_tail = std::make_shared<log::TailSink>(kLogPanelLines);
+    logs.add_sink(log_tail);
+  } else {
+    logs.add_sink(std::make_shared<log::StreamSink>(stderr));
+  }
+  if (!o.log_file.empty()) {
+    auto file = log::RotatingFileSink::open({.path = o.log_file, .max_bytes = 1U << 20U,
+                                             .max_files = 3});
+    if (!file) {
+      std::fprintf(stderr, "vigil demo: %s\n", file.error().message.c_str());
+      return 1;
+    }
+    logs.add_sink(std::shared_ptr<log::RotatingFileSink>(std::move(*file)));
+  }
+  system.aggregator().set_log_consumer(&logs);
+  struct Detach {
+    deploy::System& s;
+    ~Detach() { s.aggregator().set_log_consumer(nullptr); }
+  } detach{system};
+
   platform::install_stop_signals();  // Ctrl-C and SIGTERM stop cleanly
 
   if (auto r = system.start(); !r) {
@@ -167,7 +218,6 @@ int run_demo(const DemoOptions& o) {
                    json_path.c_str(), err->c_str());
     }
   }
-  const bool tty = platform::is_terminal(stdout);
   const ColorMode mode = color_mode(o.color);
   const bool color = use_color(mode, stdout);
   std::printf("vigil %s: running '%s' with %zu components%s\n", kVersion,
@@ -189,7 +239,8 @@ int run_demo(const DemoOptions& o) {
     const Nanos now = platform::now_ns();
     if (!o.no_live && now >= next_view) {
       next_view += kNanosPerSecond;
-      print_view(system, system.reports(), static_cast<double>(now - start) / 1e9, tty, color);
+      print_view(system, system.reports(), static_cast<double>(now - start) / 1e9, tty, color,
+                 log_tail.get());
     }
   }
   const bool interrupted = platform::stop_requested();
@@ -218,7 +269,9 @@ int run_demo(const DemoOptions& o) {
     std::fflush(stderr);
     std::_Exit(kDemoExitStuck);
   }
-  const ReportSet final_reports = system.step_monitor();
+  logs.flush();  // after the last drain: the suppressed counts still pending
+  ReportSet final_reports = system.step_monitor();
+  exporter::add_log_lines(logs, final_reports);  // log counts and recent lines, in --details and the JSON
   if (exporter) {
     exporter->publish(final_reports);  // served until the demo exits
     if (const std::string err = exporter->textfile_error(); !err.empty()) {
@@ -228,6 +281,11 @@ int run_demo(const DemoOptions& o) {
   std::printf("\n%s after %.1f s. Final report:\n", interrupted ? "Interrupted" : "Stopped",
               static_cast<double>(platform::now_ns() - start) / 1e9);
   std::fputs(format_summary(final_reports, color).c_str(), stdout);
+  if (log_tail != nullptr && log_tail->total() > 0) {
+    std::string panel;
+    print_log_panel(panel, *log_tail);
+    std::fputs(panel.c_str(), stdout);
+  }
   if (o.details) std::fputs(("\n" + format_details(final_reports, color)).c_str(), stdout);
   std::fflush(stdout);
   if (!json_path.empty() && !write_json(json_path, final_reports)) return kDemoExitOutput;

@@ -1,5 +1,6 @@
 // The components of the simulated robot. Each is a plain vigil::Task<Derived>: the supervision
-// the demo shows comes from the one base class, not from code in these components.
+// the demo shows comes from the one base class, not from code in these components. What they
+// say themselves goes through VIGIL_LOG_* (RT-safe: formatted later, on the supervisor thread).
 #include "demo_components.hpp"
 
 #include <array>
@@ -13,6 +14,7 @@
 #include "vigil/can/sniffer.hpp"
 #include "vigil/deploy/can_extension.hpp"
 #include "vigil/deploy/system.hpp"
+#include "vigil/log/log.hpp"
 #include "vigil/platform/clock.hpp"
 
 namespace vigil::demo {
@@ -109,7 +111,22 @@ class LoadRamp : public Task<LoadRamp> {
   void on_update() {
     const double t = std::min(
         1.0, static_cast<double>(platform::now_ns() - start_ns_) / static_cast<double>(over_ns_));
-    burn(static_cast<Nanos>((from_ + (to_ - from_) * t) * static_cast<double>(period_ns_)));
+    const double share = from_ + (to_ - from_) * t;
+    if (!announced_) {
+      announced_ = true;
+      VIGIL_LOG_INFO("load ramps from {:.0f}% to {:.0f}% of the {} us period over {:.1f} s",
+                     from_ * 100, to_ * 100, period_ns_ / kNanosPerMicro,
+                     static_cast<double>(over_ns_) * 1e-9);
+    }
+    // Warn at each 5% step from 80% of the period: the cycle is running out of time.
+    const int step = static_cast<int>(share * 20);  // in 5% steps
+    if (step >= 16 && step > warned_step_) {
+      warned_step_ = step;
+      VIGIL_LOG_WARN("execution time at {:.0f}% of the period ({} us of {} us)", share * 100,
+                     static_cast<Nanos>(share * static_cast<double>(period_ns_)) / kNanosPerMicro,
+                     period_ns_ / kNanosPerMicro);
+    }
+    burn(static_cast<Nanos>(share * static_cast<double>(period_ns_)));
   }
 
  private:
@@ -117,6 +134,8 @@ class LoadRamp : public Task<LoadRamp> {
   double from_, to_;
   Nanos over_ns_;
   Nanos start_ns_ = 0;
+  bool announced_ = false;
+  int warned_step_ = 0;
 };
 
 /// Injected fault: allocates on every `every`-th cycle (a real-time loss on a FIFO thread).
@@ -149,15 +168,28 @@ class Faulty : public Task<Faulty> {
     return true;
   }
   void on_update() {
-    if (platform::now_ns() - start_ns_ > after_ns_) {
+    ++frame_;
+    // The encoder's frame: a position and its checksum (garbage once the fault starts).
+    const std::uint16_t position = static_cast<std::uint16_t>(frame_ * 7);
+    const std::uint16_t expected = checksum(position);
+    const bool broken = platform::now_ns() - start_ns_ > after_ns_;
+    const std::uint16_t got = broken ? static_cast<std::uint16_t>(expected ^ 0x5A5A) : expected;
+    if (got != expected) {
+      VIGIL_LOG_ERROR("joint {}: encoder frame {} checksum {:#06x}, expected {:#06x}", 3, frame_,
+                      got, expected);
       throw std::runtime_error("encoder checksum mismatch on joint 3");
     }
     burn(10 * kNanosPerMicro);
   }
 
  private:
+  static std::uint16_t checksum(std::uint16_t v) noexcept {
+    return static_cast<std::uint16_t>((v * 0x9E37U) ^ 0xA5A5U);
+  }
+
   Nanos after_ns_;
   Nanos start_ns_ = 0;
+  std::uint64_t frame_ = 0;
 };
 
 /// Fault injection: after `after`, on_update never returns (a driver call that hangs). The other
@@ -217,7 +249,17 @@ class CanIo : public Task<CanIo> {
     pending_ = 0;
     for (std::uint32_t node = 1; node <= drives_; ++node) {
       send(can::Frame::classic(0x200 + node, {0x0F, 0x00, 0x00, 0x10}));  // RPDO1: control word
-      if (!(silent_phase && node == silent_node_)) answers_[pending_++] = node;
+      if (!(silent_phase && node == silent_node_)) {
+        answers_[pending_++] = node;
+      } else {
+        // Every cycle while the drive is silent: at Debug, and rate-limited by the supervisor.
+        VIGIL_LOG_DEBUG("drive {} (node {:#04x}): no TPDO1 answer", node, 0x180 + node);
+      }
+    }
+    if (silent_phase && !reported_silent_) {
+      reported_silent_ = true;
+      VIGIL_LOG_WARN("drive {} stopped answering (no TPDO1 since the SYNC of this cycle)",
+                     silent_node_);
     }
     for (std::uint32_t i = 0; i < pending_; ++i) {  // the drives' TPDO1 (status word) answers
       const Nanos t0 = platform::now_ns();
@@ -245,6 +287,7 @@ class CanIo : public Task<CanIo> {
   std::unique_ptr<can::Sniffer<256>> sniffer_;
   std::array<std::uint32_t, 128> answers_{};
   std::uint32_t pending_ = 0;
+  bool reported_silent_ = false;
 };
 
 }  // namespace

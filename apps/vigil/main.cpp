@@ -45,6 +45,11 @@ int main(int argc, char** argv) {
                        "(127.0.0.1 unless ADDR is given; PORT 0 picks a free one)");
   demo_cmd->add_option("--prom-file", demo.textfile,
                        "Rewrite FILE.prom (node-exporter textfile) after every monitor cycle");
+  demo_cmd->add_option("--log-file", demo.log_file,
+                       "Also write the components' log lines to FILE (rotated at 1 MiB, 3 files)");
+  demo_cmd->add_option("--log-level", demo.log_level,
+                       "The components' log level: debug, info (default), warn, error or off")
+      ->check(CLI::IsMember({"debug", "info", "warn", "error", "off"}));
 
   vigil::app::CheckConfigOptions check;
   auto* check_cmd = app.add_subcommand(

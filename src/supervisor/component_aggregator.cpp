@@ -163,7 +163,12 @@ void ComponentAggregator::on(const Entry& /*e*/, const StateChange& m) {
   current_->data.state = m.to;
 }
 
-void ComponentAggregator::on_cycle(const SupervisorCycle& /*c*/) {
+void ComponentAggregator::on(const Entry& e, const log::LogRecord& m) {
+  if (auto* c = log_consumer_.load()) c->on_record(e.id, e.name, m);
+}
+
+void ComponentAggregator::on_cycle(const SupervisorCycle& c) {
+  if (auto* lc = log_consumer_.load()) lc->on_supervisor_cycle(c.time_ns + c.drain_ns);
   hint_ = 0;
   if (departed_ == 0) return;  // nothing to forget: no walk over thousands of records
   const Nanos now = options_.clock.now();

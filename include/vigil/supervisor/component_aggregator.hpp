@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "vigil/bus/registry.hpp"
+#include "vigil/log/consumer.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/supervisor/running_stats.hpp"
 #include "vigil/supervisor/supervisor.hpp"
@@ -112,6 +113,7 @@ class ComponentAggregator {
   void on(const Entry& e, const RealTimeLoss& m);
   void on(const Entry& e, const ExceptionReport& m);
   void on(const Entry& e, const StateChange& m);
+  void on(const Entry& e, const log::LogRecord& m);  // forwarded to the log consumer, if any
   /// Any other message type (one added to `Message` later): ignored until a handler cares.
   template <class M>
   void on(const Entry& /*e*/, const M& /*m*/) {}
@@ -131,6 +133,9 @@ class ComponentAggregator {
   [[nodiscard]] std::size_t size() const;
   /// Changes the EWMA weight for every record (takes effect for new samples).
   void set_ewma_weight(double w);
+  /// Where drained log records go (null: dropped). Any thread; the consumer must outlive the
+  /// supervisor's cycles (set null before destroying it).
+  void set_log_consumer(log::RecordConsumer* c) noexcept { log_consumer_.store(c); }
 
   struct Slot;
 
@@ -145,6 +150,7 @@ class ComponentAggregator {
   std::size_t departed_ = 0;                  // records of components that left
   Slot* current_ = nullptr;                   // the slot between begin() and end()
   Nanos drain_time_ = 0;                      // supervisor clock at begin()
+  std::atomic<log::RecordConsumer*> log_consumer_{nullptr};
 };
 
 static_assert(SupervisorHandler<ComponentAggregator, Message>);

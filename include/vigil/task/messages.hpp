@@ -18,6 +18,7 @@
 #include <variant>
 
 #include "vigil/bus/fixed_string.hpp"
+#include "vigil/log/record.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/platform/rt_loss.hpp"
 #include "vigil/platform/thread.hpp"
@@ -133,7 +134,7 @@ struct StateChange {
 };
 
 /// Everything a component's port carries.
-using Message = std::variant<TaskInfo, CycleSample, RealTimeLoss, ExceptionReport, StateChange>;
+using Message = std::variant<TaskInfo, CycleSample, RealTimeLoss, ExceptionReport, StateChange, log::LogRecord>;
 
 namespace detail {
 template <class... T>

@@ -11,6 +11,7 @@
 
 #include "vigil/bus/port.hpp"
 #include "vigil/bus/registry.hpp"
+#include "vigil/log/source.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/platform/rt_loss.hpp"
 #include "vigil/task/default_registry.hpp"
@@ -147,10 +148,12 @@ class CycleRecorder {
     if (measure_) pre_begin_ = now();
     if (options_.detectors != Detectors::None) arm();
     c.start_ns = now();
+    log_.enter(cycles_ + 1, c.start_ns);
   }
 
   /// After on_update(). `state` is what the sample reports. RT-safe.
   void post(CycleContext& c, TaskState state) noexcept {
+    log_.leave();
     const Nanos end = now();
     c.end_ns = end;
     if (options_.detectors != Detectors::None) collect();
@@ -268,6 +271,7 @@ class CycleRecorder {
   std::string name_;
   SupervisionOptions options_;
   Membership<Message, N> membership_;
+  log::PortSource<Message, N> log_{name_, membership_.port()};
   Clock system_clock_ = Clock::system();
   const Clock* clock_ = &system_clock_;
   bool direct_clock_ = true;
