@@ -16,7 +16,7 @@ struct DemoOptions {
   bool print_config = false;
   std::string http;      ///< "[ADDR:]PORT": serve HTTP (overrides the deployment's outputs.http)
   std::string textfile;  ///< node-exporter textfile (.prom) rewritten every monitor cycle
-  std::string log_file;             ///< rotating log file (empty: none)
+  std::string log_file;  ///< rotating log file (empty: none)
   std::string log_level = "info";  ///< the components' run-time log level
 };
 /// Runs `vigil demo`. Exit codes (docs/guide/faults.md):

@@ -190,8 +190,8 @@ int run_demo(const DemoOptions& o) {
     logs.add_sink(std::make_shared<log::StreamSink>(stderr));
   }
   if (!o.log_file.empty()) {
-    auto file = log::RotatingFileSink::open({.path = o.log_file, .max_bytes = 1U << 20U,
-                                             .max_files = 3});
+    auto file =
+        log::RotatingFileSink::open({.path = o.log_file, .max_bytes = 1U << 20U, .max_files = 3});
     if (!file) {
       std::fprintf(stderr, "vigil demo: %s\n", file.error().message.c_str());
       return 1;
@@ -271,7 +271,8 @@ int run_demo(const DemoOptions& o) {
   }
   logs.flush();  // after the last drain: the suppressed counts still pending
   ReportSet final_reports = system.step_monitor();
-  exporter::add_log_lines(logs, final_reports);  // log counts and recent lines, in --details and the JSON
+  exporter::add_log_lines(logs,
+                          final_reports);  // log counts and recent lines, in --details and the JSON
   if (exporter) {
     exporter->publish(final_reports);  // served until the demo exits
     if (const std::string err = exporter->textfile_error(); !err.empty()) {

@@ -47,8 +47,9 @@ int main(int argc, char** argv) {
                        "Rewrite FILE.prom (node-exporter textfile) after every monitor cycle");
   demo_cmd->add_option("--log-file", demo.log_file,
                        "Also write the components' log lines to FILE (rotated at 1 MiB, 3 files)");
-  demo_cmd->add_option("--log-level", demo.log_level,
-                       "The components' log level: debug, info (default), warn, error or off")
+  demo_cmd
+      ->add_option("--log-level", demo.log_level,
+                   "The components' log level: debug, info (default), warn, error or off")
       ->check(CLI::IsMember({"debug", "info", "warn", "error", "off"}));
 
   vigil::app::CheckConfigOptions check;

@@ -116,8 +116,8 @@ struct Vigil {
 #if VIGIL_BENCH_HAVE_SPDLOG
 struct Spdlog {
   Spdlog()
-      : pool(std::make_shared<spdlog::details::thread_pool>(8192, 1,
-                                                            [this] { on_worker_start(); })),
+      : pool(
+            std::make_shared<spdlog::details::thread_pool>(8192, 1, [this] { on_worker_start(); })),
         logger(std::make_shared<spdlog::async_logger>(
             "bench", std::make_shared<spdlog::sinks::null_sink_mt>(), pool,
             spdlog::async_overflow_policy::block)) {
@@ -135,7 +135,9 @@ struct Spdlog {
     pthread_setschedparam(pthread_self(), SCHED_OTHER, &p);
     started.store(true);
   }
-  [[gnu::noinline]] void call(int i, int j, double d) { logger->info("x {} y {} v {:.3f}", i, j, d); }
+  [[gnu::noinline]] void call(int i, int j, double d) {
+    logger->info("x {} y {} v {:.3f}", i, j, d);
+  }
   /// Waits (spinning, untimed) while the worker is far behind, so that a timed call never
   /// blocks on a full queue. The worker usually keeps up: this rarely waits.
   void wait_room() const {
@@ -300,10 +302,7 @@ void spdlog_async_vs_vigil(benchmark::State& state) {
 
 BENCHMARK(vigil_vs_floor)->Name("log/vigil_call_vs_floor")->Iterations(1)->UseRealTime();
 BENCHMARK(fmt_vs_floor)->Name("log/fmt_format_to_vs_floor")->Iterations(1)->UseRealTime();
-BENCHMARK(spdlog_async_vs_vigil)
-    ->Name("log/spdlog_async_vs_vigil")
-    ->Iterations(1)
-    ->UseRealTime();
+BENCHMARK(spdlog_async_vs_vigil)->Name("log/spdlog_async_vs_vigil")->Iterations(1)->UseRealTime();
 
 }  // namespace
 }  // namespace vigil::bench

@@ -317,8 +317,8 @@ ThresholdOverrides load_thresholds(const cfg::Node& n) {
         t.not_responding_after_ns = std::optional<Nanos>{};
       } else if (after.is_scalar() && !cfg::parse_duration(text).has_value() &&
                  !std::isdigit(static_cast<unsigned char>(text.empty() ? ' ' : text[0]))) {
-        after.error(fmt::format("expected a duration such as '100ms', or 'learned', got '{}'",
-                                text));
+        after.error(
+            fmt::format("expected a duration such as '100ms', or 'learned', got '{}'", text));
       } else {
         t.not_responding_after_ns =
             std::optional<Nanos>{nr.required_duration("after", cfg::positive())};

@@ -96,7 +96,8 @@ void judge_ids(CanReport& r, const CanConfig& cfg, Nanos now) {
       v.traffic = Traffic::ToNode;
     } else if ((s.flags & node_flags::kRequest) != 0) {
       v.traffic = Traffic::Requests;
-    } else if ((s.flags & node_flags::kResponse) != 0 || asked.contains({s.bus, s.id, s.extended})) {
+    } else if ((s.flags & node_flags::kResponse) != 0 ||
+               asked.contains({s.bus, s.id, s.extended})) {
       v.traffic = Traffic::OnRequest;
     } else {
       const LearnRule& rule = cfg.thresholds_for(s.bus, s.node).learn;

@@ -80,7 +80,8 @@ expected<std::unique_ptr<RotatingFileSink>, Error> RotatingFileSink::open(
   sink->file_ = std::fopen(path.c_str(), "a");
   if (sink->file_ == nullptr) {
     const int e = errno;
-    return unexpected(Error(e, fmt::format("log file {}: cannot open: {}", path, std::strerror(e))));
+    return unexpected(
+        Error(e, fmt::format("log file {}: cannot open: {}", path, std::strerror(e))));
   }
   std::error_code ec;
   const auto size = std::filesystem::file_size(path, ec);
@@ -114,8 +115,9 @@ void RotatingFileSink::rotate() noexcept {
       for (unsigned i = options_.max_files - 1; i-- > 0;) {
         if (!std::filesystem::exists(name(i), ec)) continue;
         std::filesystem::rename(name(i), name(i + 1), ec);
-        if (ec) fail(fmt::format("log file {}: cannot rename to {}: {}", name(i), name(i + 1),
-                                 ec.message()));
+        if (ec)
+          fail(fmt::format("log file {}: cannot rename to {}: {}", name(i), name(i + 1),
+                           ec.message()));
       }
     }
     // max_files == 1: the file is started again ("w" truncates it).
@@ -123,8 +125,8 @@ void RotatingFileSink::rotate() noexcept {
     size_ = 0;
     ++rotations_;
     if (file_ == nullptr) {
-      fail(fmt::format("log file {}: cannot reopen after rotation: {}", base,
-                       std::strerror(errno)));
+      fail(
+          fmt::format("log file {}: cannot reopen after rotation: {}", base, std::strerror(errno)));
     }
   } catch (...) {
     fail("log file: rotation failed (out of memory)");

@@ -123,13 +123,13 @@ std::vector<LogEntry> canopen_capture(const CanOpenBus& bus) {
     std::uint8_t toggle = 0;
     for (int seg = 0; seg < 20; ++seg) {
       t += c.rng().between(us(200), us(800));
-      c.add(t, Frame::classic(0x604, {static_cast<std::uint8_t>(0x60 | toggle), 0, 0, 0, 0, 0,
-                                      0, 0}));
+      c.add(t,
+            Frame::classic(0x604, {static_cast<std::uint8_t>(0x60 | toggle), 0, 0, 0, 0, 0, 0, 0}));
       if (!c.alive(4, t)) return;
       t += c.rng().between(us(300), ms(1));
       const std::uint8_t last = seg == 19 ? 0x01 : 0x00;
-      c.add(t, Frame::classic(0x584, {static_cast<std::uint8_t>(toggle | last), 'v', 'i', 'g',
-                                      'i', 'l', '!', '!'}));
+      c.add(t, Frame::classic(0x584, {static_cast<std::uint8_t>(toggle | last), 'v', 'i', 'g', 'i',
+                                      'l', '!', '!'}));
       toggle ^= 0x10;
     }
   });
@@ -200,8 +200,8 @@ std::vector<LogEntry> dronecan_capture(const DroneCanBus& bus) {
   // The flight controller: NodeStatus every second, esc.RawCommand at 100 Hz.
   c.every(s(1), ms(3), ms(100), end, [&](Nanos t) {
     if (c.alive(kFc, t)) {
-      transfer(c, t, dc::message_id(16, 341, kFc), {0x10, 0, 0, 0, 0x00, 0x00, 0x00},
-               next_tid(kFc), us(100));
+      transfer(c, t, dc::message_id(16, 341, kFc), {0x10, 0, 0, 0, 0x00, 0x00, 0x00}, next_tid(kFc),
+               us(100));
     }
   });
   c.every(ms(10), us(200), ms(1), end, [&](Nanos t) {
@@ -254,20 +254,24 @@ std::vector<LogEntry> j1939_capture(const J1939Bus& bus) {
     if (c.alive(0x00, t)) c.add(t, ext(0x0CF00300, {0xD1, 0, 0, 0xFF, 0xFF, 0x0F, 0x72, 0x7D}));
   });
   c.every(s(1), ms(1), ms(300), end, [&](Nanos t) {
-    if (c.alive(0x00, t)) c.add(t, ext(0x18FEEE00, {0x7A, 0xFF, 0xA0, 0x28, 0xFF, 0xFF, 0xFF, 0xFF}));
+    if (c.alive(0x00, t))
+      c.add(t, ext(0x18FEEE00, {0x7A, 0xFF, 0xA0, 0x28, 0xFF, 0xFF, 0xFF, 0xFF}));
   });
   // Brakes (0x0B): EBC1 every 100 ms.
   c.every(ms(100), ms(2), ms(13), end, [&](Nanos t) {
-    if (c.alive(0x0B, t)) c.add(t, ext(0x18F0010B, {0xC0, 0xFF, 0xF0, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF}));
+    if (c.alive(0x0B, t))
+      c.add(t, ext(0x18F0010B, {0xC0, 0xFF, 0xF0, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF}));
   });
   // Body controller (0x21): CCVS every 100 ms; a request for the engine hours every 30 s.
   c.every(ms(100), ms(2), ms(29), end, [&](Nanos t) {
-    if (c.alive(0x21, t)) c.add(t, ext(0x18FEF121, {0xF3, 0x00, 0x00, 0x1F, 0xFF, 0xFF, 0xFF, 0xFF}));
+    if (c.alive(0x21, t))
+      c.add(t, ext(0x18FEF121, {0xF3, 0x00, 0x00, 0x1F, 0xFF, 0xFF, 0xFF, 0xFF}));
   });
   c.every(s(30), ms(10), s(5), end, [&](Nanos t) {
     if (!c.alive(0x21, t)) return;
     c.add(t, ext(0x18EA0021, {0xE5, 0xFE, 0x00}));
-    if (c.alive(0x00, t)) c.add(t + ms(5), ext(0x18FEE500, {0x10, 0x27, 0, 0, 0xFF, 0xFF, 0xFF, 0xFF}));
+    if (c.alive(0x00, t))
+      c.add(t + ms(5), ext(0x18FEE500, {0x10, 0x27, 0, 0, 0xFF, 0xFF, 0xFF, 0xFF}));
   });
   return c.take();
 }

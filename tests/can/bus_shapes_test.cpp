@@ -256,10 +256,10 @@ TEST_CASE("can-stats --node-map canopen|dronecan on healthy captures: no node no
           "[can][shapes][cli]") {
   const auto dir = std::filesystem::temp_directory_path() / "vigil_can_shapes";
   std::filesystem::create_directories(dir);
-  for (const auto& [name, map, text] :
-       {std::tuple{"canopen.log", NodeMapKind::CanOpen, test::to_candump(test::canopen_capture({}))},
-        std::tuple{"dronecan.log", NodeMapKind::DroneCan,
-                   test::to_candump(test::dronecan_capture({}))}}) {
+  for (const auto& [name, map, text] : {std::tuple{"canopen.log", NodeMapKind::CanOpen,
+                                                   test::to_candump(test::canopen_capture({}))},
+                                        std::tuple{"dronecan.log", NodeMapKind::DroneCan,
+                                                   test::to_candump(test::dronecan_capture({}))}}) {
     const auto path = dir / name;
     std::ofstream(path) << text;
     std::ostringstream out;
@@ -304,12 +304,12 @@ TEST_CASE("Honest summaries: no frames, or no valid frames, is a WARN with a rea
   const IdStats* cls = e.snapshot.find_id(0, 0x4, true, Direction::Rx);
   CHECK(cls == nullptr);  // find_id looks for data frames; error frames have their own keys
   bool found = false;
-  for (const IdStats& s : e.snapshot.ids) found = found || (s.error && s.id == 0x4 && s.frames == 3);
+  for (const IdStats& s : e.snapshot.ids)
+    found = found || (s.error && s.id == 0x4 && s.frames == 3);
   CHECK(found);
 }
 
-TEST_CASE("RTR and error frames are counted and shown per id and node",
-          "[can][shapes][summary]") {
+TEST_CASE("RTR and error frames are counted and shown per id and node", "[can][shapes][summary]") {
   auto entries = test::canopen_capture({.duration = 30 * kSec});
   for (int i = 0; i < 2; ++i) {
     Frame f = Frame::error_frame(0x20, {0, 0, 0x08});  // bus error
@@ -347,9 +347,8 @@ TEST_CASE("RTR and error frames are counted and shown per id and node",
 TEST_CASE("Units: one unit per column family, named in every header", "[can][shapes][summary]") {
   const CanReport r = judge_all(test::canopen_capture({.duration = 30 * kSec}), NodeMap::canopen());
   const std::string text = vigil::exporter::format_can_report(r);
-  for (const char* header :
-       {"GAP MEAN ms", "GAP MIN ms", "GAP MAX ms", "IO MEAN us", "SILENCE ms", "LIMIT ms",
-        "PERIOD ms", "GAP p50 ms"}) {
+  for (const char* header : {"GAP MEAN ms", "GAP MIN ms", "GAP MAX ms", "IO MEAN us", "SILENCE ms",
+                             "LIMIT ms", "PERIOD ms", "GAP p50 ms"}) {
     CHECK(text.find(header) != std::string::npos);
   }
   CHECK(text.find("GAP MEAN us") == std::string::npos);
@@ -395,8 +394,9 @@ TEST_CASE("Replay of 20,000 distinct ids: bounded tables, the rest counted as un
   CHECK(r.snapshot.nodes.size() <= o.max_nodes);
   CHECK(t.untracked_nodes >= 2 * (kIds - o.max_nodes));
   CHECK(r.status.level() == StatusLevel::Warn);
-  CHECK(has(r.status, "not counted per id: more distinct ids than the sniffer's id table holds "
-                      "(8192 per sniffer)"));
+  CHECK(has(r.status,
+            "not counted per id: more distinct ids than the sniffer's id table holds "
+            "(8192 per sniffer)"));
   // About 200 bytes a key and 16 per frame: far below the ~37 KB a key it used to take
   // (20,000 ids were 740 MB).
   INFO("resident memory grew by " << grown_mib << " MiB");

@@ -248,10 +248,12 @@ nodes:
   for (const std::string& line : e) UNSCOPED_INFO(line);
   REQUIRE(e.size() == 5);
   INFO(e[0]);
-  CHECK(e[0] == "can.yaml:2:27: defaults.not_responding.after: expected a duration such as "
-                "'100ms', or 'learned', got 'learnt'");
-  CHECK(e[1] == "can.yaml:2:43: defaults.not_responding.factor: must be between 1 and 100, "
-                "got '0.5'");
+  CHECK(e[0] ==
+        "can.yaml:2:27: defaults.not_responding.after: expected a duration such as "
+        "'100ms', or 'learned', got 'learnt'");
+  CHECK(e[1] ==
+        "can.yaml:2:43: defaults.not_responding.factor: must be between 1 and 100, "
+        "got '0.5'");
   CHECK(e[2].rfind("can.yaml:2:55: defaults.not_responding.floor:", 0) == 0);
   CHECK(e[3].rfind("can.yaml:2:71: defaults.not_responding.min_gaps: must be between 1 and", 0) ==
         0);

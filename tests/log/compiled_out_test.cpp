@@ -13,8 +13,7 @@ int evaluated = 0;
 int count_evaluation() { return ++evaluated; }
 }  // namespace
 
-TEST_CASE("Calls below VIGIL_LOG_LEVEL are compiled out, arguments not evaluated",
-          "[log][level]") {
+TEST_CASE("Calls below VIGIL_LOG_LEVEL are compiled out, arguments not evaluated", "[log][level]") {
   LogBench<> c("compiled_out");
   log::set_level("compiled_out", log::Level::Debug);  // the run-time level lets everything in
   evaluated = 0;

@@ -70,8 +70,7 @@ TEST_CASE("The default level applies to components without their own", "[log][le
   log::reset_level("level_default_b");
 }
 
-TEST_CASE("The level can be changed from another thread while the component logs",
-          "[log][level]") {
+TEST_CASE("The level can be changed from another thread while the component logs", "[log][level]") {
   LogBench<1024> c("level_threads");
   std::thread t([] { log::set_level("level_threads", log::Level::Error); });
   t.join();

@@ -3,8 +3,8 @@
 #include <string>
 #include <vector>
 
-#include "vigil/bus/messages.hpp"
 #include "vigil/log/log.hpp"
+#include "vigil/task/messages.hpp"
 
 namespace vigil::test {
 

@@ -16,8 +16,8 @@ using vigil::test::LogBench;
 
 namespace {
 
-enum class Plain : std::int16_t { A = -3, B = 7 };           // no to_string, no formatter
-enum class Gear : std::uint8_t { Park = 0, Drive = 2 };      // ADL to_string
+enum class Plain : std::int16_t { A = -3, B = 7 };       // no to_string, no formatter
+enum class Gear : std::uint8_t { Park = 0, Drive = 2 };  // ADL to_string
 [[maybe_unused]] const char* to_string(Gear g) { return g == Gear::Park ? "park" : "drive"; }
 enum Unscoped : unsigned long long { kBig = 0xFFFF'FFFF'FFFFULL };
 
@@ -76,7 +76,7 @@ TEST_CASE("Strings of every kind are copied up to 32 bytes, the cut marked", "[l
   CHECK(round_trip(static_cast<const char*>("pointer")) == "pointer");
   CHECK(round_trip(static_cast<const char*>(nullptr)) == "(null)");
   CHECK(round_trip(std::string()) == "");
-  CHECK(round_trip(s32) == s32);                            // exactly the bound: not cut
+  CHECK(round_trip(s32) == s32);                           // exactly the bound: not cut
   CHECK(round_trip(s33) == std::string(32, 'b') + "...");  // one more: cut and marked
   CHECK(round_trip(s33.c_str()) == std::string(32, 'b') + "...");
   {

@@ -9,8 +9,8 @@
 #include <string>
 
 #include "log_support.hpp"
-#include "vigil/log/log.hpp"
 #include "vigil/export/log_report.hpp"
+#include "vigil/log/log.hpp"
 #include "vigil/log/service.hpp"
 #include "vigil/log/sinks.hpp"
 #include "vigil/monitor/report.hpp"
@@ -59,7 +59,8 @@ TEST_CASE("The service formats records into lines with component, cycle and time
   CHECK(l.time_ns == 3'500'000'000);
   CHECK(l.text == "joint 3 limit reached: 2.41 rad");
   CHECK(l.line == static_cast<std::uint32_t>(line));
-  CHECK(log::format_line(l) == "[     3.500000] WARN  svc_motor #42: joint 3 limit reached: 2.41 rad");
+  CHECK(log::format_line(l) ==
+        "[     3.500000] WARN  svc_motor #42: joint 3 limit reached: 2.41 rad");
   CHECK(log::format_line(l, {.component = false, .source = true}) ==
         "[     3.500000] WARN  #42: joint 3 limit reached: 2.41 rad (service_test.cpp:" +
             std::to_string(line) + ")");
@@ -183,8 +184,7 @@ TEST_CASE("Dropped records are reported as a line and counted", "[log][drops]") 
   CHECK(service.stats("svc_drops").dropped == 3);
 }
 
-TEST_CASE("contribute() adds counts and recent lines to the component reports",
-          "[log][service]") {
+TEST_CASE("contribute() adds counts and recent lines to the component reports", "[log][service]") {
   log::LogService service;
   LogBench<> b("svc_report", 12, 2 * kNanosPerSecond);
   VIGIL_LOG_ERROR("encoder checksum {:#06x}, expected {:#06x}", 0xBEEFU, 0x1234U);
@@ -219,8 +219,8 @@ TEST_CASE("TailSink keeps the last lines for a live view", "[log][sinks]") {
 }
 
 TEST_CASE("The rotating file sink rotates by size and keeps N files", "[log][sinks]") {
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("vigil_log_rotate_" + std::to_string(::getpid()));
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("vigil_log_rotate_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   const auto path = dir / "vigil.log";

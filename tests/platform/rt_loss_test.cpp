@@ -108,14 +108,14 @@ TEST_CASE("Cobalt: a FIFO thread is a Cobalt thread whose Linux system calls cou
   std::uint64_t before = 0;
   std::uint64_t after = 0;
   const auto reasons_before = mode_switch_reasons();
-  auto t = Thread::spawn({.name = "vigil-cobalt", .policy = SchedPolicy::Fifo, .priority = 10},
-                         [&] {
-                           armed = arm_mode_switch_detection();
-                           before = thread_mode_switches();
-                           // A plain Linux system call: relaxes the thread, SIGDEBUG says why.
-                           ::syscall(SYS_getppid);
-                           after = thread_mode_switches();
-                         });
+  auto t =
+      Thread::spawn({.name = "vigil-cobalt", .policy = SchedPolicy::Fifo, .priority = 10}, [&] {
+        armed = arm_mode_switch_detection();
+        before = thread_mode_switches();
+        // A plain Linux system call: relaxes the thread, SIGDEBUG says why.
+        ::syscall(SYS_getppid);
+        after = thread_mode_switches();
+      });
   REQUIRE(t.has_value());
   t->join();
   CHECK(armed);

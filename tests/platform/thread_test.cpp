@@ -109,8 +109,8 @@ TEST_CASE("The platform decides per thread: FIFO threads are Cobalt threads, oth
           "[platform][thread]") {
   // Only a Cobalt thread can be armed for mode-switch detection (Linux: never).
   bool other_armed = true;
-  auto other = Thread::spawn({.name = "vigil-other"},
-                             [&] { other_armed = arm_mode_switch_detection(); });
+  auto other =
+      Thread::spawn({.name = "vigil-other"}, [&] { other_armed = arm_mode_switch_detection(); });
   REQUIRE(other.has_value());
   other->join();
   CHECK_FALSE(other_armed);

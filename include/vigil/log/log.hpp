@@ -65,28 +65,27 @@ struct is_fixed_string<FixedString<N>> : std::true_type {};
 
 template <class T>
 inline constexpr bool is_char_array =
-    std::is_array_v<T> && std::is_same_v<std::remove_cv_t<std::remove_extent_t<T>>, char>;
+    std::is_array_v<T>&& std::is_same_v<std::remove_cv_t<std::remove_extent_t<T>>, char>;
 template <class T>
 inline constexpr bool is_c_string = std::is_same_v<T, const char*> || std::is_same_v<T, char*>;
 
 template <class T>
-inline constexpr bool is_string_arg =
-    is_fixed_string<T>::value || is_char_array<T> || is_c_string<T> ||
-    (!std::is_arithmetic_v<T> && !std::is_pointer_v<T> &&
-     std::is_convertible_v<const T&, std::string_view>);
+inline constexpr bool is_string_arg = is_fixed_string<T>::value || is_char_array<T> ||
+                                      is_c_string<T> ||
+                                      (!std::is_arithmetic_v<T> && !std::is_pointer_v<T> &&
+                                       std::is_convertible_v<const T&, std::string_view>);
 
 template <class T>
-inline constexpr bool is_wide_char =
-    std::is_same_v<T, wchar_t> || std::is_same_v<T, char8_t> || std::is_same_v<T, char16_t> ||
-    std::is_same_v<T, char32_t>;
+inline constexpr bool is_wide_char = std::is_same_v<T, wchar_t> || std::is_same_v<T, char8_t> ||
+                                     std::is_same_v<T, char16_t> || std::is_same_v<T, char32_t>;
 
 template <class T>
 inline constexpr bool is_number_arg = std::is_arithmetic_v<T> && !is_wide_char<T>;
 
 template <class T>
-inline constexpr bool is_pointer_arg =
-    (std::is_pointer_v<T> && !is_c_string<T> && !std::is_function_v<std::remove_pointer_t<T>>) ||
-    std::is_null_pointer_v<T>;
+inline constexpr bool is_pointer_arg = (std::is_pointer_v<T> && !is_c_string<T> &&
+                                        !std::is_function_v<std::remove_pointer_t<T>>) ||
+                                       std::is_null_pointer_v<T>;
 
 template <class T>
 inline constexpr bool is_supported_arg =
@@ -116,7 +115,7 @@ struct stored {
   using type = C;
 };
 template <class C>
-  requires std::is_enum_v<C>
+requires std::is_enum_v<C>
 struct stored<C> {
   using type = std::underlying_type_t<C>;
 };
@@ -148,7 +147,7 @@ struct shown<Str> {
   using type = std::string;
 };
 template <class C>
-  requires std::is_enum_v<C>
+requires std::is_enum_v<C>
 struct shown<C> {
   using type = decltype([] {
     if constexpr (EnumWithToString<C>) {
@@ -399,37 +398,35 @@ struct CompiledOut<Tag, TypeList<A...>> {
 };
 
 /// A call outside any supervised cycle: counted, dropped.
-inline void note_unattributed() noexcept {
-  g_unattributed.fetch_add(1, std::memory_order_relaxed);
-}
+inline void note_unattributed() noexcept { g_unattributed.fetch_add(1, std::memory_order_relaxed); }
 
 }  // namespace vigil::log::detail
 
 /// The call site's description, as a consteval lambda whose type is unique to the call site.
-#define VIGIL_LOG_SITE_(level, format)                                                      \
-  []() consteval {                                                                          \
+#define VIGIL_LOG_SITE_(level, format)                                                        \
+  []() consteval {                                                                            \
     return ::vigil::log::detail::SiteText{(level), ::vigil::log::detail::format_view(format), \
-                                          __FILE__, __LINE__};                              \
+                                          __FILE__, __LINE__};                                \
   }
 
 /// Logs at `level` (a vigil::log::Level): `VIGIL_LOG_AT(vigil::log::Level::Warn, "x = {}", x)`.
 /// The format string must be a constant: a string literal (checked at compile time exactly as
 /// fmt::format_string checks it, so FMT_STRING is neither needed nor accepted).
-#define VIGIL_LOG_AT(level, format, ...)                                                      \
-  do {                                                                                        \
-    if constexpr (::vigil::log::detail::compiled_in<VIGIL_LOG_LEVEL>(level)) {                \
-      ::vigil::log::Source* const vigil_log_source_ = ::vigil::log::detail::t_current;        \
-      if (vigil_log_source_ == nullptr) [[unlikely]] {                                        \
-        ::vigil::log::detail::note_unattributed();                                            \
-      } else if (vigil_log_source_->enabled(level)) {                                         \
-        ::vigil::log::detail::emit(VIGIL_LOG_SITE_(level, format),                            \
-                                   *vigil_log_source_ __VA_OPT__(, ) __VA_ARGS__);            \
-      }                                                                                       \
-    } else {                                                                                  \
-      (void)sizeof(::vigil::log::detail::CompiledOut<                                         \
-                   decltype(VIGIL_LOG_SITE_(level, format)),                                  \
-                   decltype(::vigil::log::detail::types_of(__VA_ARGS__))>);                  \
-    }                                                                                         \
+#define VIGIL_LOG_AT(level, format, ...)                                                       \
+  do {                                                                                         \
+    if constexpr (::vigil::log::detail::compiled_in<VIGIL_LOG_LEVEL>(level)) {                 \
+      ::vigil::log::Source* const vigil_log_source_ = ::vigil::log::detail::t_current;         \
+      if (vigil_log_source_ == nullptr) [[unlikely]] {                                         \
+        ::vigil::log::detail::note_unattributed();                                             \
+      } else if (vigil_log_source_->enabled(level)) {                                          \
+        ::vigil::log::detail::emit(VIGIL_LOG_SITE_(level, format),                             \
+                                   *vigil_log_source_ __VA_OPT__(, ) __VA_ARGS__);             \
+      }                                                                                        \
+    } else {                                                                                   \
+      (void)sizeof(::vigil::log::detail::CompiledOut<decltype(VIGIL_LOG_SITE_(level, format)), \
+                                                     decltype(::vigil::log::detail::types_of(  \
+                                                         __VA_ARGS__))>);                      \
+    }                                                                                          \
   } while (false)
 
 /// Logs at Debug. See the file comment for what may be logged and what it costs.

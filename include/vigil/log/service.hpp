@@ -117,8 +117,8 @@ class LogService final : public RecordConsumer {
   std::map<std::string, std::unique_ptr<Component>, std::less<>> components_;
   std::map<RateKey, Rate> rates_;
   std::map<std::uint32_t, std::uint32_t> seen_dropped_;  // by component id: drops reported
-  std::size_t pending_ = 0;  // rate windows holding suppressed lines
-  bool wrote_ = false;       // since the last flush of the sinks
+  std::size_t pending_ = 0;                              // rate windows holding suppressed lines
+  bool wrote_ = false;                                   // since the last flush of the sinks
   std::uint64_t format_errors_ = 0;
 };
 

@@ -78,9 +78,9 @@ class StreamSink final : public Sink {
 
 /// Options of a rotating file.
 struct RotatingFileOptions {
-  std::string path;                        ///< the current file; older ones are path.1, path.2...
-  std::uint64_t max_bytes = 10U << 20U;    ///< a file is rotated before it would exceed this
-  unsigned max_files = 5;                  ///< files kept, the current one included (>= 1)
+  std::string path;                      ///< the current file; older ones are path.1, path.2...
+  std::uint64_t max_bytes = 10U << 20U;  ///< a file is rotated before it would exceed this
+  unsigned max_files = 5;                ///< files kept, the current one included (>= 1)
   LineFormat format{.component = true, .source = true, .color = false};
 };
 

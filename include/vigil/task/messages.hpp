@@ -134,7 +134,8 @@ struct StateChange {
 };
 
 /// Everything a component's port carries.
-using Message = std::variant<TaskInfo, CycleSample, RealTimeLoss, ExceptionReport, StateChange, log::LogRecord>;
+using Message =
+    std::variant<TaskInfo, CycleSample, RealTimeLoss, ExceptionReport, StateChange, log::LogRecord>;
 
 namespace detail {
 template <class... T>

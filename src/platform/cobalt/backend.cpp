@@ -32,8 +32,7 @@ namespace vigil::platform::detail {
 namespace {
 
 int cobalt_attr_init(pthread_attr_t* attr) { return __RT(pthread_attr_init)(attr); }
-int cobalt_create(pthread_t* thread, const pthread_attr_t* attr, void* (*start)(void*),
-                  void* arg) {
+int cobalt_create(pthread_t* thread, const pthread_attr_t* attr, void* (*start)(void*), void* arg) {
   return __RT(pthread_create)(thread, attr, start, arg);
 }
 int cobalt_join(pthread_t thread, void** result) { return __RT(pthread_join)(thread, result); }

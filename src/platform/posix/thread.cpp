@@ -93,16 +93,16 @@ expected<Thread, Error> Thread::spawn(const ThreadConfig& config, std::function<
     const int lo = sched_get_priority_min(SCHED_FIFO);
     const int hi = sched_get_priority_max(SCHED_FIFO);
     if (config.priority < lo || config.priority > hi) {
-      return unexpected(Error{EINVAL, fmt::format("{}: priority {} is outside {}..{}",
-                                                  describe(config, ops.label), config.priority,
-                                                  lo, hi)});
+      return unexpected(
+          Error{EINVAL, fmt::format("{}: priority {} is outside {}..{}",
+                                    describe(config, ops.label), config.priority, lo, hi)});
     }
   }
   if (config.cpu >= CPU_SETSIZE || config.cpu < -1 ||
       (config.cpu >= 0 && config.cpu >= cpu_count())) {
-    return unexpected(Error{EINVAL, fmt::format("{}: cpu {} does not exist ({} CPUs online)",
-                                                describe(config, ops.label), config.cpu,
-                                                cpu_count())});
+    return unexpected(
+        Error{EINVAL, fmt::format("{}: cpu {} does not exist ({} CPUs online)",
+                                  describe(config, ops.label), config.cpu, cpu_count())});
   }
 
   auto state = std::make_unique<State>();
