@@ -148,7 +148,7 @@ class CycleRecorder {
     if (measure_) pre_begin_ = now();
     if (options_.detectors != Detectors::None) arm();
     c.start_ns = now();
-    log_.enter(cycles_ + 1, c.start_ns);
+    log_.enter(counters_.cycles + 1, c.start_ns);
   }
 
   /// After on_update(). `state` is what the sample reports. RT-safe.
