@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cstdlib>
 
+#include "vigil/task/shm_messages.hpp"
+
 namespace vigil {
 
 namespace {
@@ -269,6 +271,11 @@ void ComponentAggregator::set_ewma_weight(double w) {
 
 Registry<Message>& default_registry() {
   static Registry<Message> registry;
+  // VIGIL_SUPERVISOR=<name>: the ports of the components that join go to shared memory, where
+  // `vigil supervise --name <name>` drains them (docs/guide/multi-process.md).
+  static const bool placed =
+      bus::place_from_environment(registry, kShmMessageSchema, kShmStickyMessages);
+  (void)placed;
   return registry;
 }
 
