@@ -249,10 +249,11 @@ struct LiveCtx {
 void read_live(void* p) noexcept {
   auto& c = *static_cast<LiveCtx*>(p);
   ShmSegmentHeader& h = *c.h;
-  // The producer publishes write_index last: read it first, then the rest.
-  c.out.write_index = at(h.write_index).load(std::memory_order_acquire);
+  // State and exit record first: a producer writes its last records before it marks the
+  // segment Closed (release), so a reader that sees Closed then sees the final write index.
   c.out.state = static_cast<ShmState>(at(h.state).load(std::memory_order_acquire));
   c.out.exit_kind = static_cast<ShmExit>(at(h.exit_kind).load(std::memory_order_acquire));
+  c.out.write_index = at(h.write_index).load(std::memory_order_acquire);
   c.out.exit_code = at(h.exit_code).load(std::memory_order_relaxed);
   c.out.read_index = at(h.read_index).load(std::memory_order_relaxed);
   c.out.dropped = at(h.dropped).load(std::memory_order_relaxed);

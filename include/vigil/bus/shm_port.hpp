@@ -28,6 +28,7 @@
 #include <cstdint>
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <variant>
@@ -271,6 +272,7 @@ class ShmReader {
   /// Sequence numbers must increase; the message must pass `check`.
   expected<std::size_t, ShmError> pop(Variant* out, std::uint64_t* seqs, std::size_t max,
                                       Check check) {
+    if (error_) return unexpected<ShmError>(*error_);
     std::size_t done = 0;
     while (done < max) {
       const std::size_t want = std::min(max - done, kBatch);
@@ -293,6 +295,7 @@ class ShmReader {
   /// and when the segment ends (what was dropped after the last record).
   expected<std::size_t, ShmError> mailboxes(std::vector<Variant>& out, std::uint64_t after,
                                             std::uint64_t before, Check check) {
+    if (error_) return unexpected<ShmError>(*error_);
     std::vector<std::pair<std::uint64_t, Variant>> found;
     std::vector<std::byte> rec(info_.geometry.record_size);
     for (std::uint32_t t = 0; t < info_.geometry.type_count; ++t) {

@@ -247,14 +247,24 @@ namespace {
 
 thread_local sigjmp_buf* tls_guard = nullptr;
 std::once_flag g_bus_once;
+struct sigaction g_previous_bus {};
 
-extern "C" void on_bus_error(int sig, siginfo_t* /*info*/, void* /*ctx*/) {
+extern "C" void on_bus_error(int sig, siginfo_t* info, void* ctx) {
   if (sigjmp_buf* jb = tls_guard) {
     tls_guard = nullptr;
     siglongjmp(*jb, 1);
   }
-  // Not inside run_guarded(): restore the default action; returning re-executes the faulting
-  // access, which then terminates the process as it would have without us.
+  // Not inside run_guarded(): what would have happened without us. A previous handler (a crash
+  // reporter, a sanitizer) is called; otherwise the default action is restored and returning
+  // re-executes the faulting access, which then terminates the process.
+  if ((g_previous_bus.sa_flags & SA_SIGINFO) != 0 && g_previous_bus.sa_sigaction != nullptr) {
+    g_previous_bus.sa_sigaction(sig, info, ctx);
+    return;
+  }
+  if (g_previous_bus.sa_handler != SIG_DFL && g_previous_bus.sa_handler != SIG_IGN) {
+    g_previous_bus.sa_handler(sig);
+    return;
+  }
   struct sigaction sa {};
   sa.sa_handler = SIG_DFL;
   sigemptyset(&sa.sa_mask);
@@ -262,17 +272,12 @@ extern "C" void on_bus_error(int sig, siginfo_t* /*info*/, void* /*ctx*/) {
 }
 
 void install_bus_handler() {
-  struct sigaction old {};
-  sigaction(SIGBUS, nullptr, &old);
-  // A program that handles SIGBUS itself keeps its handler; run_guarded() then cannot catch.
-  if ((old.sa_flags & SA_SIGINFO) == 0 && old.sa_handler != SIG_DFL) return;
-  if ((old.sa_flags & SA_SIGINFO) != 0) return;
   struct sigaction sa {};
   sa.sa_sigaction = &on_bus_error;
   // SA_NODEFER: the jump leaves the handler without sigreturn, so SIGBUS must not stay blocked.
   sa.sa_flags = SA_SIGINFO | SA_NODEFER;
   sigemptyset(&sa.sa_mask);
-  sigaction(SIGBUS, &sa, nullptr);
+  sigaction(SIGBUS, &sa, &g_previous_bus);
 }
 
 }  // namespace
