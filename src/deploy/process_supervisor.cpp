@@ -205,6 +205,14 @@ struct ProcessSupervisor::Impl {
       budget -= *n;
     }
     if (total == 0) visit(s, buffer.data(), 0, occupancy, live->dropped);
+    // Emptied, but newer messages were offered than received: they were dropped (or are kept
+    // for a retry) and wait in the mailboxes.
+    if (s.reader.read_index() == live->write_index && live->offered > s.reader.last_seq()) {
+      std::vector<Message> late;
+      auto m = s.reader.settle(late, &check_shm_message);
+      if (!m) return false;
+      if (!late.empty()) visit(s, late.data(), late.size(), 0, live->dropped);
+    }
     s.reader.heartbeat(platform::now_ns(), self_pid);
     return true;
   }

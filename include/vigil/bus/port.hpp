@@ -75,7 +75,11 @@ class Port final : public PortReader<Variant> {
 #ifndef NDEBUG
     ProducerGuard guard(producers_);
 #endif
-    if (shm_ != nullptr) return shm_->push(m);
+    if (shm_ != nullptr) {
+      if (shm_->push(m)) return true;
+      shm_->keep(m);  // a daemon that drains meanwhile still learns it
+      return false;
+    }
     return queue_.push(m);
   }
 

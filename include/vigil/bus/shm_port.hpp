@@ -135,6 +135,15 @@ class ShmProducer {
     detail::shm_atomic(header_->offered).store(seq, std::memory_order_relaxed);
   }
 
+  /// Keeps `m` as the latest of its type in its mailbox without counting a drop: for a message
+  /// the caller could not push and will push again later (a reader that drains the ring in the
+  /// meantime still learns it). RT-safe.
+  void keep(const Variant& m) noexcept {
+    const std::uint64_t seq = ++seq_;
+    mail(seq, m);
+    detail::shm_atomic(header_->offered).store(seq, std::memory_order_relaxed);
+  }
+
   /// Marks the segment closed (the component left): the reader drains it and removes it.
   /// Not RT-safe in intent (called at leave), but only a store.
   void close() noexcept {
@@ -297,30 +306,27 @@ class ShmReader {
                                             std::uint64_t before, Check check) {
     if (error_) return unexpected<ShmError>(*error_);
     std::vector<std::pair<std::uint64_t, Variant>> found;
-    std::vector<std::byte> rec(info_.geometry.record_size);
-    for (std::uint32_t t = 0; t < info_.geometry.type_count; ++t) {
-      if (!ring_.read_mailbox(t, rec.data())) continue;
-      ShmRecordHeader h;
-      std::memcpy(&h, rec.data(), sizeof h);
-      if (h.seq <= after || h.seq >= before) continue;
-      if (h.type != t) {
-        return fail(ShmError{"mailbox", "mailbox " + std::to_string(t) + " holds type " +
-                                            std::to_string(h.type)});
-      }
-      Variant v;
-      ShmError why;
-      if (!decode_shm_record(rec.data(), v, &why)) return fail(why);
-      std::string reason;
-      if (check != nullptr && !check(v, reason)) return fail(ShmError{"mailbox", reason});
-      found.emplace_back(h.seq, v);
+    if (auto c = collect(found, after, before, check); !c) return unexpected(c.error());
+    return commit(found, out);
+  }
+
+  /// After a drain that emptied the ring: the mailboxes newer than everything handed out so
+  /// far (messages dropped, or kept for a retry, since), provided no record was published
+  /// meanwhile (otherwise nothing, and the next call tries again). This keeps counters exact
+  /// when the newest messages could only be dropped, e.g. while no daemon drained the ring.
+  expected<std::size_t, ShmError> settle(std::vector<Variant>& out, Check check) {
+    if (error_) return unexpected<ShmError>(*error_);
+    auto before = live();
+    if (!before) return fail(before.error());
+    if (before->write_index != read_index() || before->offered <= last_seq_) return std::size_t{0};
+    std::vector<std::pair<std::uint64_t, Variant>> found;
+    if (auto c = collect(found, last_seq_, ~std::uint64_t{0}, check); !c) {
+      return unexpected(c.error());
     }
-    std::sort(found.begin(), found.end(),
-              [](const auto& a, const auto& b) { return a.first < b.first; });
-    for (auto& [seq, v] : found) {
-      out.push_back(v);
-      last_seq_ = std::max(last_seq_, seq);
-    }
-    return found.size();
+    auto after = live();
+    if (!after) return fail(after.error());
+    if (after->write_index != before->write_index) return std::size_t{0};
+    return commit(found, out);
   }
 
   /// The highest sequence number handed out so far (0: none).
@@ -351,6 +357,42 @@ class ShmReader {
     last_seq_ = h.seq;
     seq = h.seq;
     return {};
+  }
+
+  expected<void, ShmError> collect(std::vector<std::pair<std::uint64_t, Variant>>& found,
+                                   std::uint64_t after, std::uint64_t before, Check check) {
+    std::vector<std::byte> rec(info_.geometry.record_size);
+    for (std::uint32_t t = 0; t < info_.geometry.type_count; ++t) {
+      if (!ring_.read_mailbox(t, rec.data())) continue;
+      ShmRecordHeader h;
+      std::memcpy(&h, rec.data(), sizeof h);
+      if (h.seq <= after || h.seq >= before) continue;
+      if (h.type != t) {
+        return fail(ShmError{"mailbox", "mailbox " + std::to_string(t) + " holds type " +
+                                            std::to_string(h.type)});
+      }
+      Variant v;
+      ShmError why;
+      if (!decode_shm_record(rec.data(), v, &why)) {
+        why.field = "mailbox." + why.field;
+        return fail(why);
+      }
+      std::string reason;
+      if (check != nullptr && !check(v, reason)) return fail(ShmError{"mailbox", reason});
+      found.emplace_back(h.seq, v);
+    }
+    return {};
+  }
+
+  std::size_t commit(std::vector<std::pair<std::uint64_t, Variant>>& found,
+                     std::vector<Variant>& out) {
+    std::sort(found.begin(), found.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (auto& [seq, v] : found) {
+      out.push_back(v);
+      last_seq_ = std::max(last_seq_, seq);
+    }
+    return found.size();
   }
 
   unexpected<ShmError> fail(ShmError e) {
