@@ -129,7 +129,8 @@ struct ProcessSupervisor::Impl {
   std::map<std::string, std::unique_ptr<Segment>> segments;  // by segment name
   std::map<std::pair<std::int32_t, std::uint64_t>, std::unique_ptr<Process>> processes;
   std::map<std::string, std::string> rejected;  // segment name -> why (while it exists)
-  std::set<std::string> pending;                // segments still being created
+  std::map<std::string, Nanos> pending;         // segments being created: first seen
+  static constexpr Nanos kCreationGrace = 2 * kNanosPerSecond;
   std::unordered_map<std::uint32_t, Placement> placements;  // by aggregator id
   std::map<std::string, std::uint32_t> incarnations;        // by component name
   std::map<std::string, std::uint32_t> process_runs;        // by command line
@@ -277,15 +278,25 @@ struct ProcessSupervisor::Impl {
     const std::int32_t name_pid = pid_of_segment(name).value_or(0);
     if (!r) {
       const bus::ShmError& e = r.error();
-      if (e.field == "state") {
-        // Still being created: retry, unless its process is gone (then it never will be).
-        const auto ticks = platform::process_start_ticks(name_pid);
-        if (!ticks) {
-          if (options.reclaim) (void)platform::unlink_shared_memory(name);
-          pending.erase(name);
-        } else {
-          pending.insert(name);
+      // Created but not sized or initialised yet (shm_open, then ftruncate, then the header):
+      // retried for a while as long as its process runs.
+      const bool young = e.field == "state" ||
+                         (e.field == "file" && (e.message.find("empty") != std::string::npos ||
+                                                e.message.find("shorter than the header") !=
+                                                    std::string::npos));
+      if (young) {
+        const Nanos t = now();
+        auto [it, inserted] = pending.try_emplace(name, t);
+        if (t - it->second < kCreationGrace) {
+          if (!platform::process_start_ticks(name_pid)) {
+            // Its process is gone: it never will be complete.
+            if (options.reclaim) (void)platform::unlink_shared_memory(name);
+            pending.erase(it);
+          }
+          return;
         }
+        pending.erase(it);
+        reject(name, name_pid, e);
         return;
       }
       if (e.field == "file" && e.message.find("No such file") != std::string::npos) return;
@@ -521,7 +532,8 @@ struct ProcessSupervisor::Impl {
       scanned = true;
       next_scan = t0 + options.rescan_ns;
     } else if (!pending.empty()) {
-      const std::set<std::string> retry = pending;
+      std::vector<std::string> retry;
+      for (const auto& [name, since] : pending) retry.push_back(name);
       for (const auto& name : retry) open_segment(name);
     }
     // (3) Drain; (4) segments whose component left.
@@ -629,6 +641,11 @@ struct ProcessSupervisor::Impl {
     return out;
   }
 
+  // The daemon goes away: its processes must not count on it to remove their segments.
+  void detach() {
+    for (auto& [name, s] : segments) s->reader.heartbeat(0, 0);
+  }
+
   void dispatch() {
     std::vector<ProcessEvent> evs;
     {
@@ -697,7 +714,10 @@ expected<std::unique_ptr<ProcessSupervisor>, Error> ProcessSupervisor::create(
 
 ProcessSupervisor::ProcessSupervisor(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
-ProcessSupervisor::~ProcessSupervisor() { stop(); }
+ProcessSupervisor::~ProcessSupervisor() {
+  stop();
+  detach();
+}
 
 std::size_t ProcessSupervisor::step() {
   std::size_t n = 0;
@@ -740,6 +760,11 @@ void ProcessSupervisor::stop() {
   m.thread.join();
   m.thread = platform::Thread();
   m.running.store(false, std::memory_order_relaxed);
+}
+
+void ProcessSupervisor::detach() {
+  std::lock_guard lock(impl_->mutex);
+  impl_->detach();
 }
 
 ReportSet ProcessSupervisor::reports() const { return impl_->compose(impl_->monitor.latest()); }

@@ -127,8 +127,12 @@ class ProcessSupervisor {
   /// Starts the drain thread (a cycle every period, or at once when a watched process ends or a
   /// segment appears) and the monitor's thread. Idempotent.
   expected<void, Error> start();
-  /// Stops both threads (after a last cycle). Idempotent.
+  /// Stops both threads. Idempotent. The segments stay as they are: a daemon started later
+  /// continues where this one stopped.
   void stop();
+  /// Tells the processes that no daemon drains their segments any more (done on destruction):
+  /// a component that leaves, or a process that exits, then removes its segments itself.
+  void detach();
 
   /// The latest monitor cycle's reports with the processes' information, the dead processes'
   /// components and the daemon's own report.

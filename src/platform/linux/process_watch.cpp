@@ -254,21 +254,26 @@ bool ProcessWatch::exited() const noexcept {
 
 std::optional<ExitStatus> ProcessWatch::exit_status(const char** source) const {
   if (!exited()) return std::nullopt;
-  if (fd_ >= 0) {
+  // The kernel gives the status to a pidfd holder once the parent has reaped the process; until
+  // then the zombie's /proc entry shows it. Asked in the order kernel, zombie, kernel, the
+  // parent reaping in between cannot hide it.
+  const auto from_pidfd = [&]() -> std::optional<ExitStatus> {
+    if (fd_ < 0) return std::nullopt;
     PidfdInfo info{};
     info.mask = kPidfdInfoExit;
     if (::ioctl(fd_, kPidfdGetInfo, &info) == 0 && (info.mask & kPidfdInfoExit) != 0) {
       if (source != nullptr) *source = "pidfd";
       return ExitStatus::from_wait_status(info.exit_code);
     }
-  }
-  // A zombie not yet reaped by its parent still shows its wait status (field 52).
+    return std::nullopt;
+  };
+  if (auto st = from_pidfd()) return st;
   const StatFields f = stat_of(id_.pid);
   if (f.ok && f.start_ticks == id_.start_ticks && f.state == 'Z' && f.exit_code >= 0) {
     if (source != nullptr) *source = "zombie";
     return ExitStatus::from_wait_status(f.exit_code);
   }
-  return std::nullopt;
+  return from_pidfd();
 }
 
 int wait_readable(const int* fds, std::size_t n, Nanos deadline_ns, bool* readable) noexcept {
