@@ -38,9 +38,12 @@ void record_exit(platform::ExitStatus::Kind kind, int code) noexcept {
   g_recording.fetch_add(1);
   const ShmExit k =
       kind == platform::ExitStatus::Kind::Exited ? ShmExit::Exited : ShmExit::Signaled;
+  const auto me = platform::current_pid();  // async-signal-safe
   for (LiveSlot& s : g_live) {
     ShmSegmentHeader* h = s.header.load();
-    if (h == nullptr) continue;
+    // A child made by fork() inherits its parent's mappings and this table: never record the
+    // child's end in the parent's segments.
+    if (h == nullptr || h->pid != me) continue;
     std::atomic_ref<std::int32_t>(h->exit_code).store(code, std::memory_order_relaxed);
     std::atomic_ref<std::uint32_t>(h->exit_kind)
         .store(static_cast<std::uint32_t>(k), std::memory_order_release);
@@ -103,6 +106,7 @@ ShmSegment::~ShmSegment() {
   auto* h = static_cast<ShmSegmentHeader*>(memory_.data());
   if (h == nullptr) return;
   unregister_live(slot_);
+  if (h->pid != platform::current_pid()) return;  // a forked child's copy
   std::atomic_ref<std::uint32_t>(h->state)
       .store(static_cast<std::uint32_t>(ShmState::Closed), std::memory_order_release);
   if (unattended(*h)) (void)memory_.unlink();

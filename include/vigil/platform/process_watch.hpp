@@ -36,6 +36,10 @@ struct ProcessIdentity {
   friend bool operator==(const ProcessIdentity&, const ProcessIdentity&) = default;
 };
 
+/// The calling process's id (getpid: one cheap system call). Async-signal-safe; not for the
+/// real-time path.
+[[nodiscard]] std::int32_t current_pid() noexcept;
+
 /// The calling process's identity (read once, then cached).
 [[nodiscard]] ProcessIdentity self_identity() noexcept;
 

@@ -104,6 +104,8 @@ int pidfd_open(std::int32_t pid) {
 
 }  // namespace
 
+std::int32_t current_pid() noexcept { return static_cast<std::int32_t>(::getpid()); }
+
 ProcessIdentity self_identity() noexcept {
   static const ProcessIdentity id = [] {
     ProcessIdentity i;
