@@ -4,6 +4,7 @@
 
 #include <set>
 
+#include "vigil/bus/shm_segment.hpp"
 #include "vigil/config/load.hpp"
 
 namespace vigil::deploy {
@@ -139,7 +140,8 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
 
   if (const config::Node s = root["supervision"]; s.defined()) {
     s.reject_unknown_keys(
-        {"supervisor_period", "monitor_period", "ewma_weight", "thresholds", "lock_memory"});
+        {"supervisor_period", "monitor_period", "ewma_weight", "thresholds", "lock_memory",
+         "shared_memory"});
     auto& sp = d.supervision;
     sp.supervisor_period_ns =
         s.optional_period("supervisor_period", sp.supervisor_period_ns,
@@ -149,6 +151,12 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
                           config::duration_in_range(kNanosPerMilli, 3600 * kNanosPerSecond));
     sp.ewma_weight = s.optional("ewma_weight", sp.ewma_weight, config::in_range(1e-6, 1.0));
     sp.lock_memory = s.optional("lock_memory", true);
+    sp.shared_memory = s.optional<std::string>("shared_memory", "");
+    if (const config::Node m = s["shared_memory"];
+        m.defined() && !bus::valid_supervisor_name(sp.shared_memory)) {
+      m.error(fmt::format("'{}' is not a supervisor name: 1 to 31 of A-Z a-z 0-9 _ -",
+                          sp.shared_memory));
+    }
     if (const config::Node t = s["thresholds"]; t.defined()) {
       if (t.is_scalar()) {
         std::filesystem::path p = t.get<std::string>();

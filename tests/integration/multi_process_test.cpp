@@ -22,6 +22,7 @@
 #include "../bus/shm_support.hpp"
 #include "vigil/bus/shm_port.hpp"
 #include "vigil/deploy/process_supervisor.hpp"
+#include "vigil/deploy/system.hpp"
 #include "vigil/exec/manual_activity.hpp"
 #include "vigil/exec/periodic_activity.hpp"
 #include "vigil/platform/process_watch.hpp"
@@ -371,4 +372,53 @@ TEST_CASE("Counters stay exact for a process started before the daemon and acros
   CHECK(s->has_info);
   CHECK(s->counters.cycles == 3000);
   CHECK(s->state == TaskState::Stopped);
+}
+
+namespace {
+class Plain : public Task<Plain> {
+ public:
+  explicit Plain(const deploy::ComponentContext& c) : Task(c.name, c.supervision, c.registry()) {}
+  void on_update() {}
+};
+deploy::ComponentFactory& plain_factory() {
+  static deploy::ComponentFactory f;
+  static const bool once = f.add<Plain>("test.plain");
+  (void)once;
+  return f;
+}
+}  // namespace
+
+TEST_CASE("A deployment's supervision.shared_memory sends its components to the daemon",
+          "[integration][multi_process]") {
+  const std::string name = test::unique_supervisor_name();
+  test::ShmCleanup cleanup(name);
+  const std::string yaml = "activities: [{name: a, period: 1ms}]\n"
+                           "components: [{name: dep.x, type: test.plain, activity: a}]\n"
+                           "supervision: {shared_memory: " + name + ", lock_memory: false}\n";
+  auto spec = deploy::load_deployment_string(yaml, "shm.yaml", plain_factory());
+  REQUIRE(spec.has_value());
+  CHECK(spec->supervision.shared_memory == name);
+  auto sys = deploy::System::create(std::move(*spec), plain_factory());
+  REQUIRE(sys.has_value());
+  CHECK(cleanup.count() == 1);
+  REQUIRE((*sys)->start().has_value());
+  std::this_thread::sleep_for(50ms);
+  Daemon d(name, false);
+  d.sup->step();
+  const auto s = d.sup->aggregator().find("dep.x");
+  REQUIRE(s.has_value());
+  CHECK(s->counters.cycles > 0);
+  CHECK((*sys)->aggregator().find("dep.x") == std::nullopt);  // not the process's own business
+  (*sys)->stop();
+}
+
+TEST_CASE("A bad shared_memory name in a deployment is an error at its line",
+          "[integration][multi_process]") {
+  const std::string yaml = "activities: [{name: a, period: 1ms}]\n"
+                           "components: [{name: x, type: test.plain, activity: a}]\n"
+                           "supervision: {shared_memory: no/slash}\n";
+  auto spec = deploy::load_deployment_string(yaml, "bad.yaml", plain_factory());
+  REQUIRE_FALSE(spec.has_value());
+  CHECK_THAT(config::to_string(spec.error()),
+             Catch::Contains("bad.yaml:3:") && Catch::Contains("not a supervisor name"));
 }

@@ -15,6 +15,7 @@
 ///   monitor_period: 1s
 ///   ewma_weight: 0.05
 ///   thresholds: {defaults: {overrun: {near_fraction: 0.9}}}   # or a file name
+///   shared_memory: robot      # optional: supervised by `vigil supervise --name robot`
 /// outputs: {json: final.json}
 /// ```
 ///
@@ -62,6 +63,10 @@ struct SupervisionSpec {
   std::optional<std::filesystem::path> thresholds_file;
   /// mlockall + prefault at start.
   bool lock_memory = true;
+  /// When set, the components' ports live in shared memory and `vigil supervise --name <this>`
+  /// supervises them instead of this process (docs/guide/multi-process.md). Empty: in-process,
+  /// unless the environment variable VIGIL_SUPERVISOR names a supervisor.
+  std::string shared_memory;
 };
 
 /// Where the results go.
