@@ -25,7 +25,7 @@ template <std::size_t N>
 expected<std::string, ShmError> text(const char (&a)[N], const char* field) {
   const void* nul = std::memchr(a, '\0', N);
   if (nul == nullptr) {
-    return unexpected(err(field, fmt::format("not NUL-terminated within its {} bytes", N)));
+    return unexpected<ShmError>(err(field, fmt::format("not NUL-terminated within its {} bytes", N)));
   }
   return std::string(a, static_cast<const char*>(nul));
 }
@@ -68,106 +68,106 @@ expected<ShmSegmentInfo, ShmError> validate_shm_header(const ShmSegmentHeader& h
                                                        std::uint64_t size,
                                                        const ShmExpectation& e) {
   if (h.magic != kShmMagic) {
-    return unexpected(err("magic", fmt::format("{:#018x} is not a vigil segment's ({:#018x})",
+    return unexpected<ShmError>(err("magic", fmt::format("{:#018x} is not a vigil segment's ({:#018x})",
                                                h.magic, kShmMagic)));
   }
   if (h.abi_version != kShmAbiVersion) {
-    return unexpected(err("abi_version", fmt::format("segment format version {}, this reader "
+    return unexpected<ShmError>(err("abi_version", fmt::format("segment format version {}, this reader "
                                                      "reads version {} (different vigil releases)",
                                                      h.abi_version, kShmAbiVersion)));
   }
   if (h.header_size != sizeof(ShmSegmentHeader)) {
-    return unexpected(err("header_size", fmt::format("{} bytes, version {} has {}", h.header_size,
+    return unexpected<ShmError>(err("header_size", fmt::format("{} bytes, version {} has {}", h.header_size,
                                                      kShmAbiVersion, sizeof(ShmSegmentHeader))));
   }
   if (h.segment_size != size) {
-    return unexpected(err("segment_size",
+    return unexpected<ShmError>(err("segment_size",
                           fmt::format("header says {} bytes, the segment has {}{}", h.segment_size,
                                       size, size < h.segment_size ? " (truncated)" : "")));
   }
   const ShmSchema& s = e.schema;
   if (h.schema_id != s.id) {
-    return unexpected(err("schema_id", fmt::format("message schema {:#018x} differs from the "
+    return unexpected<ShmError>(err("schema_id", fmt::format("message schema {:#018x} differs from the "
                                                    "reader's {:#018x} ({}): built from other "
                                                    "message definitions",
                                                    h.schema_id, s.id, s.name)));
   }
   if (h.type_count != s.type_count) {
-    return unexpected(err("type_count", fmt::format("{} message types, the reader's schema has {}",
+    return unexpected<ShmError>(err("type_count", fmt::format("{} message types, the reader's schema has {}",
                                                     h.type_count, s.type_count)));
   }
   if (h.payload_size != s.payload_size) {
-    return unexpected(err("payload_size", fmt::format("{} bytes, the reader's schema has {}",
+    return unexpected<ShmError>(err("payload_size", fmt::format("{} bytes, the reader's schema has {}",
                                                       h.payload_size, s.payload_size)));
   }
   if (h.capacity == 0 || h.capacity > kShmMaxCapacity || (h.capacity & (h.capacity - 1)) != 0) {
-    return unexpected(err("capacity", fmt::format("{} records: must be a power of two in 1..{}",
+    return unexpected<ShmError>(err("capacity", fmt::format("{} records: must be a power of two in 1..{}",
                                                   h.capacity, kShmMaxCapacity)));
   }
   // Geometry is recomputed from what the reader knows; the header must agree field by field.
   const ShmGeometry g = ShmGeometry::make(s.type_count, s.payload_size, h.capacity);
   if (h.record_size != g.record_size) {
-    return unexpected(err("record_size", fmt::format("{} bytes, expected {}", h.record_size,
+    return unexpected<ShmError>(err("record_size", fmt::format("{} bytes, expected {}", h.record_size,
                                                      g.record_size)));
   }
   if (h.mailbox_offset != g.mailbox_offset) {
-    return unexpected(err("mailbox_offset", fmt::format("{}, expected {}", h.mailbox_offset,
+    return unexpected<ShmError>(err("mailbox_offset", fmt::format("{}, expected {}", h.mailbox_offset,
                                                         g.mailbox_offset)));
   }
   if (h.ring_offset != g.ring_offset) {
-    return unexpected(err("ring_offset", fmt::format("{}, expected {}", h.ring_offset,
+    return unexpected<ShmError>(err("ring_offset", fmt::format("{}, expected {}", h.ring_offset,
                                                      g.ring_offset)));
   }
   if (g.segment_size != size) {
-    return unexpected(err("segment_size", fmt::format("{} bytes, a ring of {} records needs {}",
+    return unexpected<ShmError>(err("segment_size", fmt::format("{} bytes, a ring of {} records needs {}",
                                                       size, h.capacity, g.segment_size)));
   }
   ShmSegmentInfo info;
   info.geometry = g;
-  if (h.pid <= 0) return unexpected(err("pid", fmt::format("{} is not a process id", h.pid)));
+  if (h.pid <= 0) return unexpected<ShmError>(err("pid", fmt::format("{} is not a process id", h.pid)));
   info.pid = h.pid;
   info.uid = h.uid;
   info.start_ticks = h.start_ticks;
   info.created_unix_ns = h.created_unix_ns;
   info.component_index = h.component_index;
   auto sup = text(h.supervisor_name, "supervisor_name");
-  if (!sup) return unexpected(sup.error());
+  if (!sup) return unexpected<ShmError>(sup.error());
   if (!valid_supervisor_name(*sup)) {
-    return unexpected(err("supervisor_name", fmt::format("'{}' is not 1..31 of [A-Za-z0-9_-]", *sup)));
+    return unexpected<ShmError>(err("supervisor_name", fmt::format("'{}' is not 1..31 of [A-Za-z0-9_-]", *sup)));
   }
   if (!e.supervisor_name.empty() && *sup != e.supervisor_name) {
-    return unexpected(err("supervisor_name",
+    return unexpected<ShmError>(err("supervisor_name",
                           fmt::format("'{}', expected '{}'", *sup, e.supervisor_name)));
   }
   info.supervisor_name = std::move(*sup);
   auto comp = text(h.component_name, "component_name");
-  if (!comp) return unexpected(comp.error());
-  if (comp->empty()) return unexpected(err("component_name", "empty"));
+  if (!comp) return unexpected<ShmError>(comp.error());
+  if (comp->empty()) return unexpected<ShmError>(err("component_name", "empty"));
   info.component_name = std::move(*comp);
   auto proc = text(h.process_name, "process_name");
-  if (!proc) return unexpected(proc.error());
+  if (!proc) return unexpected<ShmError>(proc.error());
   info.process_name = std::move(*proc);
   auto schema = text(h.schema_name, "schema_name");
-  if (!schema) return unexpected(schema.error());
+  if (!schema) return unexpected<ShmError>(schema.error());
   info.schema_name = std::move(*schema);
   auto cmd = text(h.command_line, "command_line");
-  if (!cmd) return unexpected(cmd.error());
+  if (!cmd) return unexpected<ShmError>(cmd.error());
   info.command_line = std::move(*cmd);
   if (h.state == static_cast<std::uint32_t>(ShmState::Creating)) {
-    return unexpected(err("state", "still being created"));
+    return unexpected<ShmError>(err("state", "still being created"));
   }
   if (h.state > static_cast<std::uint32_t>(ShmState::Closed)) {
-    return unexpected(err("state", fmt::format("{} is not 0, 1 or 2", h.state)));
+    return unexpected<ShmError>(err("state", fmt::format("{} is not 0, 1 or 2", h.state)));
   }
   if (h.exit_kind > static_cast<std::uint32_t>(ShmExit::Signaled)) {
-    return unexpected(err("exit_kind", fmt::format("{} is not 0, 1 or 2", h.exit_kind)));
+    return unexpected<ShmError>(err("exit_kind", fmt::format("{} is not 0, 1 or 2", h.exit_kind)));
   }
   if (h.write_index < h.read_index || h.write_index - h.read_index > h.capacity) {
     ShmError x = indices_error(h.read_index, h.write_index, h.capacity);
-    return unexpected(std::move(x));
+    return unexpected<ShmError>(std::move(x));
   }
   if (h.dropped > h.offered) {
-    return unexpected(err("dropped", fmt::format("{} messages dropped of {} offered", h.dropped,
+    return unexpected<ShmError>(err("dropped", fmt::format("{} messages dropped of {} offered", h.dropped,
                                                  h.offered)));
   }
   return info;
@@ -176,7 +176,7 @@ expected<ShmSegmentInfo, ShmError> validate_shm_header(const ShmSegmentHeader& h
 expected<ShmSegmentInfo, ShmError> validate_shm_image(const void* bytes, std::size_t size,
                                                       const ShmExpectation& e) {
   if (bytes == nullptr || size < sizeof(ShmSegmentHeader)) {
-    return unexpected(err("file", fmt::format("{} bytes, shorter than the {}-byte header "
+    return unexpected<ShmError>(err("file", fmt::format("{} bytes, shorter than the {}-byte header "
                                               "(truncated)",
                                               size, sizeof(ShmSegmentHeader))));
   }
@@ -188,21 +188,21 @@ expected<ShmSegmentInfo, ShmError> validate_shm_image(const void* bytes, std::si
 expected<void, ShmError> check_shm_file(const platform::ShmFileInfo& f, std::uint32_t uid,
                                         bool allow_group) {
   if (f.uid != uid) {
-    return unexpected(err("file", fmt::format("owned by uid {}, not by this user (uid {})", f.uid,
+    return unexpected<ShmError>(err("file", fmt::format("owned by uid {}, not by this user (uid {})", f.uid,
                                               uid)));
   }
   if ((f.mode & 0007) != 0) {
-    return unexpected(err("file", fmt::format("mode {:04o} gives access to every user; vigil "
+    return unexpected<ShmError>(err("file", fmt::format("mode {:04o} gives access to every user; vigil "
                                               "segments are 0600 (or 0660 with a group)",
                                               f.mode)));
   }
   if (!allow_group && (f.mode & 0070) != 0) {
-    return unexpected(err("file", fmt::format("mode {:04o} gives access to group {}; expected "
+    return unexpected<ShmError>(err("file", fmt::format("mode {:04o} gives access to group {}; expected "
                                               "0600 (name the group to accept it)",
                                               f.mode, f.gid)));
   }
   if (f.size > kShmMaxSegmentSize) {
-    return unexpected(err("file", fmt::format("{} bytes, more than the {} accepted", f.size,
+    return unexpected<ShmError>(err("file", fmt::format("{} bytes, more than the {} accepted", f.size,
                                               kShmMaxSegmentSize)));
   }
   return {};
@@ -269,27 +269,27 @@ ShmError truncated() {
 
 expected<ShmLiveState, ShmError> ShmRingReader::live() const noexcept {
   LiveCtx c{reinterpret_cast<ShmSegmentHeader*>(base_), {}};
-  if (!platform::run_guarded(&read_live, &c)) return unexpected(truncated());
+  if (!platform::run_guarded(&read_live, &c)) return unexpected<ShmError>(truncated());
   const auto state = static_cast<std::uint32_t>(c.out.state);
   if (state == 0 || state > 2) {
-    return unexpected(err("state", fmt::format("{} is not 1 or 2 after creation", state)));
+    return unexpected<ShmError>(err("state", fmt::format("{} is not 1 or 2 after creation", state)));
   }
   if (static_cast<std::uint32_t>(c.out.exit_kind) > 2) {
-    return unexpected(err("exit_kind", fmt::format("{} is not 0, 1 or 2",
+    return unexpected<ShmError>(err("exit_kind", fmt::format("{} is not 0, 1 or 2",
                                                    static_cast<std::uint32_t>(c.out.exit_kind))));
   }
   if (c.out.write_index < read_ || c.out.write_index - read_ > g_.capacity) {
-    return unexpected(indices_error(read_, c.out.write_index, g_.capacity));
+    return unexpected<ShmError>(indices_error(read_, c.out.write_index, g_.capacity));
   }
   return c.out;
 }
 
 expected<void, ShmError> ShmRingReader::attach() noexcept {
   LiveCtx c{reinterpret_cast<ShmSegmentHeader*>(base_), {}};
-  if (!platform::run_guarded(&read_live, &c)) return unexpected(truncated());
+  if (!platform::run_guarded(&read_live, &c)) return unexpected<ShmError>(truncated());
   const std::uint64_t r = c.out.read_index;
   const std::uint64_t w = c.out.write_index;
-  if (w < r || w - r > g_.capacity) return unexpected(indices_error(r, w, g_.capacity));
+  if (w < r || w - r > g_.capacity) return unexpected<ShmError>(indices_error(r, w, g_.capacity));
   read_ = r;
   return {};
 }
@@ -335,8 +335,8 @@ void pop_records(void* p) noexcept {
 expected<std::size_t, ShmError> ShmRingReader::pop_raw(std::byte* out, std::size_t max) noexcept {
   if (max == 0) return std::size_t{0};
   PopCtx c{base_, &g_, read_, max, out};
-  if (!platform::run_guarded(&pop_records, &c)) return unexpected(truncated());
-  if (c.bad) return unexpected(indices_error(read_, c.write, g_.capacity));
+  if (!platform::run_guarded(&pop_records, &c)) return unexpected<ShmError>(truncated());
+  if (c.bad) return unexpected<ShmError>(indices_error(read_, c.write, g_.capacity));
   read_ += c.n;
   return c.n;
 }

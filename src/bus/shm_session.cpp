@@ -85,7 +85,7 @@ expected<std::optional<ShmOptions>, Error> shm_options_from_environment() {
   const char* name = std::getenv("VIGIL_SUPERVISOR");
   if (name == nullptr || *name == '\0') return std::optional<ShmOptions>{};
   if (!valid_supervisor_name(name)) {
-    return unexpected(Error(EINVAL, fmt::format("VIGIL_SUPERVISOR='{}' is not a supervisor name "
+    return unexpected<Error>(Error(EINVAL, fmt::format("VIGIL_SUPERVISOR='{}' is not a supervisor name "
                                                 "(1 to 31 of A-Z a-z 0-9 _ -)",
                                                 name)));
   }
@@ -118,16 +118,16 @@ ShmSession::ShmSession(ShmOptions options, ShmSchema schema)
 expected<std::shared_ptr<ShmSession>, Error> ShmSession::open(ShmOptions options,
                                                               ShmSchema schema) {
   if (!valid_supervisor_name(options.name)) {
-    return unexpected(Error(EINVAL, fmt::format("supervisor name '{}' is not 1 to 31 of "
+    return unexpected<Error>(Error(EINVAL, fmt::format("supervisor name '{}' is not 1 to 31 of "
                                                 "A-Z a-z 0-9 _ -",
                                                 options.name)));
   }
   if (!options.group.empty() && !platform::group_id(options.group)) {
-    return unexpected(Error(EINVAL, fmt::format("group '{}' does not exist", options.group)));
+    return unexpected<Error>(Error(EINVAL, fmt::format("group '{}' does not exist", options.group)));
   }
   if (schema.type_count == 0 || schema.type_count > kShmMaxTypes ||
       schema.payload_size > kShmMaxPayload) {
-    return unexpected(Error(EINVAL, "message schema out of the segment format's bounds"));
+    return unexpected<Error>(Error(EINVAL, "message schema out of the segment format's bounds"));
   }
   platform::install_exit_recorder(&record_exit);
   return std::shared_ptr<ShmSession>(new ShmSession(std::move(options), schema));
@@ -165,7 +165,7 @@ expected<std::unique_ptr<ShmSegment>, Error> ShmSession::create(std::string_view
     (void)platform::unlink_shared_memory(name);
     mem = platform::SharedMemory::create(name, g.segment_size, co);
   }
-  if (!mem) return unexpected(mem.error());
+  if (!mem) return unexpected<Error>(mem.error());
   const std::string process_name = platform::self_process_name();
   const std::string command_line = platform::self_command_line(255);
   ShmIdentity who;

@@ -700,14 +700,14 @@ struct ProcessSupervisor::Impl {
 expected<std::unique_ptr<ProcessSupervisor>, Error> ProcessSupervisor::create(
     ProcessSupervisorOptions options) {
   if (!bus::valid_supervisor_name(options.name)) {
-    return unexpected(Error(EINVAL, fmt::format("supervisor name '{}' is not 1 to 31 of "
+    return unexpected<Error>(Error(EINVAL, fmt::format("supervisor name '{}' is not 1 to 31 of "
                                                 "A-Z a-z 0-9 _ -",
                                                 options.name)));
   }
   if (!options.group.empty() && !platform::group_id(options.group)) {
-    return unexpected(Error(EINVAL, fmt::format("group '{}' does not exist", options.group)));
+    return unexpected<Error>(Error(EINVAL, fmt::format("group '{}' does not exist", options.group)));
   }
-  if (options.period_ns <= 0) return unexpected(Error(EINVAL, "period must be positive"));
+  if (options.period_ns <= 0) return unexpected<Error>(Error(EINVAL, "period must be positive"));
   return std::unique_ptr<ProcessSupervisor>(
       new ProcessSupervisor(std::make_unique<Impl>(std::move(options))));
 }
@@ -738,7 +738,7 @@ expected<void, Error> ProcessSupervisor::start() {
   auto t = platform::Thread::spawn({.name = m.options.thread_name}, [&m] { m.run(); });
   if (!t) {
     m.running.store(false, std::memory_order_relaxed);
-    return unexpected(t.error());
+    return unexpected<Error>(t.error());
   }
   m.thread = std::move(*t);
   if (auto r = m.monitor.start(); !r) {
@@ -746,7 +746,7 @@ expected<void, Error> ProcessSupervisor::start() {
     m.thread.join();
     m.thread = platform::Thread();
     m.running.store(false, std::memory_order_relaxed);
-    return unexpected(r.error());
+    return unexpected<Error>(r.error());
   }
   return {};
 }

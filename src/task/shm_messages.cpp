@@ -107,7 +107,7 @@ expected<void, Error> place_in_shared_memory(Registry<Message>& registry,
                                              bus::ShmOptions options) {
   options.sticky_types = kShmStickyMessages;
   auto session = bus::ShmSession::open(std::move(options), kShmMessageSchema);
-  if (!session) return unexpected(session.error());
+  if (!session) return unexpected<Error>(session.error());
   registry.place_in_shared_memory(
       std::make_shared<Registry<Message>::ShmPortsType>(std::move(*session)));
   return {};

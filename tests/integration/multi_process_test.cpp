@@ -154,6 +154,10 @@ struct Daemon {
     });
     if (thread) REQUIRE(sup->start().has_value());
   }
+  // The daemon first: its thread calls the subscriber, which uses the members below.
+  ~Daemon() { sup.reset(); }
+  Daemon(const Daemon&) = delete;
+  Daemon& operator=(const Daemon&) = delete;
   // Waits until an event of kind `k` (about `pid` if not 0) arrived; returns it.
   std::optional<deploy::ProcessEvent> wait_event(deploy::ProcessEvent::Kind k, int pid = 0,
                                                  std::chrono::milliseconds timeout = 10s) {
@@ -216,7 +220,7 @@ TEST_CASE("A process killed with SIGKILL: ERROR with pid and signal, others stay
   // Linux >= 6.15 tells a pidfd holder the signal; older kernels cannot (docs/design).
   CHECK((e->message.find("killed by signal 9 (SIGKILL)") != std::string::npos ||
          e->message.find("vanished without recording an exit") != std::string::npos));
-  const ReportSet r = d.sup->reports();
+  const ReportSet r = d.sup->step_monitor();  // a monitor cycle that saw b.x for sure
   for (const char* n : {"a.x", "a.y"}) {
     const Report* rep = r.find(n);
     REQUIRE(rep != nullptr);
@@ -299,7 +303,8 @@ TEST_CASE("A process records its own end in its segments (for a daemon that come
   const auto e = d.wait_event(deploy::ProcessEvent::Kind::Exited, a->pid, 100ms);
   REQUIRE(e.has_value());
   CHECK_THAT(e->message, Catch::Contains("killed by signal 10 (SIGUSR1)"));
-  const Report* rep = d.sup->reports().find("self.rec");
+  const ReportSet reports = d.sup->reports();
+  const Report* rep = reports.find("self.rec");
   REQUIRE(rep != nullptr);
   CHECK(rep->status.level() == StatusLevel::Error);
   CHECK(rep->counters.cycles >= 20);

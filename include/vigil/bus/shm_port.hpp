@@ -240,15 +240,15 @@ class ShmReader {
   static expected<ShmReader, ShmError> open(const std::string& name, const ShmExpectation& e,
                                             std::uint32_t uid, bool allow_group) {
     auto mem = platform::SharedMemory::open(name, kShmMaxSegmentSize);
-    if (!mem) return unexpected(ShmError{"file", mem.error().message});
-    if (auto f = check_shm_file(mem->info(), uid, allow_group); !f) return unexpected(f.error());
+    if (!mem) return unexpected<ShmError>(ShmError{"file", mem.error().message});
+    if (auto f = check_shm_file(mem->info(), uid, allow_group); !f) return unexpected<ShmError>(f.error());
     ShmSegmentHeader copy;
     struct Ctx {
       const void* src;
       ShmSegmentHeader* dst;
     } ctx{mem->data(), &copy};
     if (mem->size() < sizeof(ShmSegmentHeader)) {
-      return unexpected(ShmError{"file", std::to_string(mem->size()) +
+      return unexpected<ShmError>(ShmError{"file", std::to_string(mem->size()) +
                                              " bytes, shorter than the header (truncated)"});
     }
     if (!platform::run_guarded(
@@ -257,15 +257,15 @@ class ShmReader {
               std::memcpy(c.dst, c.src, sizeof(ShmSegmentHeader));
             },
             &ctx)) {
-      return unexpected(ShmError{"file", "truncated while being read (bus error caught)"});
+      return unexpected<ShmError>(ShmError{"file", "truncated while being read (bus error caught)"});
     }
     auto info = validate_shm_header(copy, mem->size(), e);
-    if (!info) return unexpected(info.error());
+    if (!info) return unexpected<ShmError>(info.error());
     ShmReader r;
     r.mem_ = std::make_unique<platform::SharedMemory>(std::move(*mem));
     r.info_ = std::move(*info);
     r.ring_ = ShmRingReader(r.mem_->data(), r.info_.geometry);
-    if (auto a = r.ring_.attach(); !a) return unexpected(a.error());
+    if (auto a = r.ring_.attach(); !a) return unexpected<ShmError>(a.error());
     r.raw_.resize(static_cast<std::size_t>(r.info_.geometry.record_size) * kBatch);
     return r;
   }
@@ -306,7 +306,7 @@ class ShmReader {
                                             std::uint64_t before, Check check) {
     if (error_) return unexpected<ShmError>(*error_);
     std::vector<std::pair<std::uint64_t, Variant>> found;
-    if (auto c = collect(found, after, before, check); !c) return unexpected(c.error());
+    if (auto c = collect(found, after, before, check); !c) return unexpected<ShmError>(c.error());
     return commit(found, out);
   }
 
@@ -321,7 +321,7 @@ class ShmReader {
     if (before->write_index != read_index() || before->offered <= last_seq_) return std::size_t{0};
     std::vector<std::pair<std::uint64_t, Variant>> found;
     if (auto c = collect(found, last_seq_, ~std::uint64_t{0}, check); !c) {
-      return unexpected(c.error());
+      return unexpected<ShmError>(c.error());
     }
     auto after = live();
     if (!after) return fail(after.error());
@@ -346,14 +346,14 @@ class ShmReader {
     ShmRecordHeader h;
     std::memcpy(&h, rec, sizeof h);
     if (h.seq <= last_seq_) {
-      return unexpected(ShmError{"record.seq", "sequence " + std::to_string(h.seq) +
+      return unexpected<ShmError>(ShmError{"record.seq", "sequence " + std::to_string(h.seq) +
                                                    " does not follow " +
                                                    std::to_string(last_seq_)});
     }
     ShmError why;
-    if (!decode_shm_record(rec, out, &why)) return unexpected(why);
+    if (!decode_shm_record(rec, out, &why)) return unexpected<ShmError>(why);
     std::string reason;
-    if (check != nullptr && !check(out, reason)) return unexpected(ShmError{"record", reason});
+    if (check != nullptr && !check(out, reason)) return unexpected<ShmError>(ShmError{"record", reason});
     last_seq_ = h.seq;
     seq = h.seq;
     return {};

@@ -175,7 +175,7 @@ class Supervisor {
     if (thread_.joinable()) return {};
     quit_.store(false, std::memory_order_relaxed);
     auto t = platform::Thread::spawn({.name = options_.thread_name}, [this] { run(); });
-    if (!t) return unexpected(t.error());
+    if (!t) return unexpected<Error>(t.error());
     thread_ = std::move(*t);
     return {};
   }

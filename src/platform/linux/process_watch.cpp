@@ -230,17 +230,17 @@ ProcessWatch::~ProcessWatch() {
 expected<ProcessWatch, Error> ProcessWatch::open(const ProcessIdentity& id) {
   ProcessWatch w;
   w.id_ = id;
-  if (id.pid <= 0) return unexpected(Error(EINVAL, "process id " + std::to_string(id.pid)));
+  if (id.pid <= 0) return unexpected<Error>(Error(EINVAL, "process id " + std::to_string(id.pid)));
   const int fd = pidfd_open(id.pid);
   if (fd < 0 && errno == ESRCH) {
-    return unexpected(Error(ESRCH, "process " + std::to_string(id.pid) + " is gone"));
+    return unexpected<Error>(Error(ESRCH, "process " + std::to_string(id.pid) + " is gone"));
   }
   w.fd_ = fd;  // -1 when pidfd_open is unavailable: exited() then reads /proc
   // Checked after opening: if the start time matches now, the pidfd refers to that process (a
   // pidfd never moves to another process).
   const StatFields f = stat_of(id.pid);
   if (!f.ok || f.start_ticks != id.start_ticks) {
-    return unexpected(Error(ESRCH, "process " + std::to_string(id.pid) + " is gone (pid reused)"));
+    return unexpected<Error>(Error(ESRCH, "process " + std::to_string(id.pid) + " is gone (pid reused)"));
   }
   return w;
 }

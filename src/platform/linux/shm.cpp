@@ -79,15 +79,15 @@ void SharedMemory::reset() noexcept {
 expected<SharedMemory, Error> SharedMemory::create(const std::string& name, std::size_t size,
                                                    const ShmCreateOptions& options) {
   if (!valid_name(name)) {
-    return unexpected(Error(EINVAL, "shared memory name '" + name + "' is not /NAME"));
+    return unexpected<Error>(Error(EINVAL, "shared memory name '" + name + "' is not /NAME"));
   }
-  if (size == 0) return unexpected(Error(EINVAL, "shared memory segment " + name + ": size 0"));
+  if (size == 0) return unexpected<Error>(Error(EINVAL, "shared memory segment " + name + ": size 0"));
   std::optional<std::uint32_t> gid;
   std::uint32_t mode = options.mode & 0777;
   if (!options.group.empty()) {
     gid = group_id(options.group);
     if (!gid) {
-      return unexpected(
+      return unexpected<Error>(
           Error(EINVAL, "shared memory segment " + name + ": no group '" + options.group + "'"));
     }
     mode |= 0060;
@@ -95,14 +95,14 @@ expected<SharedMemory, Error> SharedMemory::create(const std::string& name, std:
   // O_EXCL: never adopt a file someone else prepared. The umask cannot widen 0600, and fchmod
   // below sets the exact bits (the umask might have narrowed the group's).
   const int fd = ::shm_open(name.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
-  if (fd < 0) return unexpected(os_error(errno, "shm_open(" + name + ", O_CREAT|O_EXCL)"));
+  if (fd < 0) return unexpected<Error>(os_error(errno, "shm_open(" + name + ", O_CREAT|O_EXCL)"));
   SharedMemory m;
   m.fd_ = fd;
   m.name_ = name;
   const auto fail = [&](const std::string& what) {
     const int err = errno;
     ::shm_unlink(name.c_str());
-    return unexpected(os_error(err, what + " of shared memory segment " + name));
+    return unexpected<Error>(os_error(err, what + " of shared memory segment " + name));
   };
   if (gid && ::fchown(fd, static_cast<uid_t>(-1), *gid) != 0) return fail("fchown");
   if (::fchmod(fd, mode) != 0) return fail("fchmod");
@@ -119,31 +119,31 @@ expected<SharedMemory, Error> SharedMemory::create(const std::string& name, std:
 
 expected<SharedMemory, Error> SharedMemory::open(const std::string& name, std::size_t max_size) {
   if (!valid_name(name)) {
-    return unexpected(Error(EINVAL, "shared memory name '" + name + "' is not /NAME"));
+    return unexpected<Error>(Error(EINVAL, "shared memory name '" + name + "' is not /NAME"));
   }
   // O_NOFOLLOW: a symbolic link placed in /dev/shm is not followed elsewhere.
   const int fd = ::shm_open(name.c_str(), O_RDWR | O_CLOEXEC | O_NOFOLLOW, 0);
-  if (fd < 0) return unexpected(os_error(errno, "shm_open(" + name + ")"));
+  if (fd < 0) return unexpected<Error>(os_error(errno, "shm_open(" + name + ")"));
   SharedMemory m;
   m.fd_ = fd;
   m.name_ = name;
   struct stat st {};
-  if (::fstat(fd, &st) != 0) return unexpected(os_error(errno, "fstat(" + name + ")"));
+  if (::fstat(fd, &st) != 0) return unexpected<Error>(os_error(errno, "fstat(" + name + ")"));
   if (!S_ISREG(st.st_mode)) {
-    return unexpected(Error(EINVAL, "shared memory segment " + name + " is not a regular file"));
+    return unexpected<Error>(Error(EINVAL, "shared memory segment " + name + " is not a regular file"));
   }
   m.info_ = info_of(st);
   if (st.st_size <= 0) {
-    return unexpected(Error(EINVAL, "shared memory segment " + name + " is empty (0 bytes)"));
+    return unexpected<Error>(Error(EINVAL, "shared memory segment " + name + " is empty (0 bytes)"));
   }
   if (static_cast<std::uint64_t>(st.st_size) > max_size) {
-    return unexpected(Error(EFBIG, "shared memory segment " + name + " is " +
+    return unexpected<Error>(Error(EFBIG, "shared memory segment " + name + " is " +
                                        std::to_string(st.st_size) + " bytes, more than " +
                                        std::to_string(max_size) + " accepted"));
   }
   const auto size = static_cast<std::size_t>(st.st_size);
   void* p = ::mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
-  if (p == MAP_FAILED) return unexpected(os_error(errno, "mmap(" + name + ")"));
+  if (p == MAP_FAILED) return unexpected<Error>(os_error(errno, "mmap(" + name + ")"));
   m.data_ = p;
   m.size_ = size;
   return m;
@@ -156,13 +156,13 @@ expected<void, Error> SharedMemory::unlink() const {
 
 expected<ShmFileInfo, Error> SharedMemory::stat() const {
   struct stat st {};
-  if (fd_ < 0 || ::fstat(fd_, &st) != 0) return unexpected(os_error(errno, "fstat(" + name_ + ")"));
+  if (fd_ < 0 || ::fstat(fd_, &st) != 0) return unexpected<Error>(os_error(errno, "fstat(" + name_ + ")"));
   return info_of(st);
 }
 
 expected<void, Error> unlink_shared_memory(const std::string& name) {
   if (::shm_unlink(name.c_str()) != 0 && errno != ENOENT) {
-    return unexpected(os_error(errno, "shm_unlink(" + name + ")"));
+    return unexpected<Error>(os_error(errno, "shm_unlink(" + name + ")"));
   }
   return {};
 }
@@ -218,11 +218,11 @@ ShmDirectoryWatch::~ShmDirectoryWatch() {
 
 expected<ShmDirectoryWatch, Error> ShmDirectoryWatch::open() {
   const int fd = ::inotify_init1(IN_NONBLOCK | IN_CLOEXEC);
-  if (fd < 0) return unexpected(os_error(errno, "inotify_init1"));
+  if (fd < 0) return unexpected<Error>(os_error(errno, "inotify_init1"));
   if (::inotify_add_watch(fd, kShmDir, IN_CREATE | IN_DELETE | IN_MOVED_TO | IN_MOVED_FROM) < 0) {
     const int err = errno;
     ::close(fd);
-    return unexpected(os_error(err, std::string("inotify_add_watch(") + kShmDir + ")"));
+    return unexpected<Error>(os_error(err, std::string("inotify_add_watch(") + kShmDir + ")"));
   }
   ShmDirectoryWatch w;
   w.fd_ = fd;
