@@ -3,7 +3,7 @@
 #include <string>
 #include <vector>
 
-#include "vigil/bus/messages.hpp"
+#include "vigil/task/messages.hpp"
 #include "vigil/log/log.hpp"
 
 namespace vigil::test {
