@@ -5,7 +5,6 @@
 #include <string>
 #include <type_traits>
 
-#include "vigil/supervisor/component_aggregator.hpp"
 
 namespace vigil {
 
