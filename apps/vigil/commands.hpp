@@ -46,4 +46,17 @@ struct CanStatsArgs {
 };
 int run_can_stats_command(const CanStatsArgs& args);
 
+struct SuperviseOptions {
+  std::string name = "vigil";
+  std::string json;
+  double duration_s = 0;  ///< 0: until Ctrl-C
+  double period_ms = 10;
+  std::string group;
+  std::string color = "auto";
+  bool no_live = false;
+  bool details = false;
+  bool keep_segments = false;
+};
+int run_supervise(const SuperviseOptions& options);
+
 }  // namespace vigil::app

@@ -1,6 +1,7 @@
 // vigil: the command-line tool. `vigil demo` runs a supervised system (the built-in simulated
 // robot, or a deployment file); `vigil check-config` validates configuration files;
-// `vigil can-stats` replays CAN logs through the CAN supervision pipeline.
+// `vigil can-stats` replays CAN logs through the CAN supervision pipeline; `vigil supervise`
+// supervises the components of other processes through shared memory.
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
 
@@ -69,10 +70,33 @@ int main(int argc, char** argv) {
   can_cmd->add_option("--node-map", can.node_map, "identity, canopen, j1939 or dronecan")
       ->check(CLI::IsMember({"identity", "canopen", "j1939", "dronecan"}));
 
+  vigil::app::SuperviseOptions sup;
+  auto* sup_cmd = app.add_subcommand(
+      "supervise",
+      "Supervise the components of other processes (started with VIGIL_SUPERVISOR=NAME): live "
+      "view, processes that die, final reports");
+  sup_cmd->add_option("-n,--name", sup.name, "Supervisor name the processes use (default: vigil)");
+  sup_cmd->add_option("-j,--json", sup.json, "Write the final reports to FILE (JSON schema 1)");
+  sup_cmd
+      ->add_option("-d,--duration", sup.duration_s,
+                   "Seconds to run; 0 runs until Ctrl-C (default: 0)")
+      ->check(CLI::NonNegativeNumber);
+  sup_cmd->add_option("--period-ms", sup.period_ms, "Drain period in ms (default: 10)")
+      ->check(CLI::Range(0.1, 10000.0));
+  sup_cmd->add_option("--group", sup.group,
+                      "Also accept segments shared with this group (mode 0660)");
+  sup_cmd->add_option("--color", sup.color, "Colour: auto, always or never")
+      ->check(CLI::IsMember({"auto", "always", "never"}));
+  sup_cmd->add_flag("--no-live", sup.no_live, "Print events and the final report, no live view");
+  sup_cmd->add_flag("--details", sup.details, "End with the detail view of every component");
+  sup_cmd->add_flag("--keep-segments", sup.keep_segments,
+                    "Do not remove the segments of dead processes and departed components");
+
   CLI11_PARSE(app, argc, argv);
 
   if (demo_cmd->parsed()) return vigil::app::run_demo(demo);
   if (check_cmd->parsed()) return vigil::app::run_check_config(check);
   if (can_cmd->parsed()) return vigil::app::run_can_stats_command(can);
+  if (sup_cmd->parsed()) return vigil::app::run_supervise(sup);
   return 2;
 }

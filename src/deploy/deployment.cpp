@@ -8,6 +8,7 @@
 #include <span>
 
 #include "deploy/bytes.hpp"
+#include "vigil/bus/shm_segment.hpp"
 #include "vigil/config/load.hpp"
 #include "vigil/deploy/extension.hpp"
 
@@ -167,7 +168,7 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
 
   if (const config::Node s = root["supervision"]; s.defined()) {
     s.reject_unknown_keys({"supervisor_period", "monitor_period", "ewma_weight", "thresholds",
-                           "lock_memory", "supervisor_stack", "monitor_stack"});
+                           "lock_memory", "supervisor_stack", "monitor_stack", "shared_memory"});
     auto& sp = d.supervision;
     sp.supervisor_period_ns =
         s.optional_period("supervisor_period", sp.supervisor_period_ns,
@@ -180,6 +181,12 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
     sp.supervisor_stack_bytes =
         detail::optional_stack(s, "supervisor_stack", sp.supervisor_stack_bytes);
     sp.monitor_stack_bytes = detail::optional_stack(s, "monitor_stack", sp.monitor_stack_bytes);
+    sp.shared_memory = s.optional<std::string>("shared_memory", "");
+    if (const config::Node m = s["shared_memory"];
+        m.defined() && !bus::valid_supervisor_name(sp.shared_memory)) {
+      m.error(fmt::format("'{}' is not a supervisor name: 1 to 31 of A-Z a-z 0-9 _ -",
+                          sp.shared_memory));
+    }
     if (const config::Node t = s["thresholds"]; t.defined()) {
       if (t.is_scalar()) {
         std::filesystem::path p = t.get<std::string>();

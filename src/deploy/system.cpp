@@ -4,6 +4,8 @@
 
 #include <exception>
 
+#include "vigil/task/shm_messages.hpp"
+
 namespace vigil::deploy {
 
 System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
@@ -26,6 +28,17 @@ expected<std::unique_ptr<System>, config::ConfigErrors> System::create(
     DeploymentSpec spec, const ComponentFactory& factory) {
   std::unique_ptr<System> sys(new System(std::move(spec)));
   const config::Node& root = sys->spec_.root;
+
+  // Before any component joins: where their ports go (the deployment file, else the environment).
+  if (const std::string& shm = sys->spec_.supervision.shared_memory; !shm.empty()) {
+    bus::ShmOptions o;
+    o.name = shm;
+    if (auto r = place_in_shared_memory(sys->registry_, std::move(o)); !r) {
+      root["supervision"]["shared_memory"].error(r.error().message);
+    }
+  } else {
+    (void)bus::place_from_environment(sys->registry_, kShmMessageSchema, kShmStickyMessages);
+  }
 
   if (sys->spec_.supervision.thresholds_file) {
     // The file was validated by the loader; it may have changed since, so load it again and
@@ -98,6 +111,11 @@ expected<void, Error> System::start() {
   log_.push_back(fmt::format("supervisor every {} ms, monitor every {} ms",
                              spec_.supervision.supervisor_period_ns / kNanosPerMilli,
                              spec_.supervision.monitor_period_ns / kNanosPerMilli));
+  if (const auto shm = registry_.shared_memory()) {
+    log_.push_back(fmt::format("components in shared memory: supervised by `vigil supervise "
+                               "--name {}`, not by this process",
+                               shm->session().options().name));
+  }
   running_ = true;
   for (auto& e : extensions_) {
     if (auto r = e->start(); !r) {

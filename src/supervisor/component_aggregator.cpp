@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cstdlib>
 
+#include "vigil/task/shm_messages.hpp"
+
 namespace vigil {
 
 namespace {

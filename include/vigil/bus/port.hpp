@@ -8,6 +8,11 @@
 /// storage lives inside the Port and push never allocates. When the ring is full the NEW message
 /// is dropped and counted (the producer never pops). The consumer reads through the
 /// type-erased `PortReader<Variant>` so that one supervisor drains ports of any capacity.
+///
+/// A port may instead send to a shared-memory ring that a `vigil supervise` daemon drains
+/// (`attach_shm`, done by the Registry at join when it places ports in shared memory): the push
+/// then goes there, with the same drop-and-count rule, and this process's supervisor sees an
+/// empty port. One predictable branch per push decides.
 
 #include <atomic>
 #include <boost/lockfree/spsc_queue.hpp>
@@ -15,6 +20,7 @@
 #include <cstdint>
 
 #include "vigil/assert.hpp"
+#include "vigil/bus/shm_port.hpp"
 
 namespace vigil {
 
@@ -56,6 +62,7 @@ class Port final : public PortReader<Variant> {
 #ifndef NDEBUG
     ProducerGuard guard(producers_);
 #endif
+    if (shm_ != nullptr) return push_shm(m);
     if (queue_.push(m)) return true;
     this->dropped_.store(this->dropped_.load(std::memory_order_relaxed) + 1,
                          std::memory_order_relaxed);
@@ -68,16 +75,37 @@ class Port final : public PortReader<Variant> {
 #ifndef NDEBUG
     ProducerGuard guard(producers_);
 #endif
+    if (shm_ != nullptr) {
+      if (shm_->push(m)) return true;
+      shm_->keep(m);  // a daemon that drains meanwhile still learns it
+      return false;
+    }
     return queue_.push(m);
   }
 
-  std::size_t pop(Variant* out, std::size_t max) noexcept override { return queue_.pop(out, max); }
+  /// Sends every later push to shared-memory producer `p` (which must outlive the port's use)
+  /// instead of the in-process ring; null goes back to it. Call once, before the first push.
+  void attach_shm(bus::ShmProducer<Variant>* p) noexcept { shm_ = p; }
+  /// The shared-memory producer this port sends to, or null.
+  [[nodiscard]] bus::ShmProducer<Variant>* shm() const noexcept { return shm_; }
+
+  std::size_t pop(Variant* out, std::size_t max) noexcept override {
+    return shm_ != nullptr ? 0 : queue_.pop(out, max);
+  }
   [[nodiscard]] std::size_t read_available() const noexcept override {
-    return queue_.read_available();
+    return shm_ != nullptr ? 0 : queue_.read_available();
   }
   [[nodiscard]] std::size_t capacity() const noexcept override { return N; }
 
  private:
+  bool push_shm(const Variant& m) noexcept {
+    if (shm_->push(m)) return true;
+    const std::uint64_t d = this->dropped_.load(std::memory_order_relaxed) + 1;
+    this->dropped_.store(d, std::memory_order_relaxed);
+    shm_->drop(m, d);
+    return false;
+  }
+
 #ifndef NDEBUG
   // Debug builds assert that only one thread pushes at a time (readerwriterqueue's
   // ReentrantGuard): two producers on one SPSC ring corrupt it silently.
@@ -91,6 +119,7 @@ class Port final : public PortReader<Variant> {
   };
   std::atomic<int> producers_{0};
 #endif
+  bus::ShmProducer<Variant>* shm_ = nullptr;
   // boost's compile-time ring reserves its spare slot itself: capacity<N> holds N (tested).
   boost::lockfree::spsc_queue<Variant, boost::lockfree::capacity<N>> queue_;
 };

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "vigil/bus/port.hpp"
+#include "vigil/bus/shm_session.hpp"
 
 namespace vigil {
 
@@ -35,6 +36,9 @@ struct RegistryEntry {
   std::vector<Variant> last_words;
   /// Set by the supervisor once it has drained and forgotten the entry.
   std::atomic<bool> finished{false};
+  /// Set when the port lives in shared memory: a `vigil supervise` daemon drains it, and this
+  /// registry's supervisor never sees the entry.
+  std::shared_ptr<bus::ShmPort<Variant>> shm;
 };
 
 template <class Variant>
@@ -85,6 +89,7 @@ template <class Variant>
 class Registry {
  public:
   using Entry = RegistryEntry<Variant>;
+  using ShmPortsType = bus::ShmPorts<Variant>;
 
   Registry() = default;
   Registry(const Registry&) = delete;
@@ -101,11 +106,22 @@ class Registry {
     Membership<Variant, N> m;
     m.registry_ = this;
     m.port_ = port.get();
+    std::shared_ptr<ShmPortsType> shm;
+    {
+      std::lock_guard lock(mutex_);
+      shm = shm_;
+    }
+    if (shm) {
+      entry->shm = shm->open(entry->name, N);
+      if (entry->shm) port->attach_shm(&entry->shm->producer());
+    }
     {
       std::lock_guard lock(mutex_);
       entry->id = next_id_++;
-      entries_.push_back(entry);
-      generation_.fetch_add(1, std::memory_order_release);
+      if (!entry->shm) {
+        entries_.push_back(entry);
+        generation_.fetch_add(1, std::memory_order_release);
+      }
     }
     m.entry_ = std::move(entry);
     return m;
@@ -137,8 +153,29 @@ class Registry {
     return entries_.size();
   }
 
+  /// Places the ports of components that join from now on in shared memory (null: in this
+  /// process again). Components that joined before keep their ports. Not RT-safe.
+  void place_in_shared_memory(std::shared_ptr<ShmPortsType> ports) {
+    std::lock_guard lock(mutex_);
+    shm_ = std::move(ports);
+  }
+  /// Where ports are placed now: null for in-process.
+  [[nodiscard]] std::shared_ptr<ShmPortsType> shared_memory() const {
+    std::lock_guard lock(mutex_);
+    return shm_;
+  }
+
   /// Called by Membership::leave.
   void remove(const std::shared_ptr<Entry>& entry, std::vector<Variant> last_words) {
+    if (entry->shm) {
+      // Its last words go to the segment (or its mailboxes), then the daemon drains and removes
+      // it; the port is not pushed to again.
+      entry->shm->set_dropped(entry->port->dropped());
+      entry->shm->close(last_words);
+      entry->closed.store(true, std::memory_order_release);
+      entry->finished.store(true, std::memory_order_relaxed);
+      return;
+    }
     std::lock_guard lock(mutex_);
     entry->last_words = std::move(last_words);
     std::erase(entries_, entry);
@@ -156,6 +193,7 @@ class Registry {
   std::vector<std::shared_ptr<Entry>> departed_;
   std::uint32_t next_id_ = 1;
   std::atomic<std::uint64_t> generation_{0};
+  std::shared_ptr<ShmPortsType> shm_;
 };
 
 template <class Variant, std::size_t N>

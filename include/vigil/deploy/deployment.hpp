@@ -15,6 +15,7 @@
 ///   monitor_period: 1s
 ///   ewma_weight: 0.05
 ///   thresholds: {defaults: {overrun: {near_fraction: 0.9}}}   # or a file name
+///   shared_memory: robot      # optional: supervised by `vigil supervise --name robot`
 /// outputs: {json: final.json, http: {listen: 9479}}
 /// can: {node_map: canopen}        # a section of a registered extension
 /// (vigil/deploy/extension.hpp)
@@ -71,6 +72,10 @@ struct SupervisionSpec {
   /// Stacks of the supervisor's and the monitor's threads, in bytes (0: the system default).
   std::size_t supervisor_stack_bytes = platform::kDefaultStackBytes;
   std::size_t monitor_stack_bytes = platform::kDefaultStackBytes;
+  /// When set, the components' ports live in shared memory and `vigil supervise --name <this>`
+  /// supervises them instead of this process (docs/guide/multi-process.md). Empty: in-process,
+  /// unless the environment variable VIGIL_SUPERVISOR names a supervisor.
+  std::string shared_memory;
 };
 
 /// `outputs.http`: serve the reports over HTTP while the system runs (docs/guide/http.md).

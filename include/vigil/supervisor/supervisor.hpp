@@ -178,7 +178,7 @@ class Supervisor {
     quit_.store(false, std::memory_order_relaxed);
     auto t = platform::Thread::spawn(
         {.name = options_.thread_name, .stack_bytes = options_.stack_bytes}, [this] { run(); });
-    if (!t) return unexpected(t.error());
+    if (!t) return unexpected<Error>(t.error());
     thread_ = std::move(*t);
     return {};
   }

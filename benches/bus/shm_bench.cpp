@@ -1,0 +1,395 @@
+// Supervision across processes: what a shared-memory port costs a component per cycle, what the
+// `vigil supervise` daemon costs for 100 processes x 10 components at 1 kHz, and how long it takes
+// from a SIGKILL to the ERROR report.
+//
+// overhead: Task<Derived> with an empty on_update() stepped by a ManualActivity, its port in
+// shared memory (subject) against the same Task with the in-process port (floor), measured in
+// the same repetition as benches/task/overhead_bench.cpp does it: a consumer thread polls both
+// every 10 ms (ShmReader::pop for the segment, Port::pop for the in-process port); each iteration
+// waits for the next poll, then times a batch of 200 cycles of each (order alternating). Value:
+// the shared-memory Task's median ns/cycle; ratio: shm / in-process (goal <= 1.05).
+//
+// daemon_cpu: 100 forked processes with 10 segments each; every 10 ms each process pushes 10
+// CycleSamples into each of its segments (what a 1 kHz component queues between two drains; the
+// producers wake at 100 Hz to keep the machine usable, the daemon's work is the same). The daemon
+// (ProcessSupervisor::start: drain thread at 10 ms + monitor at 1 s) runs in this process, which
+// does nothing else; value = this process's CPU time / wall time over 3 s, in % of one core.
+//
+// sigkill_to_error: one forked process with a Task at 1 kHz; the daemon's thread runs; the
+// process is killed with SIGKILL (and reaped at once, as a shell would); value = time from the
+// kill() call to the daemon's Exited event, which it emits after building the ERROR reports.
+// Goal: <= 2 supervisor periods (20 ms). 20 kills per repetition; median and max reported.
+#include <signal.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "support/bench_support.hpp"
+#include "vigil/bus/shm_port.hpp"
+#include "vigil/bus/shm_session.hpp"
+#include "vigil/deploy/process_supervisor.hpp"
+#include "vigil/exec/manual_activity.hpp"
+#include "vigil/exec/periodic_activity.hpp"
+#include "vigil/platform/process_watch.hpp"
+#include "vigil/task/shm_messages.hpp"
+#include "vigil/task/task.hpp"
+
+namespace vigil::bench {
+namespace {
+
+constexpr int kBatch = 200;
+constexpr int kBatchesPerRep = 50;
+
+std::string bench_name(const char* what) {
+  return std::string("b") + std::to_string(::getpid()) + what;
+}
+
+void remove_segments(const std::string& name) {
+  for (const auto& s : platform::list_shared_memory(bus::shm_segment_prefix(name))) {
+    (void)platform::unlink_shared_memory(s);
+  }
+}
+
+class EmptyTask : public Task<EmptyTask> {
+ public:
+  explicit EmptyTask(Registry<Message>& registry) : Task("bench_task", {}, registry) {}
+  void on_update() { empty_update(); }
+};
+
+// One Task and how the consumer drains it: in-process, or through a segment.
+struct TaskSubject {
+  explicit TaskSubject(const std::string& shm) : shm_name(shm) {
+    if (!shm.empty()) {
+      bus::ShmOptions o;
+      o.name = shm;
+      if (!place_in_shared_memory(registry, o)) std::abort();
+    }
+    task = std::make_unique<EmptyTask>(registry);
+    activity = std::make_unique<ManualActivity>(
+        *task, ManualConfig{.name = "bench", .period_ns = kNanosPerMilli});
+    (void)task->configure();
+    (void)activity->start();
+    if (!shm.empty()) {
+      auto r = bus::ShmReader<Message>::open(bus::shm_segment_name(shm, ::getpid(), 0),
+                                             {kShmMessageSchema, shm}, platform::effective_uid(),
+                                             false);
+      if (!r) std::abort();
+      reader.emplace(std::move(*r));
+    }
+  }
+  ~TaskSubject() {
+    (void)activity->stop();
+    activity.reset();
+    task.reset();
+    reader.reset();
+    remove_segments(shm_name);
+  }
+  [[gnu::noinline]] void cycle() noexcept { (void)activity->step(); }
+  Poller::Drain drain() {
+    if (reader) {
+      return [this](Message* out, std::size_t n) {
+        auto k = reader->pop(out, nullptr, n, nullptr);
+        return k ? *k : std::size_t{0};
+      };
+    }
+    return [p = task->port()](Message* out, std::size_t n) { return p->pop(out, n); };
+  }
+
+  std::string shm_name;
+  Registry<Message> registry;
+  std::unique_ptr<EmptyTask> task;
+  std::unique_ptr<ManualActivity> activity;
+  std::optional<bus::ShmReader<Message>> reader;
+};
+
+template <class S>
+Nanos run_batch(S& s) {
+  const Nanos t0 = platform::now_ns();
+  for (int i = 0; i < kBatch; ++i) s.cycle();
+  return platform::now_ns() - t0;
+}
+
+void overhead(benchmark::State& state) {
+  TaskSubject floor("");
+  TaskSubject subject(bench_name("o"));
+  Poller poller({floor.drain(), subject.drain()});
+  for (int i = 0; i < 3; ++i) {
+    poller.wait_next_poll();
+    (void)run_batch(floor);
+    (void)run_batch(subject);
+  }
+  std::vector<double> floor_ns;
+  std::vector<double> subject_ns;
+  std::vector<double> ratios;
+  bool subject_first = false;
+  for (auto _ : state) {
+    poller.wait_next_poll();
+    Nanos tf = 0;
+    Nanos ts = 0;
+    if (subject_first) {
+      ts = run_batch(subject);
+      tf = run_batch(floor);
+    } else {
+      tf = run_batch(floor);
+      ts = run_batch(subject);
+    }
+    subject_first = !subject_first;
+    floor_ns.push_back(static_cast<double>(tf) / kBatch);
+    subject_ns.push_back(static_cast<double>(ts) / kBatch);
+    ratios.push_back(static_cast<double>(ts) / static_cast<double>(tf));
+    state.SetIterationTime(static_cast<double>(ts) * 1e-9 / kBatch);
+  }
+  report_vs(state, "ns/cycle", median(subject_ns), median(floor_ns), median(ratios));
+  state.counters["goal_ratio_max"] = 1.05;
+  state.counters["dropped"] = static_cast<double>(subject.task->port()->dropped());
+}
+
+// A forked child runs on any CPU (the measuring thread it was forked from is pinned).
+void unpin() {
+  cpu_set_t all;
+  CPU_ZERO(&all);
+  for (int i = 0; i < CPU_SETSIZE; ++i) CPU_SET(i, &all);
+  (void)sched_setaffinity(0, sizeof all, &all);
+}
+
+// --- forked producers --------------------------------------------------------------------------
+
+struct Children {
+  std::vector<pid_t> pids;
+  ~Children() { kill_all(); }
+  void kill_all() {
+    for (pid_t p : pids) ::kill(p, SIGKILL);
+    for (pid_t p : pids) ::waitpid(p, nullptr, 0);
+    pids.clear();
+  }
+};
+
+// A child: `components` segments, 10 samples into each every 10 ms, until killed.
+[[noreturn]] void producer_child(const std::string& name, int components, int ready_fd) {
+  unpin();
+  bus::ShmOptions o;
+  o.name = name;
+  o.sticky_types = kShmStickyMessages;
+  auto session = bus::ShmSession::open(o, kShmMessageSchema);
+  if (!session) ::_exit(2);
+  std::vector<std::unique_ptr<bus::ShmPort<Message>>> ports;
+  for (int c = 0; c < components; ++c) {
+    auto seg = (*session)->create("p" + std::to_string(::getpid()) + ".c" + std::to_string(c), 256);
+    if (!seg) ::_exit(3);
+    ports.push_back(std::make_unique<bus::ShmPort<Message>>(std::move(*seg), kShmStickyMessages));
+    TaskInfo info;
+    info.name.assign("c" + std::to_string(c));
+    info.period_ns = kNanosPerMilli;
+    info.threaded = true;
+    (void)ports.back()->producer().push(Message{info});
+  }
+  const char c = 'r';
+  (void)!::write(ready_fd, &c, 1);
+  std::uint64_t cycle = 0;
+  Nanos next = platform::now_ns();
+  std::uint64_t dropped = 0;
+  for (;;) {
+    next += 10 * kNanosPerMilli;
+    platform::sleep_until(next);
+    const Nanos now = platform::now_ns();
+    for (int k = 0; k < 10; ++k) {
+      ++cycle;
+      for (auto& p : ports) {
+        CycleSample s;
+        s.cycle = cycle;
+        s.release_ns = now - (10 - k) * kNanosPerMilli;
+        s.start_ns = s.release_ns + 2'000;
+        s.end_ns = s.start_ns + 20'000 + static_cast<Nanos>(cycle % 13) * 1'000;
+        s.overhead_ns = cycle % 64 == 1 ? 150 : 0;
+        s.state = TaskState::Running;
+        const Message m{s};
+        if (!p->producer().push(m)) p->producer().drop(m, ++dropped);
+      }
+    }
+  }
+}
+
+Nanos process_cpu_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return static_cast<Nanos>(ts.tv_sec) * kNanosPerSecond + ts.tv_nsec;
+}
+
+void daemon_cpu(benchmark::State& state) {
+  const int processes = static_cast<int>(state.range(0));
+  const int components = static_cast<int>(state.range(1));
+  const std::string name = bench_name("d");
+  remove_segments(name);
+  Children children;
+  int fds[2];
+  if (::pipe(fds) != 0) std::abort();
+  for (int i = 0; i < processes; ++i) {
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      ::close(fds[0]);
+      producer_child(name, components, fds[1]);
+    }
+    children.pids.push_back(pid);
+  }
+  ::close(fds[1]);
+  for (int i = 0; i < processes; ++i) {
+    char c = 0;
+    if (::read(fds[0], &c, 1) != 1) std::abort();
+  }
+  ::close(fds[0]);
+
+  deploy::ProcessSupervisorOptions o;
+  o.name = name;
+  o.monitor.read_thread_stats = false;
+  auto d = deploy::ProcessSupervisor::create(o);
+  if (!d || !(*d)->start()) std::abort();
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // discovery, first monitor cycle
+  std::vector<double> shares;
+  for (auto _ : state) {
+    const Nanos c0 = process_cpu_ns();
+    const Nanos t0 = platform::now_ns();
+    std::this_thread::sleep_for(std::chrono::seconds(3));
+    const double share = 100.0 * static_cast<double>(process_cpu_ns() - c0) /
+                         static_cast<double>(platform::now_ns() - t0);
+    shares.push_back(share);
+    state.SetIterationTime(3.0);
+  }
+  const auto st = (*d)->stats();
+  (*d)->stop();
+  children.kill_all();
+  (*d)->step();  // the deaths: drained and reclaimed
+  d->reset();
+  remove_segments(name);
+  report(state, "% of a core", median(shares));
+  state.counters["segments"] = static_cast<double>(st.segments);
+  state.counters["msg_per_s"] = static_cast<double>(st.messages) /
+                                (static_cast<double>(st.cycles) *
+                                 static_cast<double>(o.period_ns) / 1e9);
+  state.counters["cycle_ns_p50"] = static_cast<double>(st.cycle_ns.p50);
+  state.counters["goal_value_max"] = 10.0;
+}
+
+// --- SIGKILL to ERROR ----------------------------------------------------------------------------
+
+class Spin : public Task<Spin> {
+ public:
+  explicit Spin(Registry<Message>& r) : Task("victim", {}, r) {}
+  void on_update() { empty_update(); }
+};
+
+[[noreturn]] void victim_child(const std::string& name, int ready_fd) {
+  unpin();
+  Registry<Message> reg;
+  bus::ShmOptions o;
+  o.name = name;
+  if (!place_in_shared_memory(reg, o)) ::_exit(2);
+  Spin t(reg);
+  t.configure();
+  PeriodicActivity act(t, {.name = "victim", .period_ns = kNanosPerMilli});
+  if (!act.start()) ::_exit(3);
+  while (t.cycles() < 10) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  const char c = 'r';
+  (void)!::write(ready_fd, &c, 1);
+  for (;;) ::pause();
+}
+
+void sigkill_to_error(benchmark::State& state) {
+  const std::string name = bench_name("k");
+  remove_segments(name);
+  deploy::ProcessSupervisorOptions o;
+  o.name = name;
+  o.monitor.read_thread_stats = false;
+  auto d = deploy::ProcessSupervisor::create(o);
+  if (!d) std::abort();
+  std::mutex m;
+  std::condition_variable cv;
+  std::optional<Nanos> exited_at;
+  std::string message;
+  std::size_t joined = 0;
+  (*d)->subscribe([&](const deploy::ProcessEvent& e) {
+    const Nanos t = platform::now_ns();
+    std::lock_guard lock(m);
+    if (e.kind == deploy::ProcessEvent::Kind::Exited) {
+      exited_at = t;
+      message = e.message;
+    }
+    if (e.kind == deploy::ProcessEvent::Kind::Joined) ++joined;
+    cv.notify_all();
+  });
+  if (!(*d)->start()) std::abort();
+  std::vector<double> latencies;
+  for (auto _ : state) {
+    int fds[2];
+    if (::pipe(fds) != 0) std::abort();
+    const std::size_t before = joined;
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      ::close(fds[0]);
+      victim_child(name, fds[1]);
+    }
+    ::close(fds[1]);
+    char c = 0;
+    if (::read(fds[0], &c, 1) != 1) std::abort();
+    ::close(fds[0]);
+    {
+      std::unique_lock lock(m);
+      cv.wait_for(lock, std::chrono::seconds(5), [&] { return joined > before; });
+      exited_at.reset();
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));  // a few drains
+    const Nanos t0 = platform::now_ns();
+    ::kill(pid, SIGKILL);
+    ::waitpid(pid, nullptr, 0);
+    Nanos t1 = 0;
+    {
+      std::unique_lock lock(m);
+      cv.wait_for(lock, std::chrono::seconds(5), [&] { return exited_at.has_value(); });
+      t1 = exited_at.value_or(t0 + 5 * kNanosPerSecond);
+    }
+    latencies.push_back(static_cast<double>(t1 - t0) / 1e6);
+    state.SetIterationTime(static_cast<double>(t1 - t0) * 1e-9);
+  }
+  (*d)->stop();
+  d->reset();
+  remove_segments(name);
+  std::sort(latencies.begin(), latencies.end());
+  report(state, "ms", median(latencies));
+  state.counters["max_ms"] = latencies.empty() ? 0.0 : latencies.back();
+  state.counters["goal_value_max"] = 2 * static_cast<double>(o.period_ns) / 1e6;
+  benchmark::DoNotOptimize(message.data());
+}
+
+void register_all() {
+  benchmark::RegisterBenchmark("bus/shm/overhead:shm_vs_in_process", overhead)
+      ->Iterations(kBatchesPerRep)
+      ->UseManualTime()
+      ->Unit(benchmark::kNanosecond);
+  benchmark::RegisterBenchmark("bus/shm/daemon_cpu", daemon_cpu)
+      ->Args({100, 10})
+      ->ArgNames({"processes", "components"})
+      ->Iterations(1)
+      ->UseManualTime()
+      ->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark("bus/shm/sigkill_to_error", sigkill_to_error)
+      ->Iterations(20)
+      ->UseManualTime()
+      ->Unit(benchmark::kMillisecond);
+}
+
+}  // namespace
+}  // namespace vigil::bench
+
+int main(int argc, char** argv) {
+  vigil::bench::register_all();
+  return vigil::bench::run_main(argc, argv);
+}

@@ -1,0 +1,411 @@
+#pragma once
+/// @file
+/// The two ends of a shared-memory port, generic over the message variant:
+/// `ShmProducer<Variant>` (the component's real-time side) and `ShmReader<Variant>` (the daemon).
+///
+/// Design. The ring is vigil's own, not boost::lockfree::spsc_queue: the reader is another
+/// program that must survive a corrupted or hostile segment, and boost's ring keeps wrapped
+/// indices in an implementation-defined layout that its pop() trusts (an index beyond the
+/// capacity makes it read outside the buffer), while its layout may change with the Boost
+/// version each side was built with. Here the layout is fixed and versioned (shm_layout.hpp),
+/// the indices are 64-bit counts that never wrap, a slot is index mod capacity (a power of
+/// two), and the reader validates the distance between the indices before copying anything.
+///
+/// Producer (one thread, the component's): keeps its write index and a cached read index
+/// locally; reads the shared read index only when the cache says "full" (so the reader's line is
+/// not pulled into the producer's cache every push); writes the record, then publishes the write
+/// index with release. Wait-free, no allocation, no system call, no futex: a bounded number of
+/// loads, stores and one memcpy. Types in the sticky mask (rare ones: identity, state changes)
+/// are also copied into their mailbox under a seqlock on every push, and any message that is
+/// dropped because the ring is full is copied into its type's mailbox, so a reader that attaches
+/// late (a daemon started or restarted after the process) still learns the latest identity and
+/// exact cumulative counters.
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <variant>
+#include <vector>
+
+#include "vigil/bus/shm_layout.hpp"
+#include "vigil/bus/shm_segment.hpp"
+#include "vigil/platform/shm.hpp"
+
+namespace vigil::bus {
+
+namespace detail {
+
+template <class Variant>
+constexpr std::uint32_t shm_payload_size() noexcept {
+  std::uint32_t largest = 0;
+  for (const std::uint32_t s : VariantTypes<Variant>::sizes) largest = s > largest ? s : largest;
+  return (largest + 7U) & ~7U;
+}
+
+/// Copies the active alternative of `m` to `dst`; returns its size.
+template <class Variant, std::size_t... I>
+std::uint32_t copy_alternative(std::byte* dst, const Variant& m,
+                               std::index_sequence<I...> /*unused*/) noexcept {
+  std::uint32_t size = 0;
+  (void)((m.index() == I
+              ? (std::memcpy(dst, std::get_if<I>(&m), sizeof(std::variant_alternative_t<I, Variant>)),
+                 size = static_cast<std::uint32_t>(sizeof(std::variant_alternative_t<I, Variant>)),
+                 true)
+              : false) ||
+         ...);
+  return size;
+}
+
+/// Makes alternative `type` of `out` from `src` (sizeof that type bytes). False for a bad type.
+template <class Variant, std::size_t... I>
+bool make_alternative(Variant& out, std::uint32_t type, const std::byte* src,
+                      std::index_sequence<I...> /*unused*/) noexcept {
+  return ((type == I ? (out.template emplace<I>(),
+                        std::memcpy(std::get_if<I>(&out), src,
+                                    sizeof(std::variant_alternative_t<I, Variant>)),
+                        true)
+                     : false) ||
+          ...);
+}
+
+template <class T>
+std::atomic_ref<T> shm_atomic(T& field) noexcept {
+  return std::atomic_ref<T>(field);
+}
+
+}  // namespace detail
+
+/// The producer end of a shared-memory port. One thread pushes. Does not own the mapping.
+template <class Variant>
+class ShmProducer {
+  static_assert(std::is_trivially_copyable_v<Variant>, "shm messages must be trivially copyable");
+  static constexpr std::uint32_t kPayload = detail::shm_payload_size<Variant>();
+  static constexpr std::size_t kRecordWords = (sizeof(ShmRecordHeader) + kPayload) / 8;
+  static constexpr auto kIndices = std::make_index_sequence<std::variant_size_v<Variant>>{};
+
+ public:
+  ShmProducer() = default;
+  /// Writes into the segment at `base`, initialised with geometry `g` (type count and payload
+  /// of `Variant`), mirroring the types of `sticky_mask` (shm_type_mask) in their mailboxes.
+  ShmProducer(void* base, const ShmGeometry& g, std::uint32_t sticky_mask) noexcept
+      : header_(static_cast<ShmSegmentHeader*>(base)),
+        ring_(static_cast<std::byte*>(base) + g.ring_offset),
+        mailboxes_(static_cast<std::byte*>(base) + g.mailbox_offset),
+        mailbox_stride_(g.mailbox_stride),
+        record_size_(g.record_size),
+        capacity_(g.capacity),
+        mask_(g.capacity - 1),
+        sticky_(sticky_mask) {}
+
+  /// Pushes `m`; false when the ring is full (nothing is written: the caller drops it with
+  /// drop() or keeps it and retries). RT-safe: wait-free, no allocation, no system call.
+  [[nodiscard]] bool push(const Variant& m) noexcept {
+    const std::uint64_t w = write_;
+    if (w - read_cache_ >= capacity_) {
+      // Whatever the shared index holds, the slot written below is w mod capacity: a corrupt
+      // read index can only make the ring look full.
+      read_cache_ = detail::shm_atomic(header_->read_index).load(std::memory_order_acquire);
+      if (w - read_cache_ >= capacity_) return false;
+    }
+    const std::uint64_t seq = ++seq_;
+    std::byte* rec = ring_ + (w & mask_) * record_size_;
+    ShmRecordHeader h{seq, static_cast<std::uint32_t>(m.index()), 0};
+    h.size = detail::copy_alternative(rec + sizeof(ShmRecordHeader), m, kIndices);
+    std::memcpy(rec, &h, sizeof h);
+    write_ = w + 1;
+    detail::shm_atomic(header_->write_index).store(w + 1, std::memory_order_release);
+    detail::shm_atomic(header_->offered).store(seq, std::memory_order_relaxed);
+    if (((sticky_ >> m.index()) & 1U) != 0) mail(seq, m);
+    return true;
+  }
+
+  /// Records that `m` was dropped (the ring was full): counts it (`dropped_total` is the
+  /// port's running count) and keeps it as the latest of its type in the mailbox. RT-safe.
+  void drop(const Variant& m, std::uint64_t dropped_total) noexcept {
+    const std::uint64_t seq = ++seq_;
+    mail(seq, m);
+    detail::shm_atomic(header_->dropped).store(dropped_total, std::memory_order_relaxed);
+    detail::shm_atomic(header_->offered).store(seq, std::memory_order_relaxed);
+  }
+
+  /// Keeps `m` as the latest of its type in its mailbox without counting a drop: for a message
+  /// the caller could not push and will push again later (a reader that drains the ring in the
+  /// meantime still learns it). RT-safe.
+  void keep(const Variant& m) noexcept {
+    const std::uint64_t seq = ++seq_;
+    mail(seq, m);
+    detail::shm_atomic(header_->offered).store(seq, std::memory_order_relaxed);
+  }
+
+  /// Marks the segment closed (the component left): the reader drains it and removes it.
+  /// Not RT-safe in intent (called at leave), but only a store.
+  void close() noexcept {
+    if (header_ == nullptr) return;
+    detail::shm_atomic(header_->state)
+        .store(static_cast<std::uint32_t>(ShmState::Closed), std::memory_order_release);
+  }
+
+  /// Monotonic time of the last drain by a daemon; 0 when none drained it yet.
+  [[nodiscard]] std::int64_t daemon_heartbeat() const noexcept {
+    return header_ == nullptr
+               ? 0
+               : detail::shm_atomic(header_->daemon_heartbeat_ns).load(std::memory_order_relaxed);
+  }
+  [[nodiscard]] std::uint32_t capacity() const noexcept { return capacity_; }
+  [[nodiscard]] ShmSegmentHeader* header() const noexcept { return header_; }
+
+ private:
+  // Seqlock writer (one writer): odd version while the words change.
+  void mail(std::uint64_t seq, const Variant& m) noexcept {
+    alignas(8) std::array<std::uint64_t, kRecordWords> words{};
+    auto* bytes = reinterpret_cast<std::byte*>(words.data());
+    ShmRecordHeader h{seq, static_cast<std::uint32_t>(m.index()), 0};
+    h.size = detail::copy_alternative(bytes + sizeof(ShmRecordHeader), m, kIndices);
+    std::memcpy(bytes, &h, sizeof h);
+    auto* box = reinterpret_cast<std::uint64_t*>(mailboxes_ + m.index() * mailbox_stride_);
+    const std::uint64_t v = detail::shm_atomic(box[0]).load(std::memory_order_relaxed);
+    detail::shm_atomic(box[0]).store(v + 1, std::memory_order_relaxed);
+    std::atomic_thread_fence(std::memory_order_release);
+    const std::size_t n = std::min<std::size_t>(kRecordWords, record_size_ / 8);
+    for (std::size_t i = 0; i < n; ++i) {
+      detail::shm_atomic(box[1 + i]).store(words[i], std::memory_order_relaxed);
+    }
+    detail::shm_atomic(box[0]).store(v + 2, std::memory_order_release);
+  }
+
+  ShmSegmentHeader* header_ = nullptr;
+  std::byte* ring_ = nullptr;
+  std::byte* mailboxes_ = nullptr;
+  std::uint64_t mailbox_stride_ = 0;
+  std::uint64_t record_size_ = 0;
+  std::uint64_t capacity_ = 0;
+  std::uint64_t mask_ = 0;
+  std::uint32_t sticky_ = 0;
+  // Producer-local: never read from the segment.
+  std::uint64_t write_ = 0;
+  std::uint64_t read_cache_ = 0;
+  std::uint64_t seq_ = 0;
+};
+
+/// Decodes one record (ShmRecordHeader + payload) of a validated segment into `out`: the type
+/// must be an alternative of `Variant` and the size that type's size. The payload's bytes are
+/// copied as they are: validate the message's fields (e.g. bools, enums used as indices,
+/// strings) with the reader's check before using them.
+template <class Variant>
+[[nodiscard]] bool decode_shm_record(const std::byte* record, Variant& out,
+                                     ShmError* why) noexcept {
+  ShmRecordHeader h;
+  std::memcpy(&h, record, sizeof h);
+  constexpr std::uint32_t n = std::variant_size_v<Variant>;
+  if (h.type >= n) {
+    if (why != nullptr) {
+      why->field = "record.type";
+      why->message = "type " + std::to_string(h.type) + " is not below " + std::to_string(n);
+    }
+    return false;
+  }
+  if (h.size != detail::VariantTypes<Variant>::sizes[h.type]) {
+    if (why != nullptr) {
+      why->field = "record.size";
+      why->message = "type " + std::to_string(h.type) + " has " +
+                     std::to_string(detail::VariantTypes<Variant>::sizes[h.type]) + " bytes, not " +
+                     std::to_string(h.size);
+    }
+    return false;
+  }
+  return detail::make_alternative(out, h.type, record + sizeof(ShmRecordHeader),
+                                  std::make_index_sequence<n>{});
+}
+
+/// The reader end of a shared-memory port (the daemon's): owns the mapping, validated at open.
+/// Every message is decoded and passed to the reader's check before it is handed out; a record
+/// or index that fails marks the segment corrupt (error() is set and nothing more is read).
+/// Daemon thread only; not RT-safe.
+template <class Variant>
+class ShmReader {
+ public:
+  /// Validates a decoded message's fields in place (e.g. clamps nothing, rejects bad bools or
+  /// enums); returns false and says why to reject the segment.
+  using Check = bool (*)(Variant& message, std::string& why);
+
+  /// Opens segment `name` ("/vigil.x.123.0"), checks its file (owner `uid`, mode), validates its
+  /// header against `e` and attaches at its read index. The error says which field is wrong.
+  static expected<ShmReader, ShmError> open(const std::string& name, const ShmExpectation& e,
+                                            std::uint32_t uid, bool allow_group) {
+    auto mem = platform::SharedMemory::open(name, kShmMaxSegmentSize);
+    if (!mem) return unexpected<ShmError>(ShmError{"file", mem.error().message});
+    if (auto f = check_shm_file(mem->info(), uid, allow_group); !f) return unexpected<ShmError>(f.error());
+    ShmSegmentHeader copy;
+    struct Ctx {
+      const void* src;
+      ShmSegmentHeader* dst;
+    } ctx{mem->data(), &copy};
+    if (mem->size() < sizeof(ShmSegmentHeader)) {
+      return unexpected<ShmError>(ShmError{"file", std::to_string(mem->size()) +
+                                             " bytes, shorter than the header (truncated)"});
+    }
+    if (!platform::run_guarded(
+            [](void* p) noexcept {
+              auto& c = *static_cast<Ctx*>(p);
+              std::memcpy(c.dst, c.src, sizeof(ShmSegmentHeader));
+            },
+            &ctx)) {
+      return unexpected<ShmError>(ShmError{"file", "truncated while being read (bus error caught)"});
+    }
+    auto info = validate_shm_header(copy, mem->size(), e);
+    if (!info) return unexpected<ShmError>(info.error());
+    ShmReader r;
+    r.mem_ = std::make_unique<platform::SharedMemory>(std::move(*mem));
+    r.info_ = std::move(*info);
+    r.ring_ = ShmRingReader(r.mem_->data(), r.info_.geometry);
+    if (auto a = r.ring_.attach(); !a) return unexpected<ShmError>(a.error());
+    r.raw_.resize(static_cast<std::size_t>(r.info_.geometry.record_size) * kBatch);
+    return r;
+  }
+
+  [[nodiscard]] const ShmSegmentInfo& info() const noexcept { return info_; }
+  [[nodiscard]] const platform::SharedMemory& memory() const noexcept { return *mem_; }
+  /// The state fields now (validated).
+  [[nodiscard]] expected<ShmLiveState, ShmError> live() const noexcept { return ring_.live(); }
+  /// Marks this daemon's drain in the segment.
+  void heartbeat(std::int64_t now, std::int32_t pid) noexcept { ring_.heartbeat(now, pid); }
+
+  /// Pops up to `max` messages into `out` (and their sequence numbers into `seqs` if not null).
+  /// Sequence numbers must increase; the message must pass `check`.
+  expected<std::size_t, ShmError> pop(Variant* out, std::uint64_t* seqs, std::size_t max,
+                                      Check check) {
+    if (error_) return unexpected<ShmError>(*error_);
+    std::size_t done = 0;
+    while (done < max) {
+      const std::size_t want = std::min(max - done, kBatch);
+      auto n = ring_.pop_raw(raw_.data(), want);
+      if (!n) return fail(n.error());
+      for (std::size_t i = 0; i < *n; ++i) {
+        const std::byte* rec = raw_.data() + i * info_.geometry.record_size;
+        std::uint64_t seq = 0;
+        if (auto e = take(rec, out[done], seq, check); !e) return fail(e.error());
+        if (seqs != nullptr) seqs[done] = seq;
+        ++done;
+      }
+      if (*n < want) break;
+    }
+    return done;
+  }
+
+  /// The mailboxes whose sequence number lies in (after, before), decoded, checked, in
+  /// sequence order, appended to `out`. Used when attaching (what the ring no longer holds)
+  /// and when the segment ends (what was dropped after the last record).
+  expected<std::size_t, ShmError> mailboxes(std::vector<Variant>& out, std::uint64_t after,
+                                            std::uint64_t before, Check check) {
+    if (error_) return unexpected<ShmError>(*error_);
+    std::vector<std::pair<std::uint64_t, Variant>> found;
+    if (auto c = collect(found, after, before, check); !c) return unexpected<ShmError>(c.error());
+    return commit(found, out);
+  }
+
+  /// After a drain that emptied the ring: the mailboxes newer than everything handed out so
+  /// far (messages dropped, or kept for a retry, since), provided no record was published
+  /// meanwhile (otherwise nothing, and the next call tries again). This keeps counters exact
+  /// when the newest messages could only be dropped, e.g. while no daemon drained the ring.
+  expected<std::size_t, ShmError> settle(std::vector<Variant>& out, Check check) {
+    if (error_) return unexpected<ShmError>(*error_);
+    auto before = live();
+    if (!before) return fail(before.error());
+    if (before->write_index != read_index() || before->offered <= last_seq_) return std::size_t{0};
+    std::vector<std::pair<std::uint64_t, Variant>> found;
+    if (auto c = collect(found, last_seq_, ~std::uint64_t{0}, check); !c) {
+      return unexpected<ShmError>(c.error());
+    }
+    auto after = live();
+    if (!after) return fail(after.error());
+    if (after->write_index != before->write_index) return std::size_t{0};
+    return commit(found, out);
+  }
+
+  /// The highest sequence number handed out so far (0: none).
+  [[nodiscard]] std::uint64_t last_seq() const noexcept { return last_seq_; }
+  /// Records consumed from the ring by this reader.
+  [[nodiscard]] std::uint64_t read_index() const noexcept { return ring_.read_index(); }
+  /// Set once the segment was found corrupt; nothing more is read from it.
+  [[nodiscard]] const std::optional<ShmError>& error() const noexcept { return error_; }
+
+ private:
+  static constexpr std::size_t kBatch = 64;
+
+  ShmReader() = default;
+
+  expected<void, ShmError> take(const std::byte* rec, Variant& out, std::uint64_t& seq,
+                                Check check) {
+    ShmRecordHeader h;
+    std::memcpy(&h, rec, sizeof h);
+    if (h.seq <= last_seq_) {
+      return unexpected<ShmError>(ShmError{"record.seq", "sequence " + std::to_string(h.seq) +
+                                                   " does not follow " +
+                                                   std::to_string(last_seq_)});
+    }
+    ShmError why;
+    if (!decode_shm_record(rec, out, &why)) return unexpected<ShmError>(why);
+    std::string reason;
+    if (check != nullptr && !check(out, reason)) return unexpected<ShmError>(ShmError{"record", reason});
+    last_seq_ = h.seq;
+    seq = h.seq;
+    return {};
+  }
+
+  expected<void, ShmError> collect(std::vector<std::pair<std::uint64_t, Variant>>& found,
+                                   std::uint64_t after, std::uint64_t before, Check check) {
+    std::vector<std::byte> rec(info_.geometry.record_size);
+    for (std::uint32_t t = 0; t < info_.geometry.type_count; ++t) {
+      if (!ring_.read_mailbox(t, rec.data())) continue;
+      ShmRecordHeader h;
+      std::memcpy(&h, rec.data(), sizeof h);
+      if (h.seq <= after || h.seq >= before) continue;
+      if (h.type != t) {
+        return fail(ShmError{"mailbox", "mailbox " + std::to_string(t) + " holds type " +
+                                            std::to_string(h.type)});
+      }
+      Variant v;
+      ShmError why;
+      if (!decode_shm_record(rec.data(), v, &why)) {
+        why.field = "mailbox." + why.field;
+        return fail(why);
+      }
+      std::string reason;
+      if (check != nullptr && !check(v, reason)) return fail(ShmError{"mailbox", reason});
+      found.emplace_back(h.seq, v);
+    }
+    return {};
+  }
+
+  std::size_t commit(std::vector<std::pair<std::uint64_t, Variant>>& found,
+                     std::vector<Variant>& out) {
+    std::sort(found.begin(), found.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (auto& [seq, v] : found) {
+      out.push_back(v);
+      last_seq_ = std::max(last_seq_, seq);
+    }
+    return found.size();
+  }
+
+  unexpected<ShmError> fail(ShmError e) {
+    error_ = e;
+    return unexpected<ShmError>(std::move(e));
+  }
+
+  std::unique_ptr<platform::SharedMemory> mem_;
+  ShmSegmentInfo info_;
+  ShmRingReader ring_;
+  std::vector<std::byte> raw_;
+  std::uint64_t last_seq_ = 0;
+  std::optional<ShmError> error_;
+};
+
+}  // namespace vigil::bus

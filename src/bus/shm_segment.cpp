@@ -1,0 +1,402 @@
+// Segment creation and validation; the daemon's guarded raw access to a segment.
+#include "vigil/bus/shm_segment.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cstring>
+
+namespace vigil::bus {
+
+namespace {
+
+template <class T>
+std::atomic_ref<T> at(T& field) noexcept {
+  return std::atomic_ref<T>(field);
+}
+
+ShmError err(std::string field, std::string message) {
+  return ShmError{std::move(field), std::move(message)};
+}
+
+// A NUL-terminated string stored in `a`, or an error when it has no terminator.
+template <std::size_t N>
+expected<std::string, ShmError> text(const char (&a)[N], const char* field) {
+  const void* nul = std::memchr(a, '\0', N);
+  if (nul == nullptr) {
+    return unexpected<ShmError>(err(field, fmt::format("not NUL-terminated within its {} bytes", N)));
+  }
+  return std::string(a, static_cast<const char*>(nul));
+}
+
+template <std::size_t N>
+void put_text(char (&a)[N], std::string_view s) noexcept {
+  const std::size_t n = std::min(s.size(), N - 1);
+  if (n > 0) std::memcpy(a, s.data(), n);
+  a[n] = '\0';
+}
+
+bool valid_name_char(char c) noexcept {
+  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
+         c == '-';
+}
+
+ShmError indices_error(std::uint64_t r, std::uint64_t w, std::uint32_t cap) {
+  if (w < r) {
+    return err("write_index", fmt::format("{} is behind read_index {} (indices only grow)", w, r));
+  }
+  return err("write_index", fmt::format("{} is {} records ahead of read_index {}; the ring holds {}",
+                                        w, w - r, r, cap));
+}
+
+}  // namespace
+
+bool valid_supervisor_name(std::string_view name) noexcept {
+  return !name.empty() && name.size() <= 31 && std::all_of(name.begin(), name.end(), valid_name_char);
+}
+
+std::string shm_segment_prefix(std::string_view supervisor) {
+  return fmt::format("vigil.{}.", supervisor);
+}
+
+std::string shm_segment_name(std::string_view supervisor, std::int32_t pid, std::uint32_t index) {
+  return fmt::format("/vigil.{}.{}.{}", supervisor, pid, index);
+}
+
+expected<ShmSegmentInfo, ShmError> validate_shm_header(const ShmSegmentHeader& h,
+                                                       std::uint64_t size,
+                                                       const ShmExpectation& e) {
+  if (h.magic != kShmMagic) {
+    return unexpected<ShmError>(err("magic", fmt::format("{:#018x} is not a vigil segment's ({:#018x})",
+                                               h.magic, kShmMagic)));
+  }
+  if (h.abi_version != kShmAbiVersion) {
+    return unexpected<ShmError>(err("abi_version", fmt::format("segment format version {}, this reader "
+                                                     "reads version {} (different vigil releases)",
+                                                     h.abi_version, kShmAbiVersion)));
+  }
+  if (h.header_size != sizeof(ShmSegmentHeader)) {
+    return unexpected<ShmError>(err("header_size", fmt::format("{} bytes, version {} has {}", h.header_size,
+                                                     kShmAbiVersion, sizeof(ShmSegmentHeader))));
+  }
+  if (h.segment_size != size) {
+    return unexpected<ShmError>(err("segment_size",
+                          fmt::format("header says {} bytes, the segment has {}{}", h.segment_size,
+                                      size, size < h.segment_size ? " (truncated)" : "")));
+  }
+  const ShmSchema& s = e.schema;
+  if (h.schema_id != s.id) {
+    return unexpected<ShmError>(err("schema_id", fmt::format("message schema {:#018x} differs from the "
+                                                   "reader's {:#018x} ({}): built from other "
+                                                   "message definitions",
+                                                   h.schema_id, s.id, s.name)));
+  }
+  if (h.type_count != s.type_count) {
+    return unexpected<ShmError>(err("type_count", fmt::format("{} message types, the reader's schema has {}",
+                                                    h.type_count, s.type_count)));
+  }
+  if (h.payload_size != s.payload_size) {
+    return unexpected<ShmError>(err("payload_size", fmt::format("{} bytes, the reader's schema has {}",
+                                                      h.payload_size, s.payload_size)));
+  }
+  if (h.capacity == 0 || h.capacity > kShmMaxCapacity || (h.capacity & (h.capacity - 1)) != 0) {
+    return unexpected<ShmError>(err("capacity", fmt::format("{} records: must be a power of two in 1..{}",
+                                                  h.capacity, kShmMaxCapacity)));
+  }
+  // Geometry is recomputed from what the reader knows; the header must agree field by field.
+  const ShmGeometry g = ShmGeometry::make(s.type_count, s.payload_size, h.capacity);
+  if (h.record_size != g.record_size) {
+    return unexpected<ShmError>(err("record_size", fmt::format("{} bytes, expected {}", h.record_size,
+                                                     g.record_size)));
+  }
+  if (h.mailbox_offset != g.mailbox_offset) {
+    return unexpected<ShmError>(err("mailbox_offset", fmt::format("{}, expected {}", h.mailbox_offset,
+                                                        g.mailbox_offset)));
+  }
+  if (h.ring_offset != g.ring_offset) {
+    return unexpected<ShmError>(err("ring_offset", fmt::format("{}, expected {}", h.ring_offset,
+                                                     g.ring_offset)));
+  }
+  if (g.segment_size != size) {
+    return unexpected<ShmError>(err("segment_size", fmt::format("{} bytes, a ring of {} records needs {}",
+                                                      size, h.capacity, g.segment_size)));
+  }
+  ShmSegmentInfo info;
+  info.geometry = g;
+  if (h.pid <= 0) return unexpected<ShmError>(err("pid", fmt::format("{} is not a process id", h.pid)));
+  info.pid = h.pid;
+  info.uid = h.uid;
+  info.start_ticks = h.start_ticks;
+  info.created_unix_ns = h.created_unix_ns;
+  info.component_index = h.component_index;
+  auto sup = text(h.supervisor_name, "supervisor_name");
+  if (!sup) return unexpected<ShmError>(sup.error());
+  if (!valid_supervisor_name(*sup)) {
+    return unexpected<ShmError>(err("supervisor_name", fmt::format("'{}' is not 1..31 of [A-Za-z0-9_-]", *sup)));
+  }
+  if (!e.supervisor_name.empty() && *sup != e.supervisor_name) {
+    return unexpected<ShmError>(err("supervisor_name",
+                          fmt::format("'{}', expected '{}'", *sup, e.supervisor_name)));
+  }
+  info.supervisor_name = std::move(*sup);
+  auto comp = text(h.component_name, "component_name");
+  if (!comp) return unexpected<ShmError>(comp.error());
+  if (comp->empty()) return unexpected<ShmError>(err("component_name", "empty"));
+  info.component_name = std::move(*comp);
+  auto proc = text(h.process_name, "process_name");
+  if (!proc) return unexpected<ShmError>(proc.error());
+  info.process_name = std::move(*proc);
+  auto schema = text(h.schema_name, "schema_name");
+  if (!schema) return unexpected<ShmError>(schema.error());
+  info.schema_name = std::move(*schema);
+  auto cmd = text(h.command_line, "command_line");
+  if (!cmd) return unexpected<ShmError>(cmd.error());
+  info.command_line = std::move(*cmd);
+  if (h.state == static_cast<std::uint32_t>(ShmState::Creating)) {
+    return unexpected<ShmError>(err("state", "still being created"));
+  }
+  if (h.state > static_cast<std::uint32_t>(ShmState::Closed)) {
+    return unexpected<ShmError>(err("state", fmt::format("{} is not 0, 1 or 2", h.state)));
+  }
+  if (h.exit_kind > static_cast<std::uint32_t>(ShmExit::Signaled)) {
+    return unexpected<ShmError>(err("exit_kind", fmt::format("{} is not 0, 1 or 2", h.exit_kind)));
+  }
+  if (h.write_index < h.read_index || h.write_index - h.read_index > h.capacity) {
+    ShmError x = indices_error(h.read_index, h.write_index, h.capacity);
+    return unexpected<ShmError>(std::move(x));
+  }
+  if (h.dropped > h.offered) {
+    return unexpected<ShmError>(err("dropped", fmt::format("{} messages dropped of {} offered", h.dropped,
+                                                 h.offered)));
+  }
+  return info;
+}
+
+expected<ShmSegmentInfo, ShmError> validate_shm_image(const void* bytes, std::size_t size,
+                                                      const ShmExpectation& e) {
+  if (bytes == nullptr || size < sizeof(ShmSegmentHeader)) {
+    return unexpected<ShmError>(err("file", fmt::format("{} bytes, shorter than the {}-byte header "
+                                              "(truncated)",
+                                              size, sizeof(ShmSegmentHeader))));
+  }
+  ShmSegmentHeader h;
+  std::memcpy(&h, bytes, sizeof h);
+  return validate_shm_header(h, size, e);
+}
+
+expected<void, ShmError> check_shm_file(const platform::ShmFileInfo& f, std::uint32_t uid,
+                                        bool allow_group) {
+  if (f.uid != uid) {
+    return unexpected<ShmError>(err("file", fmt::format("owned by uid {}, not by this user (uid {})", f.uid,
+                                              uid)));
+  }
+  if ((f.mode & 0007) != 0) {
+    return unexpected<ShmError>(err("file", fmt::format("mode {:04o} gives access to every user; vigil "
+                                              "segments are 0600 (or 0660 with a group)",
+                                              f.mode)));
+  }
+  if (!allow_group && (f.mode & 0070) != 0) {
+    return unexpected<ShmError>(err("file", fmt::format("mode {:04o} gives access to group {}; expected "
+                                              "0600 (name the group to accept it)",
+                                              f.mode, f.gid)));
+  }
+  if (f.size > kShmMaxSegmentSize) {
+    return unexpected<ShmError>(err("file", fmt::format("{} bytes, more than the {} accepted", f.size,
+                                              kShmMaxSegmentSize)));
+  }
+  return {};
+}
+
+void init_shm_segment(void* base, const ShmGeometry& g, const ShmSchema& schema,
+                      const ShmIdentity& who) noexcept {
+  auto* h = static_cast<ShmSegmentHeader*>(base);
+  h->magic = kShmMagic;
+  h->abi_version = kShmAbiVersion;
+  h->header_size = sizeof(ShmSegmentHeader);
+  h->segment_size = g.segment_size;
+  h->schema_id = schema.id;
+  h->type_count = g.type_count;
+  h->payload_size = g.payload_size;
+  h->record_size = g.record_size;
+  h->capacity = g.capacity;
+  h->mailbox_offset = g.mailbox_offset;
+  h->ring_offset = g.ring_offset;
+  h->pid = who.pid;
+  h->uid = who.uid;
+  h->start_ticks = who.start_ticks;
+  h->created_unix_ns = who.created_unix_ns;
+  h->component_index = who.component_index;
+  h->flags = 0;
+  put_text(h->supervisor_name, who.supervisor_name);
+  put_text(h->component_name, who.component_name);
+  put_text(h->process_name, who.process_name);
+  put_text(h->schema_name, schema.name);
+  put_text(h->command_line, who.command_line);
+  // Last, with release: a reader that sees Open sees every field above.
+  at(h->state).store(static_cast<std::uint32_t>(ShmState::Open), std::memory_order_release);
+}
+
+// --- ShmRingReader ------------------------------------------------------------------------------
+
+namespace {
+
+struct LiveCtx {
+  ShmSegmentHeader* h;
+  ShmLiveState out;
+};
+
+void read_live(void* p) noexcept {
+  auto& c = *static_cast<LiveCtx*>(p);
+  ShmSegmentHeader& h = *c.h;
+  // State and exit record first: a producer writes its last records before it marks the
+  // segment Closed (release), so a reader that sees Closed then sees the final write index.
+  c.out.state = static_cast<ShmState>(at(h.state).load(std::memory_order_acquire));
+  c.out.exit_kind = static_cast<ShmExit>(at(h.exit_kind).load(std::memory_order_acquire));
+  c.out.write_index = at(h.write_index).load(std::memory_order_acquire);
+  c.out.exit_code = at(h.exit_code).load(std::memory_order_relaxed);
+  c.out.read_index = at(h.read_index).load(std::memory_order_relaxed);
+  c.out.dropped = at(h.dropped).load(std::memory_order_relaxed);
+  c.out.offered = at(h.offered).load(std::memory_order_relaxed);
+  c.out.daemon_heartbeat_ns = at(h.daemon_heartbeat_ns).load(std::memory_order_relaxed);
+}
+
+ShmError truncated() {
+  return err("file", "the segment was truncated while mapped (bus error caught)");
+}
+
+}  // namespace
+
+expected<ShmLiveState, ShmError> ShmRingReader::live() const noexcept {
+  LiveCtx c{reinterpret_cast<ShmSegmentHeader*>(base_), {}};
+  if (!platform::run_guarded(&read_live, &c)) return unexpected<ShmError>(truncated());
+  const auto state = static_cast<std::uint32_t>(c.out.state);
+  if (state == 0 || state > 2) {
+    return unexpected<ShmError>(err("state", fmt::format("{} is not 1 or 2 after creation", state)));
+  }
+  if (static_cast<std::uint32_t>(c.out.exit_kind) > 2) {
+    return unexpected<ShmError>(err("exit_kind", fmt::format("{} is not 0, 1 or 2",
+                                                   static_cast<std::uint32_t>(c.out.exit_kind))));
+  }
+  if (c.out.write_index < read_ || c.out.write_index - read_ > g_.capacity) {
+    return unexpected<ShmError>(indices_error(read_, c.out.write_index, g_.capacity));
+  }
+  return c.out;
+}
+
+expected<void, ShmError> ShmRingReader::attach() noexcept {
+  LiveCtx c{reinterpret_cast<ShmSegmentHeader*>(base_), {}};
+  if (!platform::run_guarded(&read_live, &c)) return unexpected<ShmError>(truncated());
+  const std::uint64_t r = c.out.read_index;
+  const std::uint64_t w = c.out.write_index;
+  if (w < r || w - r > g_.capacity) return unexpected<ShmError>(indices_error(r, w, g_.capacity));
+  read_ = r;
+  return {};
+}
+
+namespace {
+
+struct PopCtx {
+  std::byte* base;
+  const ShmGeometry* g;
+  std::uint64_t read;
+  std::size_t max;
+  std::byte* out;
+  std::uint64_t write = 0;
+  std::size_t n = 0;
+  bool bad = false;
+};
+
+void pop_records(void* p) noexcept {
+  auto& c = *static_cast<PopCtx*>(p);
+  auto& h = *reinterpret_cast<ShmSegmentHeader*>(c.base);
+  const std::uint64_t w = at(h.write_index).load(std::memory_order_acquire);
+  c.write = w;
+  if (w < c.read || w - c.read > c.g->capacity) {
+    c.bad = true;
+    return;
+  }
+  const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(w - c.read, c.max));
+  const std::uint64_t mask = c.g->capacity - 1;
+  const std::byte* ring = c.base + c.g->ring_offset;
+  const std::size_t rs = c.g->record_size;
+  // At most two contiguous runs (before and after the end of the ring).
+  const std::uint64_t first = c.read & mask;
+  const std::size_t run1 = static_cast<std::size_t>(std::min<std::uint64_t>(n, c.g->capacity - first));
+  std::memcpy(c.out, ring + first * rs, run1 * rs);
+  if (n > run1) std::memcpy(c.out + run1 * rs, ring, (n - run1) * rs);
+  c.n = n;
+  // Release: the producer may reuse the slots once it sees the new index.
+  at(h.read_index).store(c.read + n, std::memory_order_release);
+}
+
+}  // namespace
+
+expected<std::size_t, ShmError> ShmRingReader::pop_raw(std::byte* out, std::size_t max) noexcept {
+  if (max == 0) return std::size_t{0};
+  PopCtx c{base_, &g_, read_, max, out};
+  if (!platform::run_guarded(&pop_records, &c)) return unexpected<ShmError>(truncated());
+  if (c.bad) return unexpected<ShmError>(indices_error(read_, c.write, g_.capacity));
+  read_ += c.n;
+  return c.n;
+}
+
+namespace {
+
+struct MailCtx {
+  std::byte* box;
+  std::size_t words;
+  std::uint64_t* out;
+  bool ok = false;
+};
+
+void read_box(void* p) noexcept {
+  auto& c = *static_cast<MailCtx*>(p);
+  auto* v = reinterpret_cast<std::uint64_t*>(c.box);
+  for (int attempt = 0; attempt < 8; ++attempt) {
+    const std::uint64_t v1 = at(*v).load(std::memory_order_acquire);
+    if ((v1 & 1U) != 0) continue;  // being written
+    for (std::size_t i = 0; i < c.words; ++i) {
+      c.out[i] = at(v[1 + i]).load(std::memory_order_relaxed);
+    }
+    std::atomic_thread_fence(std::memory_order_acquire);
+    if (at(*v).load(std::memory_order_relaxed) == v1) {
+      c.ok = v1 != 0;
+      return;
+    }
+  }
+}
+
+}  // namespace
+
+bool ShmRingReader::read_mailbox(std::uint32_t type, std::byte* out) const noexcept {
+  if (type >= g_.type_count) return false;
+  alignas(8) std::uint64_t buf[(sizeof(ShmRecordHeader) + kShmMaxPayload) / 8];
+  const std::size_t words = g_.record_size / 8;
+  if (words > std::size(buf)) return false;
+  MailCtx c{base_ + g_.mailbox_offset + g_.mailbox_stride * type, words, buf};
+  if (!platform::run_guarded(&read_box, &c) || !c.ok) return false;
+  std::memcpy(out, buf, g_.record_size);
+  return true;
+}
+
+namespace {
+struct BeatCtx {
+  ShmSegmentHeader* h;
+  std::int64_t now;
+  std::int32_t pid;
+};
+void beat(void* p) noexcept {
+  auto& c = *static_cast<BeatCtx*>(p);
+  at(c.h->daemon_pid).store(c.pid, std::memory_order_relaxed);
+  at(c.h->daemon_heartbeat_ns).store(c.now, std::memory_order_relaxed);
+  at(c.h->drains).fetch_add(1, std::memory_order_relaxed);
+}
+}  // namespace
+
+void ShmRingReader::heartbeat(std::int64_t now, std::int32_t pid) noexcept {
+  BeatCtx c{reinterpret_cast<ShmSegmentHeader*>(base_), now, pid};
+  (void)platform::run_guarded(&beat, &c);
+}
+
+}  // namespace vigil::bus

@@ -1,0 +1,818 @@
+// The `vigil supervise` daemon: segment discovery, draining, process death, reclaiming.
+#include "vigil/deploy/process_supervisor.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <atomic>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <unordered_map>
+#include <utility>
+
+#include "vigil/bus/shm_port.hpp"
+#include "vigil/bus/shm_segment.hpp"
+#include "vigil/platform/process_watch.hpp"
+#include "vigil/platform/shm.hpp"
+#include "vigil/platform/thread.hpp"
+#include "vigil/supervisor/running_stats.hpp"
+#include "vigil/task/shm_messages.hpp"
+
+namespace vigil::deploy {
+
+const char* to_string(ProcessEvent::Kind k) noexcept {
+  switch (k) {
+    case ProcessEvent::Kind::Joined:
+      return "joined";
+    case ProcessEvent::Kind::Left:
+      return "left";
+    case ProcessEvent::Kind::Exited:
+      return "exited";
+    case ProcessEvent::Kind::Rejected:
+      return "rejected";
+  }
+  return "?";
+}
+
+namespace {
+
+// The aggregator asks an entry's port for its capacity; a remote port has nothing to pop here.
+class RemotePort final : public PortReader<Message> {
+ public:
+  explicit RemotePort(std::size_t capacity) : capacity_(capacity) {}
+  std::size_t pop(Message* /*out*/, std::size_t /*max*/) noexcept override { return 0; }
+  [[nodiscard]] std::size_t read_available() const noexcept override { return 0; }
+  [[nodiscard]] std::size_t capacity() const noexcept override { return capacity_; }
+
+ private:
+  std::size_t capacity_;
+};
+
+using Entry = RegistryEntry<Message>;
+
+struct Process;
+
+struct Segment {
+  std::string name;
+  bus::ShmReader<Message> reader;
+  std::shared_ptr<Entry> entry;
+  Process* process = nullptr;
+  std::uint32_t incarnation = 1;
+  bus::ShmLiveState last_live;
+};
+
+struct Process {
+  ProcessInfo info;
+  platform::ProcessWatch watch;
+  bool watched = false;  // watch holds a pidfd or /proc fallback for this process
+  std::vector<Segment*> segments;
+  std::vector<Report> dead_reports;  // its components at its death, ERROR
+};
+
+// What reports() adds to a component's report: where it runs.
+struct Placement {
+  std::int32_t pid = 0;
+  std::string process;
+  std::string command_line;
+  std::int64_t started_unix_ns = 0;
+  std::uint32_t incarnation = 1;
+  bool dead = false;
+  Nanos forget_at = 0;  // 0: still a member
+};
+
+std::optional<std::int32_t> pid_of_segment(const std::string& name) {
+  // "/vigil.<name>.<pid>.<index>"
+  const auto last = name.rfind('.');
+  if (last == std::string::npos || last == 0) return std::nullopt;
+  const auto prev = name.rfind('.', last - 1);
+  if (prev == std::string::npos) return std::nullopt;
+  const std::string pid = name.substr(prev + 1, last - prev - 1);
+  if (pid.empty() || pid.size() > 9 ||
+      !std::all_of(pid.begin(), pid.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+    return std::nullopt;
+  }
+  return static_cast<std::int32_t>(std::stol(pid));
+}
+
+}  // namespace
+
+struct ProcessSupervisor::Impl {
+  explicit Impl(ProcessSupervisorOptions o)
+      : options(std::move(o)),
+        aggregator([&] {
+          AggregatorOptions a = options.aggregator;
+          a.clock = options.monitor.clock;  // silences compare the two
+          return a;
+        }()),
+        monitor(aggregator, options.monitor) {
+    expectation.schema = kShmMessageSchema;
+    expectation.supervisor_name = options.name;
+    uid = platform::effective_uid();
+    self_pid = platform::self_identity().pid;
+    buffer.resize(kShmMaxBatch);
+    seqs.resize(kShmMaxBatch);
+  }
+
+  static constexpr std::size_t kShmMaxBatch = 256;
+
+  ProcessSupervisorOptions options;
+  ComponentAggregator aggregator;
+  Monitor monitor;
+  bus::ShmExpectation expectation;
+  std::uint32_t uid = 0;
+  std::int32_t self_pid = 0;
+
+  // Cycle state, guarded by `mutex` (held for a whole cycle, and by readers for a copy).
+  mutable std::mutex mutex;
+  std::map<std::string, std::unique_ptr<Segment>> segments;  // by segment name
+  std::map<std::pair<std::int32_t, std::uint64_t>, std::unique_ptr<Process>> processes;
+  std::map<std::string, std::string> rejected;  // segment name -> why (while it exists)
+  std::map<std::string, Nanos> pending;         // segments being created: first seen
+  static constexpr Nanos kCreationGrace = 2 * kNanosPerSecond;
+  std::unordered_map<std::uint32_t, Placement> placements;  // by aggregator id
+  std::map<std::string, std::uint32_t> incarnations;        // by component name
+  std::map<std::string, std::uint32_t> process_runs;        // by command line
+  std::optional<platform::ShmDirectoryWatch> dir_watch;
+  bool scanned = false;
+  Nanos next_scan = 0;
+  std::uint32_t next_id = 1;
+  std::vector<Message> buffer;
+  std::vector<std::uint64_t> seqs;
+  std::vector<ProcessEvent> events;
+  // Statistics.
+  std::uint64_t cycles = 0;
+  std::uint64_t messages = 0;
+  std::uint64_t rejected_total = 0;
+  std::uint64_t reclaimed = 0;
+  RunningStats cycle_time;
+
+  // Subscribers.
+  std::mutex subscribers_mutex;
+  std::vector<std::pair<std::uint64_t, EventCallback>> subscribers;
+  std::uint64_t next_subscriber = 1;
+
+  // The drain thread.
+  std::mutex thread_mutex;
+  platform::Thread thread;
+  std::atomic<bool> quit{false};
+  std::atomic<bool> running{false};
+
+  [[nodiscard]] Nanos now() const { return options.monitor.clock.now(); }
+
+  void event(ProcessEvent::Kind k, std::int32_t pid, std::string component, std::string message) {
+    events.push_back(ProcessEvent{k, now(), pid, std::move(component), std::move(message)});
+  }
+
+  // --- messages into the aggregator -------------------------------------------------------------
+
+  void visit(Segment& s, const Message* msgs, std::size_t n, std::size_t occupancy,
+             std::uint64_t dropped) {
+    Entry& e = *s.entry;
+    aggregator.begin(e);
+    for (std::size_t i = 0; i < n; ++i) {
+      std::visit([&](const auto& m) { aggregator.on(e, m); }, msgs[i]);
+    }
+    PortDrain d;
+    d.messages = n;
+    d.occupancy = occupancy;
+    d.capacity = s.reader.info().geometry.capacity;
+    d.dropped = dropped;
+    aggregator.end(e, d);
+    messages += n;
+  }
+
+  // Drains up to the ring's capacity (everything when `all`). False when the segment turned out
+  // corrupt (it is then rejected by the caller).
+  bool drain(Segment& s, bool all) {
+    auto live = s.reader.live();
+    if (!live) return false;
+    s.last_live = *live;
+    const std::size_t occupancy =
+        static_cast<std::size_t>(live->write_index - s.reader.read_index());
+    std::size_t budget = all ? occupancy : s.reader.info().geometry.capacity;
+    std::size_t total = 0;
+    bool first = true;
+    while (budget > 0 || first) {
+      first = false;
+      const std::size_t want = std::min(budget, buffer.size());
+      if (want == 0) break;
+      auto n = s.reader.pop(buffer.data(), seqs.data(), want, &check_shm_message);
+      if (!n) return false;
+      if (*n == 0) break;
+      visit(s, buffer.data(), *n, occupancy, live->dropped);
+      total += *n;
+      budget -= *n;
+    }
+    if (total == 0) visit(s, buffer.data(), 0, occupancy, live->dropped);
+    // Emptied, but newer messages were offered than received: they were dropped (or are kept
+    // for a retry) and wait in the mailboxes.
+    if (s.reader.read_index() == live->write_index && live->offered > s.reader.last_seq()) {
+      std::vector<Message> late;
+      auto m = s.reader.settle(late, &check_shm_message);
+      if (!m) return false;
+      if (!late.empty()) visit(s, late.data(), late.size(), 0, live->dropped);
+    }
+    s.reader.heartbeat(platform::now_ns(), self_pid);
+    return true;
+  }
+
+  // A segment seen for the first time: what its mailboxes hold that the ring no longer does
+  // (identity, state, exception, dropped samples), in order, then the ring.
+  bool attach(Segment& s) {
+    auto live = s.reader.live();
+    if (!live) return false;
+    s.last_live = *live;
+    const std::size_t occupancy =
+        static_cast<std::size_t>(live->write_index - s.reader.read_index());
+    const std::size_t n0 = std::min(occupancy, buffer.size());
+    auto n = s.reader.pop(buffer.data(), seqs.data(), n0, &check_shm_message);
+    if (!n) return false;
+    const std::uint64_t first_seq = *n > 0 ? seqs[0] : ~std::uint64_t{0};
+    std::vector<Message> early;
+    auto m = s.reader.mailboxes(early, 0, first_seq, &check_shm_message);
+    if (!m) return false;
+    visit(s, early.data(), early.size(), occupancy, live->dropped);
+    visit(s, buffer.data(), *n, occupancy, live->dropped);
+    return drain(s, false);
+  }
+
+  // The end of a segment (closed, or its process died): drain all, then what was dropped after
+  // the last record.
+  bool finish(Segment& s) {
+    if (!drain(s, true)) return false;
+    std::vector<Message> late;
+    auto m = s.reader.mailboxes(late, s.reader.last_seq(), ~std::uint64_t{0}, &check_shm_message);
+    if (!m) return false;
+    if (!late.empty()) visit(s, late.data(), late.size(), 0, s.last_live.dropped);
+    return true;
+  }
+
+  // --- discovery -----------------------------------------------------------------------------------
+
+  void scan() {
+    const std::string prefix = bus::shm_segment_prefix(options.name);
+    const std::vector<std::string> names = platform::list_shared_memory(prefix);
+    // Forget rejections of files that are gone.
+    for (auto it = rejected.begin(); it != rejected.end();) {
+      it = std::binary_search(names.begin(), names.end(), it->first) ? std::next(it)
+                                                                      : rejected.erase(it);
+    }
+    for (const std::string& name : names) {
+      if (segments.count(name) != 0 || rejected.count(name) != 0) continue;
+      open_segment(name);
+    }
+  }
+
+  void reject(const std::string& name, std::int32_t pid, const bus::ShmError& e) {
+    const std::string why = e.to_string();
+    rejected[name] = why;
+    ++rejected_total;
+    event(ProcessEvent::Kind::Rejected, pid, name,
+          fmt::format("segment {} rejected: {}", name, why));
+  }
+
+  void open_segment(const std::string& name) {
+    auto r = bus::ShmReader<Message>::open(name, expectation, uid, !options.group.empty());
+    const std::int32_t name_pid = pid_of_segment(name).value_or(0);
+    if (!r) {
+      const bus::ShmError& e = r.error();
+      // Created but not sized or initialised yet (shm_open, then ftruncate, then the header):
+      // retried for a while as long as its process runs.
+      const bool young = e.field == "state" ||
+                         (e.field == "file" && (e.message.find("empty") != std::string::npos ||
+                                                e.message.find("shorter than the header") !=
+                                                    std::string::npos));
+      if (young) {
+        const Nanos t = now();
+        auto [it, inserted] = pending.try_emplace(name, t);
+        if (t - it->second < kCreationGrace) {
+          if (!platform::process_start_ticks(name_pid)) {
+            // Its process is gone: it never will be complete.
+            if (options.reclaim) (void)platform::unlink_shared_memory(name);
+            pending.erase(it);
+          }
+          return;
+        }
+        pending.erase(it);
+        reject(name, name_pid, e);
+        return;
+      }
+      if (e.field == "file" && e.message.find("No such file") != std::string::npos) return;
+      reject(name, name_pid, e);
+      return;
+    }
+    pending.erase(name);
+    auto seg = std::make_unique<Segment>(Segment{name, std::move(*r), nullptr, nullptr, 1, {}});
+    const bus::ShmSegmentInfo& info = seg->reader.info();
+    Process& p = process_for(info);
+    seg->process = &p;
+    seg->entry = std::make_shared<Entry>();
+    seg->entry->id = next_id++;
+    seg->entry->name = info.component_name;
+    seg->entry->port = std::make_shared<RemotePort>(info.geometry.capacity);
+    // A name seen before is a new incarnation; it replaces the reports of a dead one.
+    auto [it, first] = incarnations.try_emplace(info.component_name, 1);
+    if (!first) ++it->second;
+    seg->incarnation = it->second;
+    for (auto& [key, other] : processes) {
+      if (other->info.alive) continue;
+      std::erase_if(other->dead_reports,
+                    [&](const Report& rep) { return rep.name == info.component_name; });
+    }
+    aggregator.on_join(*seg->entry);
+    placements[seg->entry->id] = Placement{p.info.pid,           p.info.name, p.info.command_line,
+                                           p.info.started_unix_ns, seg->incarnation, false, 0};
+    if (std::find(p.info.components.begin(), p.info.components.end(), info.component_name) ==
+        p.info.components.end()) {
+      p.info.components.push_back(info.component_name);
+    }
+    Segment& s = *seg;
+    p.segments.push_back(seg.get());
+    segments.emplace(name, std::move(seg));
+    event(ProcessEvent::Kind::Joined, p.info.pid, info.component_name,
+          fmt::format("component {} of process {} ({}) joined{}", info.component_name, p.info.pid,
+                      p.info.name,
+                      s.incarnation > 1 ? fmt::format(", incarnation {}", s.incarnation) : ""));
+    if (!attach(s)) {
+      corrupt(s);
+      return;
+    }
+    // A process found dead at discovery (it ended before the daemon watched it).
+    if (!p.info.alive) end_segment_of_dead(s);
+  }
+
+  Process& process_for(const bus::ShmSegmentInfo& info) {
+    const auto key = std::make_pair(info.pid, info.start_ticks);
+    auto it = processes.find(key);
+    if (it != processes.end()) return *it->second;
+    auto p = std::make_unique<Process>();
+    p->info.pid = info.pid;
+    p->info.start_ticks = info.start_ticks;
+    p->info.name = info.process_name;
+    p->info.command_line = info.command_line;
+    p->info.started_unix_ns = platform::start_time_unix_ns(info.start_ticks);
+    p->info.incarnation = ++process_runs[info.command_line];
+    // Older dead runs of the same command are replaced by this one.
+    std::erase_if(processes, [&](const auto& kv) {
+      return !kv.second->info.alive && kv.second->info.command_line == info.command_line &&
+             kv.second->segments.empty();
+    });
+    auto w = platform::ProcessWatch::open({info.pid, info.start_ticks});
+    if (w) {
+      p->watch = std::move(*w);
+      p->watched = true;
+    } else {
+      p->info.alive = false;
+      p->info.ended_at = now();
+      p->info.exit_source = "unknown";
+    }
+    return *processes.emplace(key, std::move(p)).first->second;
+  }
+
+  // --- ends ------------------------------------------------------------------------------------
+
+  void unlink(Segment& s) {
+    if (!options.reclaim) return;
+    if (platform::unlink_shared_memory(s.name)) ++reclaimed;
+  }
+
+  void forget(Segment& s, bool dead) {
+    aggregator.on_leave(*s.entry);
+    if (auto it = placements.find(s.entry->id); it != placements.end()) {
+      it->second.dead = dead;
+      it->second.forget_at = now() + options.aggregator.retain_left_ns;
+    }
+    if (s.process != nullptr) std::erase(s.process->segments, &s);
+    segments.erase(s.name);  // destroys s (unmaps)
+  }
+
+  // A segment found corrupt while being read: rejected; its component is gone.
+  void corrupt(Segment& s) {
+    const bus::ShmError e = s.reader.error().value_or(bus::ShmError{"segment", "unreadable"});
+    reject(s.name, s.process != nullptr ? s.process->info.pid : 0, e);
+    forget(s, false);
+  }
+
+  std::string death_message(const Process& p) const {
+    const ProcessInfo& i = p.info;
+    if (i.exit_source == "unknown") {
+      return fmt::format("process {} ({}) exited: {}", i.pid, i.name, i.exit);
+    }
+    return fmt::format("process {} ({}) {}", i.pid, i.name,
+                       i.exit.rfind("exited", 0) == 0 ? i.exit : "exited: " + i.exit);
+  }
+
+  // Learns how `p` ended: the kernel (pidfd), the process's own record, the zombie, or nothing.
+  void settle_exit(Process& p) {
+    const char* source = nullptr;
+    if (p.watched) {
+      if (auto st = p.watch.exit_status(&source)) {
+        p.info.exit = st->describe();
+        p.info.exit_source = source != nullptr ? source : "pidfd";
+        return;
+      }
+    }
+    for (const Segment* s : p.segments) {
+      if (auto live = s->reader.live()) {
+        if (live->exit_kind == bus::ShmExit::Exited) {
+          p.info.exit = platform::ExitStatus{platform::ExitStatus::Kind::Exited, live->exit_code, false}
+                            .describe();
+          p.info.exit_source = "self";
+          return;
+        }
+        if (live->exit_kind == bus::ShmExit::Signaled) {
+          p.info.exit =
+              platform::ExitStatus{platform::ExitStatus::Kind::Signaled, live->exit_code, false}
+                  .describe();
+          p.info.exit_source = "self";
+          return;
+        }
+      }
+    }
+    p.info.exit =
+        p.watched ? "vanished without recording an exit: killed by SIGKILL or by the kernel (e.g. "
+                    "the OOM killer), or _exit(); this kernel does not tell a non-parent which "
+                    "(Linux >= 6.15 does)"
+                  : "ended before this daemon watched it, without recording how";
+    p.info.exit_source = "unknown";
+  }
+
+  Report dead_report(const Segment& s, const std::string& message) {
+    Report r;
+    for (const ComponentSnapshot& snap : aggregator.snapshot()) {
+      if (snap.id == s.entry->id) {
+        fill_report(r, snap);
+        break;
+      }
+    }
+    r.kind = ReportKind::Component;
+    r.id = s.entry->id;
+    r.name = s.entry->name;
+    r.alive = false;
+    r.state_label = "process ended";
+    r.merge(StatusLevel::Error, message);
+    add_placement(r, placements[s.entry->id]);
+    return r;
+  }
+
+  void process_died(Process& p) {
+    if (!p.info.alive) return;
+    p.info.alive = false;
+    p.info.ended_at = now();
+    // Last drain first (every record it pushed, then what it dropped), then the verdict.
+    std::vector<Segment*> segs = p.segments;
+    for (Segment* s : segs) {
+      if (!finish(*s)) corrupt(*s);
+    }
+    settle_exit(p);
+    end_all(p);
+  }
+
+  void end_segment_of_dead(Segment& s) {
+    Process& p = *s.process;
+    if (!finish(s)) {
+      corrupt(s);
+      return;
+    }
+    const bool first = p.info.exit.empty();
+    if (first) settle_exit(p);
+    const std::string msg = death_message(p);
+    if (first) event(ProcessEvent::Kind::Exited, p.info.pid, "", msg);
+    p.dead_reports.push_back(dead_report(s, msg));
+    unlink(s);
+    forget(s, true);
+  }
+
+  void end_all(Process& p) {
+    const std::string msg = death_message(p);
+    std::vector<Segment*> segs = p.segments;
+    for (Segment* s : segs) p.dead_reports.push_back(dead_report(*s, msg));
+    event(ProcessEvent::Kind::Exited, p.info.pid, "", msg);
+    for (Segment* s : segs) {
+      unlink(*s);
+      forget(*s, true);
+    }
+  }
+
+  // --- the cycle -------------------------------------------------------------------------------
+
+  std::size_t step() {
+    const Nanos t0 = now();
+    const std::uint64_t m0 = messages;
+    // (1) Deaths: one poll over every pidfd, /proc for processes without one.
+    std::vector<int> fds;
+    std::vector<Process*> owners;
+    for (auto& [key, p] : processes) {
+      if (!p->info.alive) continue;
+      if (p->watch.fd() >= 0) {
+        fds.push_back(p->watch.fd());
+        owners.push_back(p.get());
+      } else if (p->watch.exited()) {
+        process_died(*p);
+      }
+    }
+    if (!fds.empty()) {
+      std::vector<char> ready(fds.size());
+      auto* flags = reinterpret_cast<bool*>(ready.data());
+      if (platform::wait_readable(fds.data(), fds.size(), 0, flags) > 0) {
+        for (std::size_t i = 0; i < fds.size(); ++i) {
+          if (flags[i]) process_died(*owners[i]);
+        }
+      }
+    }
+    // (2) New segments: when the directory changed, at every rescan, and the pending ones.
+    if (!dir_watch) {
+      if (auto w = platform::ShmDirectoryWatch::open()) dir_watch.emplace(std::move(*w));
+    }
+    const bool changed = dir_watch && dir_watch->consume();
+    if (!scanned || changed || t0 >= next_scan) {
+      scan();
+      scanned = true;
+      next_scan = t0 + options.rescan_ns;
+    } else if (!pending.empty()) {
+      std::vector<std::string> retry;
+      for (const auto& [name, since] : pending) retry.push_back(name);
+      for (const auto& name : retry) open_segment(name);
+    }
+    // (3) Drain; (4) segments whose component left.
+    std::vector<Segment*> all;
+    all.reserve(segments.size());
+    for (auto& [name, s] : segments) all.push_back(s.get());
+    for (Segment* s : all) {
+      if (!s->process->info.alive) continue;
+      if (!drain(*s, false)) {
+        corrupt(*s);
+        continue;
+      }
+      if (s->last_live.state == bus::ShmState::Closed &&
+          s->reader.read_index() == s->last_live.write_index) {
+        if (!finish(*s)) {
+          corrupt(*s);
+          continue;
+        }
+        const std::int32_t pid = s->process->info.pid;
+        const std::string component = s->entry->name;
+        unlink(*s);
+        forget(*s, false);
+        event(ProcessEvent::Kind::Left, pid, component,
+              fmt::format("component {} of process {} left", component, pid));
+      }
+    }
+    // Placements of components the aggregator has forgotten.
+    std::erase_if(placements, [&](const auto& kv) {
+      return kv.second.forget_at != 0 && t0 > kv.second.forget_at;
+    });
+    const Nanos t1 = now();
+    SupervisorCycle c{cycles + 1, t0, t1 - t0, static_cast<std::size_t>(messages - m0),
+                      segments.size(), 0};
+    aggregator.on_cycle(c);
+    ++cycles;
+    cycle_time.add(t1 - t0);
+    return static_cast<std::size_t>(messages - m0);
+  }
+
+  // --- reports -------------------------------------------------------------------------------
+
+  static void add_placement(Report& r, const Placement& pl) {
+    r.add("process", pl.process);
+    r.add("pid", std::to_string(pl.pid));
+    r.add("process_started", platform::format_unix_time(pl.started_unix_ns));
+    r.add("command", pl.command_line);
+    r.add("incarnation", std::to_string(pl.incarnation));
+  }
+
+  Report self_report(Nanos t) const {
+    Report r;
+    r.kind = ReportKind::Supervisor;
+    r.name = "vigil.supervise";
+    r.configured = true;
+    r.activity = options.thread_name;
+    r.period_ns = options.period_ns;
+    r.state = running.load(std::memory_order_relaxed) ? TaskState::Running : TaskState::Stopped;
+    r.counters.cycles = cycles;
+    r.samples = cycles;
+    r.total_ns = cycle_time.summary();
+    r.window.first = false;
+    std::size_t alive = 0;
+    std::size_t dead = 0;
+    for (const auto& [key, p] : processes) (p->info.alive ? alive : dead) += 1;
+    r.add("supervisor_name", options.name);
+    r.add("processes", std::to_string(alive));
+    r.add("dead_processes", std::to_string(dead));
+    r.add("segments", std::to_string(segments.size()));
+    r.add("messages", std::to_string(messages));
+    r.add("rejected", std::to_string(rejected_total));
+    r.add("reclaimed", std::to_string(reclaimed));
+    for (const auto& [name, why] : rejected) {
+      r.merge(StatusLevel::Warn, fmt::format("segment {} rejected: {}", name, why));
+    }
+    if (r.total_ns.count > 0 && r.total_ns.ewma > 0.9 * static_cast<double>(options.period_ns)) {
+      r.merge(StatusLevel::Warn,
+              fmt::format("busy: EWMA of cycle time {} near its {} period",
+                          format_nanos(r.total_ns.ewma),
+                          format_nanos(static_cast<double>(options.period_ns))));
+    }
+    (void)t;
+    return r;
+  }
+
+  ReportSet compose(const ReportSet& base) const {
+    ReportSet out;
+    out.cycle = base.cycle;
+    out.time_ns = base.time_ns;
+    std::lock_guard lock(mutex);
+    for (const Report& r : base.components) {
+      if (r.kind != ReportKind::Component) continue;
+      const auto it = placements.find(r.id);
+      if (it != placements.end() && it->second.dead) continue;  // its dead report replaces it
+      Report c = r;
+      if (it != placements.end()) add_placement(c, it->second);
+      out.components.push_back(std::move(c));
+    }
+    for (const auto& [key, p] : processes) {
+      for (const Report& r : p->dead_reports) out.components.push_back(r);
+    }
+    out.components.push_back(self_report(base.time_ns));
+    for (const Report& r : base.components) {
+      if (r.kind != ReportKind::Component) out.components.push_back(r);
+    }
+    return out;
+  }
+
+  // The daemon goes away: its processes must not count on it to remove their segments.
+  void detach() {
+    for (auto& [name, s] : segments) s->reader.heartbeat(0, 0);
+  }
+
+  void dispatch() {
+    std::vector<ProcessEvent> evs;
+    {
+      std::lock_guard lock(mutex);
+      evs.swap(events);
+    }
+    if (evs.empty()) return;
+    std::vector<std::pair<std::uint64_t, EventCallback>> subs;
+    {
+      std::lock_guard lock(subscribers_mutex);
+      subs = subscribers;
+    }
+    for (const ProcessEvent& e : evs) {
+      for (auto& [id, cb] : subs) {
+        try {
+          cb(e);
+        } catch (...) {
+        }
+      }
+    }
+  }
+
+  void run() {
+    Nanos next = platform::now_ns();
+    std::vector<int> fds;
+    std::vector<char> ready;
+    while (!quit.load(std::memory_order_acquire)) {
+      {
+        std::lock_guard lock(mutex);
+        step();
+      }
+      dispatch();
+      next += options.period_ns;
+      const Nanos t = platform::now_ns();
+      if (next < t) next = t;
+      // Sleep until the next cycle, but wake at once when a process ends or a segment appears.
+      fds.clear();
+      {
+        std::lock_guard lock(mutex);
+        if (dir_watch) fds.push_back(dir_watch->fd());
+        for (const auto& [key, p] : processes) {
+          if (p->info.alive && p->watch.fd() >= 0) fds.push_back(p->watch.fd());
+        }
+      }
+      ready.assign(fds.size(), 0);
+      (void)platform::wait_readable(fds.data(), fds.size(), next,
+                                    reinterpret_cast<bool*>(ready.data()));
+    }
+  }
+};
+
+expected<std::unique_ptr<ProcessSupervisor>, Error> ProcessSupervisor::create(
+    ProcessSupervisorOptions options) {
+  if (!bus::valid_supervisor_name(options.name)) {
+    return unexpected<Error>(Error(EINVAL, fmt::format("supervisor name '{}' is not 1 to 31 of "
+                                                "A-Z a-z 0-9 _ -",
+                                                options.name)));
+  }
+  if (!options.group.empty() && !platform::group_id(options.group)) {
+    return unexpected<Error>(Error(EINVAL, fmt::format("group '{}' does not exist", options.group)));
+  }
+  if (options.period_ns <= 0) return unexpected<Error>(Error(EINVAL, "period must be positive"));
+  return std::unique_ptr<ProcessSupervisor>(
+      new ProcessSupervisor(std::make_unique<Impl>(std::move(options))));
+}
+
+ProcessSupervisor::ProcessSupervisor(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+ProcessSupervisor::~ProcessSupervisor() {
+  stop();
+  detach();
+}
+
+std::size_t ProcessSupervisor::step() {
+  std::size_t n = 0;
+  {
+    std::lock_guard lock(impl_->mutex);
+    n = impl_->step();
+  }
+  impl_->dispatch();
+  return n;
+}
+
+expected<void, Error> ProcessSupervisor::start() {
+  Impl& m = *impl_;
+  std::lock_guard lock(m.thread_mutex);
+  if (m.thread.joinable()) return {};
+  m.quit.store(false, std::memory_order_relaxed);
+  m.running.store(true, std::memory_order_relaxed);
+  auto t = platform::Thread::spawn({.name = m.options.thread_name}, [&m] { m.run(); });
+  if (!t) {
+    m.running.store(false, std::memory_order_relaxed);
+    return unexpected<Error>(t.error());
+  }
+  m.thread = std::move(*t);
+  if (auto r = m.monitor.start(); !r) {
+    m.quit.store(true, std::memory_order_release);
+    m.thread.join();
+    m.thread = platform::Thread();
+    m.running.store(false, std::memory_order_relaxed);
+    return unexpected<Error>(r.error());
+  }
+  return {};
+}
+
+void ProcessSupervisor::stop() {
+  Impl& m = *impl_;
+  std::lock_guard lock(m.thread_mutex);
+  m.monitor.stop();
+  if (!m.thread.joinable()) return;
+  m.quit.store(true, std::memory_order_release);
+  m.thread.join();
+  m.thread = platform::Thread();
+  m.running.store(false, std::memory_order_relaxed);
+}
+
+void ProcessSupervisor::detach() {
+  std::lock_guard lock(impl_->mutex);
+  impl_->detach();
+}
+
+ReportSet ProcessSupervisor::reports() const { return impl_->compose(impl_->monitor.latest()); }
+
+ReportSet ProcessSupervisor::step_monitor() { return impl_->compose(impl_->monitor.step()); }
+
+std::vector<ProcessInfo> ProcessSupervisor::processes() const {
+  std::lock_guard lock(impl_->mutex);
+  std::vector<ProcessInfo> alive;
+  std::vector<ProcessInfo> dead;
+  for (const auto& [key, p] : impl_->processes) {
+    (p->info.alive ? alive : dead).push_back(p->info);
+  }
+  alive.insert(alive.end(), dead.begin(), dead.end());
+  return alive;
+}
+
+std::uint64_t ProcessSupervisor::subscribe(EventCallback callback) {
+  std::lock_guard lock(impl_->subscribers_mutex);
+  const std::uint64_t id = impl_->next_subscriber++;
+  impl_->subscribers.emplace_back(id, std::move(callback));
+  return id;
+}
+
+void ProcessSupervisor::unsubscribe(std::uint64_t id) {
+  std::lock_guard lock(impl_->subscribers_mutex);
+  std::erase_if(impl_->subscribers, [&](const auto& s) { return s.first == id; });
+}
+
+ProcessSupervisorStats ProcessSupervisor::stats() const {
+  std::lock_guard lock(impl_->mutex);
+  ProcessSupervisorStats s;
+  s.cycles = impl_->cycles;
+  s.messages = impl_->messages;
+  s.segments = impl_->segments.size();
+  for (const auto& [key, p] : impl_->processes) (p->info.alive ? s.processes : s.dead_processes) += 1;
+  s.rejected = impl_->rejected_total;
+  s.reclaimed = impl_->reclaimed;
+  s.cycle_ns = impl_->cycle_time.summary();
+  return s;
+}
+
+const ProcessSupervisorOptions& ProcessSupervisor::options() const noexcept {
+  return impl_->options;
+}
+Monitor& ProcessSupervisor::monitor() noexcept { return impl_->monitor; }
+const ComponentAggregator& ProcessSupervisor::aggregator() const noexcept {
+  return impl_->aggregator;
+}
+
+}  // namespace vigil::deploy

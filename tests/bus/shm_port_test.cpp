@@ -1,0 +1,259 @@
+// Shared-memory ports carrying vigil::Message: placement by the registry (one call, the
+// environment), what a daemon receives, a daemon attaching late or restarted (exact counters),
+// and the daemon-side check of decoded messages.
+#include <unistd.h>
+
+#include <catch2/catch.hpp>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "shm_support.hpp"
+#include "vigil/bus/shm_port.hpp"
+#include "vigil/deploy/process_supervisor.hpp"
+#include "vigil/exec/manual_activity.hpp"
+#include "vigil/platform/process_watch.hpp"
+#include "vigil/task/shm_messages.hpp"
+#include "vigil/task/task.hpp"
+
+using namespace vigil;
+
+namespace {
+
+class Ctl : public Task<Ctl> {
+ public:
+  Ctl(std::string name, Registry<Message>& registry) : Task(std::move(name), {}, registry) {}
+  void on_update() {}
+};
+
+struct Placed {
+  Placed() : name(test::unique_supervisor_name()), cleanup(name) {
+    bus::ShmOptions o;
+    o.name = name;
+    REQUIRE(place_in_shared_memory(registry, o).has_value());
+  }
+  [[nodiscard]] std::string segment(std::uint32_t index) const {
+    return bus::shm_segment_name(name, platform::self_identity().pid, index);
+  }
+  [[nodiscard]] bus::ShmReader<Message> reader(std::uint32_t index) const {
+    auto r = bus::ShmReader<Message>::open(segment(index), {kShmMessageSchema, name},
+                                           platform::effective_uid(), false);
+    REQUIRE(r.has_value());
+    return std::move(*r);
+  }
+  [[nodiscard]] std::unique_ptr<deploy::ProcessSupervisor> daemon() const {
+    deploy::ProcessSupervisorOptions o;
+    o.name = name;
+    o.monitor.read_thread_stats = false;
+    auto d = deploy::ProcessSupervisor::create(o);
+    REQUIRE(d.has_value());
+    return std::move(*d);
+  }
+
+  std::string name;
+  test::ShmCleanup cleanup;
+  Registry<Message> registry;
+};
+
+struct Running {
+  Running(std::string name, Registry<Message>& reg)
+      : task(std::move(name), reg), activity(task, {.name = "ctl", .period_ns = kNanosPerMilli}) {
+    REQUIRE(task.configure());
+    REQUIRE(activity.start());
+  }
+  void cycles(int n) {
+    for (int i = 0; i < n; ++i) activity.step();
+  }
+  Ctl task;
+  ManualActivity activity;
+};
+
+std::vector<Message> drain_all(bus::ShmReader<Message>& r) {
+  std::vector<Message> out(1024);
+  auto n = r.pop(out.data(), nullptr, out.size(), &check_shm_message);
+  REQUIRE(n.has_value());
+  out.resize(*n);
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("A registry placed in shared memory gives each component its own segment",
+          "[shm][port]") {
+  Placed p;
+  {
+    Ctl a("a", p.registry);
+    Ctl b("b", p.registry);
+    CHECK(p.cleanup.count() == 2);
+    CHECK(a.port()->shm() != nullptr);
+    CHECK(p.registry.size() == 0);  // not this process's supervisor's business
+    Message m;
+    CHECK(a.port()->pop(&m, 1) == 0);
+  }
+  // No daemon drained them: the leaving components removed their segments themselves.
+  CHECK(p.cleanup.count() == 0);
+}
+
+TEST_CASE("A component's messages arrive through its segment", "[shm][port]") {
+  Placed p;
+  Running r("motor", p.registry);
+  r.cycles(10);
+  auto reader = p.reader(0);
+  const auto msgs = drain_all(reader);
+  REQUIRE_FALSE(msgs.empty());
+  CHECK(std::holds_alternative<TaskInfo>(msgs.front()));
+  CHECK(std::get<TaskInfo>(msgs.front()).name.view() == "motor");
+  std::vector<std::uint64_t> cycles;
+  for (const auto& m : msgs) {
+    if (const auto* s = std::get_if<CycleSample>(&m)) cycles.push_back(s->cycle);
+  }
+  CHECK(cycles == std::vector<std::uint64_t>{1, 2, 3, 4, 5, 6, 7, 8, 9, 10});
+  CHECK(reader.info().component_name == "motor");
+  CHECK(reader.info().pid == platform::self_identity().pid);
+}
+
+TEST_CASE("A daemon started after the process gets its identity and exact counters",
+          "[shm][port]") {
+  Placed p;
+  Running r("late", p.registry);
+  r.cycles(1000);  // the 256-record ring overflowed long ago
+  REQUIRE(r.activity.stop());
+  auto d = p.daemon();
+  d->step();
+  const auto s = d->aggregator().find("late");
+  REQUIRE(s.has_value());
+  CHECK(s->has_info);
+  CHECK(s->counters.cycles == 1000);
+  CHECK(s->state == TaskState::Stopped);
+  CHECK(s->counters.dropped > 0);
+}
+
+TEST_CASE("A daemon restarted while the component runs keeps its counters exact",
+          "[shm][port]") {
+  Placed p;
+  Running r("restarted", p.registry);
+  {
+    auto a = p.daemon();
+    r.cycles(100);
+    a->step();
+    REQUIRE(a->aggregator().find("restarted")->counters.cycles == 100);
+  }
+  r.cycles(5000);  // no daemon: the ring fills, samples are dropped
+  auto b = p.daemon();
+  b->step();
+  auto s = b->aggregator().find("restarted");
+  REQUIRE(s.has_value());
+  CHECK(s->has_info);  // its identity went to the first daemon; the mailbox kept it
+  CHECK(s->counters.cycles == 5100);
+  r.cycles(10);
+  b->step();
+  CHECK(b->aggregator().find("restarted")->counters.cycles == 5110);
+  // The daemon reports where the component runs.
+  const ReportSet reports = b->step_monitor();
+  const Report* rep = reports.find("restarted");
+  REQUIRE(rep != nullptr);
+  REQUIRE(rep->value("pid") != nullptr);
+  CHECK(*rep->value("pid") == std::to_string(platform::self_identity().pid));
+  CHECK(rep->value("command") != nullptr);
+  CHECK(reports.find("vigil.supervise") != nullptr);
+}
+
+TEST_CASE("A component that leaves is drained, reported as left, and its segment removed",
+          "[shm][port]") {
+  Placed p;
+  auto d = p.daemon();
+  std::vector<deploy::ProcessEvent> events;
+  d->subscribe([&](const deploy::ProcessEvent& e) { events.push_back(e); });
+  {
+    Running r("leaver", p.registry);
+    d->step();
+    r.cycles(7);
+    REQUIRE(r.activity.stop());
+  }
+  d->step();
+  const auto s = d->aggregator().find("leaver");
+  REQUIRE(s.has_value());
+  CHECK_FALSE(s->alive);
+  CHECK(s->counters.cycles == 7);
+  CHECK(p.cleanup.count() == 0);
+  REQUIRE(events.size() == 2);
+  CHECK(events[0].kind == deploy::ProcessEvent::Kind::Joined);
+  CHECK(events[1].kind == deploy::ProcessEvent::Kind::Left);
+}
+
+TEST_CASE("VIGIL_SUPERVISOR selects shared memory; a bad name is refused with a message",
+          "[shm][port]") {
+  const std::string name = test::unique_supervisor_name();
+  test::ShmCleanup cleanup(name);
+  SECTION("valid") {
+    ::setenv("VIGIL_SUPERVISOR", name.c_str(), 1);
+    Registry<Message> reg;
+    CHECK(bus::place_from_environment(reg, kShmMessageSchema, kShmStickyMessages));
+    CHECK(reg.shared_memory() != nullptr);
+    Ctl c("env", reg);
+    CHECK(cleanup.count() == 1);
+  }
+  SECTION("invalid") {
+    ::setenv("VIGIL_SUPERVISOR", "no/slashes", 1);
+    auto o = bus::shm_options_from_environment();
+    REQUIRE_FALSE(o.has_value());
+    CHECK_THAT(o.error().message, Catch::Contains("VIGIL_SUPERVISOR='no/slashes'"));
+    Registry<Message> reg;
+    CHECK_FALSE(bus::place_from_environment(reg, kShmMessageSchema, kShmStickyMessages));
+    CHECK(reg.shared_memory() == nullptr);
+  }
+  SECTION("unset") {
+    ::unsetenv("VIGIL_SUPERVISOR");
+    Registry<Message> reg;
+    CHECK(bus::place_from_environment(reg, kShmMessageSchema, kShmStickyMessages));
+    CHECK(reg.shared_memory() == nullptr);
+  }
+  ::unsetenv("VIGIL_SUPERVISOR");
+}
+
+TEST_CASE("check_shm_message rejects what would be undefined to read", "[shm][port]") {
+  std::string why;
+  SECTION("valid messages pass") {
+    Message m{CycleSample{.cycle = 1, .release_ns = 5, .start_ns = 10, .end_ns = 20}};
+    CHECK(check_shm_message(m, why));
+    Message i{TaskInfo{}};
+    CHECK(check_shm_message(i, why));
+  }
+  SECTION("a bool byte of 2") {
+    CycleSample s;
+    std::memset(&s.overrun, 2, 1);
+    Message m{s};
+    CHECK_FALSE(check_shm_message(m, why));
+    CHECK_THAT(why, Catch::Contains("bool"));
+  }
+  SECTION("a loss cause used as an index") {
+    RealTimeLoss l;
+    l.cause = static_cast<LossCause>(200);
+    Message m{l};
+    CHECK_FALSE(check_shm_message(m, why));
+  }
+  SECTION("states and hooks out of range") {
+    StateChange c;
+    c.to = static_cast<TaskState>(9);
+    Message m{c};
+    CHECK_FALSE(check_shm_message(m, why));
+    ExceptionReport e;
+    e.hook = static_cast<Hook>(77);
+    Message m2{e};
+    CHECK_FALSE(check_shm_message(m2, why));
+  }
+  SECTION("times that would overflow arithmetic") {
+    Message m{CycleSample{.cycle = 1, .start_ns = -1, .end_ns = 5}};
+    CHECK_FALSE(check_shm_message(m, why));
+    Message m2{CycleSample{.cycle = 1, .start_ns = 10, .end_ns = 5}};
+    CHECK_FALSE(check_shm_message(m2, why));
+  }
+  SECTION("unterminated strings are terminated") {
+    ExceptionReport e;
+    std::memset(e.message.data_, 'x', sizeof e.message.data_);
+    Message m{e};
+    REQUIRE(check_shm_message(m, why));
+    CHECK(std::get<ExceptionReport>(m).message.size() == sizeof e.message.data_ - 1);
+  }
+}
