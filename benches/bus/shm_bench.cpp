@@ -206,7 +206,7 @@ struct Children {
       ++cycle;
       for (auto& p : ports) {
         CycleSample s;
-        s.cycle = cycle;
+        s.counters.cycles = cycle;
         s.release_ns = now - (10 - k) * kNanosPerMilli;
         s.start_ns = s.release_ns + 2'000;
         s.end_ns = s.start_ns + 20'000 + static_cast<Nanos>(cycle % 13) * 1'000;

@@ -1,5 +1,6 @@
 // vigil::Message over shared memory: the daemon-side check and the "one call" selection.
 #include "vigil/task/shm_messages.hpp"
+#include "vigil/task/default_registry.hpp"
 
 #include <cstring>
 #include <string>

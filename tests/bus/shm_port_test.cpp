@@ -106,7 +106,7 @@ TEST_CASE("A component's messages arrive through its segment", "[shm][port]") {
   CHECK(std::get<TaskInfo>(msgs.front()).name.view() == "motor");
   std::vector<std::uint64_t> cycles;
   for (const auto& m : msgs) {
-    if (const auto* s = std::get_if<CycleSample>(&m)) cycles.push_back(s->cycle);
+    if (const auto* s = std::get_if<CycleSample>(&m)) cycles.push_back(s->cycle());
   }
   CHECK(cycles == std::vector<std::uint64_t>{1, 2, 3, 4, 5, 6, 7, 8, 9, 10});
   CHECK(reader.info().component_name == "motor");
@@ -215,7 +215,7 @@ TEST_CASE("VIGIL_SUPERVISOR selects shared memory; a bad name is refused with a 
 TEST_CASE("check_shm_message rejects what would be undefined to read", "[shm][port]") {
   std::string why;
   SECTION("valid messages pass") {
-    Message m{CycleSample{.cycle = 1, .release_ns = 5, .start_ns = 10, .end_ns = 20}};
+    Message m{CycleSample{.release_ns = 5, .start_ns = 10, .end_ns = 20, .counters = {.cycles = 1}}};
     CHECK(check_shm_message(m, why));
     Message i{TaskInfo{}};
     CHECK(check_shm_message(i, why));
@@ -244,9 +244,9 @@ TEST_CASE("check_shm_message rejects what would be undefined to read", "[shm][po
     CHECK_FALSE(check_shm_message(m2, why));
   }
   SECTION("times that would overflow arithmetic") {
-    Message m{CycleSample{.cycle = 1, .start_ns = -1, .end_ns = 5}};
+    Message m{CycleSample{.start_ns = -1, .end_ns = 5, .counters = {.cycles = 1}}};
     CHECK_FALSE(check_shm_message(m, why));
-    Message m2{CycleSample{.cycle = 1, .start_ns = 10, .end_ns = 5}};
+    Message m2{CycleSample{.start_ns = 10, .end_ns = 5, .counters = {.cycles = 1}}};
     CHECK_FALSE(check_shm_message(m2, why));
   }
   SECTION("unterminated strings are terminated") {
