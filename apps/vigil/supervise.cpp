@@ -33,12 +33,11 @@ std::string format_processes(const std::vector<deploy::ProcessInfo>& procs) {
   std::string out = fmt::format("{:<16} {:>7} {:<19} {:>3} {:<40} {}\n", "PROCESS", "PID",
                                 "STARTED", "RUN", "STATE", "COMMAND");
   for (const auto& p : procs) {
-    std::string state =
-        p.alive ? fmt::format("running, {} component{}", p.components.size(),
-                              p.components.size() == 1 ? "" : "s")
-                : p.exit + (p.exit_source.empty() || p.exit_source == "unknown"
-                                ? std::string()
-                                : " [" + p.exit_source + "]");
+    std::string state = p.alive ? fmt::format("running, {} component{}", p.components.size(),
+                                              p.components.size() == 1 ? "" : "s")
+                                : p.exit + (p.exit_source.empty() || p.exit_source == "unknown"
+                                                ? std::string()
+                                                : " [" + p.exit_source + "]");
     out += fmt::format("{:<16} {:>7} {:<19} {:>3} {:<40} {}\n", p.name, p.pid,
                        platform::format_unix_time(p.started_unix_ns), p.incarnation, state,
                        p.command_line);
@@ -85,8 +84,7 @@ int run_supervise(const SuperviseOptions& o) {
   std::printf("vigil %s: supervising '%s' (segments /dev/shm/vigil.%s.*), drained every %s%s\n",
               kVersion, o.name.c_str(), o.name.c_str(),
               format_nanos(static_cast<double>(opts.period_ns)).c_str(),
-              o.duration_s > 0 ? fmt::format(" for {} s", o.duration_s).c_str()
-                               : "; Ctrl-C stops");
+              o.duration_s > 0 ? fmt::format(" for {} s", o.duration_s).c_str() : "; Ctrl-C stops");
   std::printf("Start processes with VIGIL_SUPERVISOR=%s in their environment.\n", o.name.c_str());
   std::fflush(stdout);
 

@@ -80,9 +80,9 @@ struct TaskSubject {
     (void)task->configure();
     (void)activity->start();
     if (!shm.empty()) {
-      auto r = bus::ShmReader<Message>::open(bus::shm_segment_name(shm, ::getpid(), 0),
-                                             {kShmMessageSchema, shm}, platform::effective_uid(),
-                                             false);
+      auto r =
+          bus::ShmReader<Message>::open(bus::shm_segment_name(shm, ::getpid(), 0),
+                                        {kShmMessageSchema, shm}, platform::effective_uid(), false);
       if (!r) std::abort();
       reader.emplace(std::move(*r));
     }
@@ -272,9 +272,9 @@ void daemon_cpu(benchmark::State& state) {
   remove_segments(name);
   report(state, "% of a core", median(shares));
   state.counters["segments"] = static_cast<double>(st.segments);
-  state.counters["msg_per_s"] = static_cast<double>(st.messages) /
-                                (static_cast<double>(st.cycles) *
-                                 static_cast<double>(o.period_ns) / 1e9);
+  state.counters["msg_per_s"] =
+      static_cast<double>(st.messages) /
+      (static_cast<double>(st.cycles) * static_cast<double>(o.period_ns) / 1e9);
   state.counters["cycle_ns_p50"] = static_cast<double>(st.cycle_ns.p50);
   state.counters["goal_value_max"] = 10.0;
 }

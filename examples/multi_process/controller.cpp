@@ -63,8 +63,10 @@ int main(int argc, char** argv) {
   vigil::platform::install_stop_signals();  // Ctrl-C / SIGTERM: stop cleanly (components leave)
   vigil::platform::setup_realtime_process({.request_zero_cpu_latency = false});
   if (std::getenv("VIGIL_SUPERVISOR") == nullptr) {
-    std::fprintf(stderr, "%s: VIGIL_SUPERVISOR is not set: nobody will supervise these "
-                 "components (see README.md)\n", name.c_str());
+    std::fprintf(stderr,
+                 "%s: VIGIL_SUPERVISOR is not set: nobody will supervise these "
+                 "components (see README.md)\n",
+                 name.c_str());
   }
 
   std::vector<std::unique_ptr<Joint>> tasks;
@@ -82,8 +84,8 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
-  std::printf("%s: pid %d, %d joints at 1 kHz\n", name.c_str(), static_cast<int>(vigil::platform::self_identity().pid),
-              joints);
+  std::printf("%s: pid %d, %d joints at 1 kHz\n", name.c_str(),
+              static_cast<int>(vigil::platform::self_identity().pid), joints);
   std::fflush(stdout);
 
   const auto start = std::chrono::steady_clock::now();

@@ -44,12 +44,14 @@ int main() {
                                      .period_ns = vigil::kNanosPerMilli,
                                      .policy = vigil::SchedPolicy::Fifo,
                                      .priority = 85});
-  vigil::PeriodicActivity slow(diag, {.name = "diagnostics", .period_ns = 100 * vigil::kNanosPerMilli});
+  vigil::PeriodicActivity slow(diag,
+                               {.name = "diagnostics", .period_ns = 100 * vigil::kNanosPerMilli});
   if (!fast.start() || !slow.start()) {
     std::fprintf(stderr, "driver: cannot start its activities\n");
     return 1;
   }
-  std::printf("driver: pid %d, bus at 1 kHz, diagnostics at 10 Hz\n", static_cast<int>(vigil::platform::self_identity().pid));
+  std::printf("driver: pid %d, bus at 1 kHz, diagnostics at 10 Hz\n",
+              static_cast<int>(vigil::platform::self_identity().pid));
   std::fflush(stdout);
   while (!vigil::platform::stop_requested()) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));

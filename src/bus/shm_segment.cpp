@@ -25,7 +25,8 @@ template <std::size_t N>
 expected<std::string, ShmError> text(const char (&a)[N], const char* field) {
   const void* nul = std::memchr(a, '\0', N);
   if (nul == nullptr) {
-    return unexpected<ShmError>(err(field, fmt::format("not NUL-terminated within its {} bytes", N)));
+    return unexpected<ShmError>(
+        err(field, fmt::format("not NUL-terminated within its {} bytes", N)));
   }
   return std::string(a, static_cast<const char*>(nul));
 }
@@ -46,14 +47,16 @@ ShmError indices_error(std::uint64_t r, std::uint64_t w, std::uint32_t cap) {
   if (w < r) {
     return err("write_index", fmt::format("{} is behind read_index {} (indices only grow)", w, r));
   }
-  return err("write_index", fmt::format("{} is {} records ahead of read_index {}; the ring holds {}",
-                                        w, w - r, r, cap));
+  return err(
+      "write_index",
+      fmt::format("{} is {} records ahead of read_index {}; the ring holds {}", w, w - r, r, cap));
 }
 
 }  // namespace
 
 bool valid_supervisor_name(std::string_view name) noexcept {
-  return !name.empty() && name.size() <= 31 && std::all_of(name.begin(), name.end(), valid_name_char);
+  return !name.empty() && name.size() <= 31 &&
+         std::all_of(name.begin(), name.end(), valid_name_char);
 }
 
 std::string shm_segment_prefix(std::string_view supervisor) {
@@ -68,63 +71,71 @@ expected<ShmSegmentInfo, ShmError> validate_shm_header(const ShmSegmentHeader& h
                                                        std::uint64_t size,
                                                        const ShmExpectation& e) {
   if (h.magic != kShmMagic) {
-    return unexpected<ShmError>(err("magic", fmt::format("{:#018x} is not a vigil segment's ({:#018x})",
-                                               h.magic, kShmMagic)));
+    return unexpected<ShmError>(err(
+        "magic", fmt::format("{:#018x} is not a vigil segment's ({:#018x})", h.magic, kShmMagic)));
   }
   if (h.abi_version != kShmAbiVersion) {
-    return unexpected<ShmError>(err("abi_version", fmt::format("segment format version {}, this reader "
-                                                     "reads version {} (different vigil releases)",
-                                                     h.abi_version, kShmAbiVersion)));
+    return unexpected<ShmError>(
+        err("abi_version", fmt::format("segment format version {}, this reader "
+                                       "reads version {} (different vigil releases)",
+                                       h.abi_version, kShmAbiVersion)));
   }
   if (h.header_size != sizeof(ShmSegmentHeader)) {
-    return unexpected<ShmError>(err("header_size", fmt::format("{} bytes, version {} has {}", h.header_size,
-                                                     kShmAbiVersion, sizeof(ShmSegmentHeader))));
+    return unexpected<ShmError>(
+        err("header_size", fmt::format("{} bytes, version {} has {}", h.header_size, kShmAbiVersion,
+                                       sizeof(ShmSegmentHeader))));
   }
   if (h.segment_size != size) {
-    return unexpected<ShmError>(err("segment_size",
-                          fmt::format("header says {} bytes, the segment has {}{}", h.segment_size,
-                                      size, size < h.segment_size ? " (truncated)" : "")));
+    return unexpected<ShmError>(err(
+        "segment_size", fmt::format("header says {} bytes, the segment has {}{}", h.segment_size,
+                                    size, size < h.segment_size ? " (truncated)" : "")));
   }
   const ShmSchema& s = e.schema;
   if (h.schema_id != s.id) {
-    return unexpected<ShmError>(err("schema_id", fmt::format("message schema {:#018x} differs from the "
-                                                   "reader's {:#018x} ({}): built from other "
-                                                   "message definitions",
-                                                   h.schema_id, s.id, s.name)));
+    return unexpected<ShmError>(
+        err("schema_id", fmt::format("message schema {:#018x} differs from the "
+                                     "reader's {:#018x} ({}): built from other "
+                                     "message definitions",
+                                     h.schema_id, s.id, s.name)));
   }
   if (h.type_count != s.type_count) {
-    return unexpected<ShmError>(err("type_count", fmt::format("{} message types, the reader's schema has {}",
-                                                    h.type_count, s.type_count)));
+    return unexpected<ShmError>(err(
+        "type_count",
+        fmt::format("{} message types, the reader's schema has {}", h.type_count, s.type_count)));
   }
   if (h.payload_size != s.payload_size) {
-    return unexpected<ShmError>(err("payload_size", fmt::format("{} bytes, the reader's schema has {}",
-                                                      h.payload_size, s.payload_size)));
+    return unexpected<ShmError>(
+        err("payload_size",
+            fmt::format("{} bytes, the reader's schema has {}", h.payload_size, s.payload_size)));
   }
   if (h.capacity == 0 || h.capacity > kShmMaxCapacity || (h.capacity & (h.capacity - 1)) != 0) {
-    return unexpected<ShmError>(err("capacity", fmt::format("{} records: must be a power of two in 1..{}",
-                                                  h.capacity, kShmMaxCapacity)));
+    return unexpected<ShmError>(err(
+        "capacity",
+        fmt::format("{} records: must be a power of two in 1..{}", h.capacity, kShmMaxCapacity)));
   }
   // Geometry is recomputed from what the reader knows; the header must agree field by field.
   const ShmGeometry g = ShmGeometry::make(s.type_count, s.payload_size, h.capacity);
   if (h.record_size != g.record_size) {
-    return unexpected<ShmError>(err("record_size", fmt::format("{} bytes, expected {}", h.record_size,
-                                                     g.record_size)));
+    return unexpected<ShmError>(
+        err("record_size", fmt::format("{} bytes, expected {}", h.record_size, g.record_size)));
   }
   if (h.mailbox_offset != g.mailbox_offset) {
-    return unexpected<ShmError>(err("mailbox_offset", fmt::format("{}, expected {}", h.mailbox_offset,
-                                                        g.mailbox_offset)));
+    return unexpected<ShmError>(
+        err("mailbox_offset", fmt::format("{}, expected {}", h.mailbox_offset, g.mailbox_offset)));
   }
   if (h.ring_offset != g.ring_offset) {
-    return unexpected<ShmError>(err("ring_offset", fmt::format("{}, expected {}", h.ring_offset,
-                                                     g.ring_offset)));
+    return unexpected<ShmError>(
+        err("ring_offset", fmt::format("{}, expected {}", h.ring_offset, g.ring_offset)));
   }
   if (g.segment_size != size) {
-    return unexpected<ShmError>(err("segment_size", fmt::format("{} bytes, a ring of {} records needs {}",
-                                                      size, h.capacity, g.segment_size)));
+    return unexpected<ShmError>(err(
+        "segment_size",
+        fmt::format("{} bytes, a ring of {} records needs {}", size, h.capacity, g.segment_size)));
   }
   ShmSegmentInfo info;
   info.geometry = g;
-  if (h.pid <= 0) return unexpected<ShmError>(err("pid", fmt::format("{} is not a process id", h.pid)));
+  if (h.pid <= 0)
+    return unexpected<ShmError>(err("pid", fmt::format("{} is not a process id", h.pid)));
   info.pid = h.pid;
   info.uid = h.uid;
   info.start_ticks = h.start_ticks;
@@ -133,11 +144,12 @@ expected<ShmSegmentInfo, ShmError> validate_shm_header(const ShmSegmentHeader& h
   auto sup = text(h.supervisor_name, "supervisor_name");
   if (!sup) return unexpected<ShmError>(sup.error());
   if (!valid_supervisor_name(*sup)) {
-    return unexpected<ShmError>(err("supervisor_name", fmt::format("'{}' is not 1..31 of [A-Za-z0-9_-]", *sup)));
+    return unexpected<ShmError>(
+        err("supervisor_name", fmt::format("'{}' is not 1..31 of [A-Za-z0-9_-]", *sup)));
   }
   if (!e.supervisor_name.empty() && *sup != e.supervisor_name) {
-    return unexpected<ShmError>(err("supervisor_name",
-                          fmt::format("'{}', expected '{}'", *sup, e.supervisor_name)));
+    return unexpected<ShmError>(
+        err("supervisor_name", fmt::format("'{}', expected '{}'", *sup, e.supervisor_name)));
   }
   info.supervisor_name = std::move(*sup);
   auto comp = text(h.component_name, "component_name");
@@ -167,8 +179,8 @@ expected<ShmSegmentInfo, ShmError> validate_shm_header(const ShmSegmentHeader& h
     return unexpected<ShmError>(std::move(x));
   }
   if (h.dropped > h.offered) {
-    return unexpected<ShmError>(err("dropped", fmt::format("{} messages dropped of {} offered", h.dropped,
-                                                 h.offered)));
+    return unexpected<ShmError>(
+        err("dropped", fmt::format("{} messages dropped of {} offered", h.dropped, h.offered)));
   }
   return info;
 }
@@ -177,8 +189,8 @@ expected<ShmSegmentInfo, ShmError> validate_shm_image(const void* bytes, std::si
                                                       const ShmExpectation& e) {
   if (bytes == nullptr || size < sizeof(ShmSegmentHeader)) {
     return unexpected<ShmError>(err("file", fmt::format("{} bytes, shorter than the {}-byte header "
-                                              "(truncated)",
-                                              size, sizeof(ShmSegmentHeader))));
+                                                        "(truncated)",
+                                                        size, sizeof(ShmSegmentHeader))));
   }
   ShmSegmentHeader h;
   std::memcpy(&h, bytes, sizeof h);
@@ -188,22 +200,24 @@ expected<ShmSegmentInfo, ShmError> validate_shm_image(const void* bytes, std::si
 expected<void, ShmError> check_shm_file(const platform::ShmFileInfo& f, std::uint32_t uid,
                                         bool allow_group) {
   if (f.uid != uid) {
-    return unexpected<ShmError>(err("file", fmt::format("owned by uid {}, not by this user (uid {})", f.uid,
-                                              uid)));
+    return unexpected<ShmError>(
+        err("file", fmt::format("owned by uid {}, not by this user (uid {})", f.uid, uid)));
   }
   if ((f.mode & 0007) != 0) {
-    return unexpected<ShmError>(err("file", fmt::format("mode {:04o} gives access to every user; vigil "
-                                              "segments are 0600 (or 0660 with a group)",
-                                              f.mode)));
+    return unexpected<ShmError>(
+        err("file", fmt::format("mode {:04o} gives access to every user; vigil "
+                                "segments are 0600 (or 0660 with a group)",
+                                f.mode)));
   }
   if (!allow_group && (f.mode & 0070) != 0) {
-    return unexpected<ShmError>(err("file", fmt::format("mode {:04o} gives access to group {}; expected "
-                                              "0600 (name the group to accept it)",
-                                              f.mode, f.gid)));
+    return unexpected<ShmError>(
+        err("file", fmt::format("mode {:04o} gives access to group {}; expected "
+                                "0600 (name the group to accept it)",
+                                f.mode, f.gid)));
   }
   if (f.size > kShmMaxSegmentSize) {
-    return unexpected<ShmError>(err("file", fmt::format("{} bytes, more than the {} accepted", f.size,
-                                              kShmMaxSegmentSize)));
+    return unexpected<ShmError>(err(
+        "file", fmt::format("{} bytes, more than the {} accepted", f.size, kShmMaxSegmentSize)));
   }
   return {};
 }
@@ -272,11 +286,13 @@ expected<ShmLiveState, ShmError> ShmRingReader::live() const noexcept {
   if (!platform::run_guarded(&read_live, &c)) return unexpected<ShmError>(truncated());
   const auto state = static_cast<std::uint32_t>(c.out.state);
   if (state == 0 || state > 2) {
-    return unexpected<ShmError>(err("state", fmt::format("{} is not 1 or 2 after creation", state)));
+    return unexpected<ShmError>(
+        err("state", fmt::format("{} is not 1 or 2 after creation", state)));
   }
   if (static_cast<std::uint32_t>(c.out.exit_kind) > 2) {
-    return unexpected<ShmError>(err("exit_kind", fmt::format("{} is not 0, 1 or 2",
-                                                   static_cast<std::uint32_t>(c.out.exit_kind))));
+    return unexpected<ShmError>(
+        err("exit_kind",
+            fmt::format("{} is not 0, 1 or 2", static_cast<std::uint32_t>(c.out.exit_kind))));
   }
   if (c.out.write_index < read_ || c.out.write_index - read_ > g_.capacity) {
     return unexpected<ShmError>(indices_error(read_, c.out.write_index, g_.capacity));
@@ -322,7 +338,8 @@ void pop_records(void* p) noexcept {
   const std::size_t rs = c.g->record_size;
   // At most two contiguous runs (before and after the end of the ring).
   const std::uint64_t first = c.read & mask;
-  const std::size_t run1 = static_cast<std::size_t>(std::min<std::uint64_t>(n, c.g->capacity - first));
+  const std::size_t run1 =
+      static_cast<std::size_t>(std::min<std::uint64_t>(n, c.g->capacity - first));
   std::memcpy(c.out, ring + first * rs, run1 * rs);
   if (n > run1) std::memcpy(c.out + run1 * rs, ring, (n - run1) * rs);
   c.n = n;

@@ -85,9 +85,10 @@ expected<std::optional<ShmOptions>, Error> shm_options_from_environment() {
   const char* name = std::getenv("VIGIL_SUPERVISOR");
   if (name == nullptr || *name == '\0') return std::optional<ShmOptions>{};
   if (!valid_supervisor_name(name)) {
-    return unexpected<Error>(Error(EINVAL, fmt::format("VIGIL_SUPERVISOR='{}' is not a supervisor name "
-                                                "(1 to 31 of A-Z a-z 0-9 _ -)",
-                                                name)));
+    return unexpected<Error>(
+        Error(EINVAL, fmt::format("VIGIL_SUPERVISOR='{}' is not a supervisor name "
+                                  "(1 to 31 of A-Z a-z 0-9 _ -)",
+                                  name)));
   }
   ShmOptions o;
   o.name = name;
@@ -107,8 +108,8 @@ ShmSegment::~ShmSegment() {
   if (h == nullptr) return;
   unregister_live(slot_);
   if (h->pid != platform::current_pid()) return;  // a forked child's copy
-  std::atomic_ref<std::uint32_t>(h->state)
-      .store(static_cast<std::uint32_t>(ShmState::Closed), std::memory_order_release);
+  std::atomic_ref<std::uint32_t>(h->state).store(static_cast<std::uint32_t>(ShmState::Closed),
+                                                 std::memory_order_release);
   if (unattended(*h)) (void)memory_.unlink();
 }
 
@@ -119,11 +120,12 @@ expected<std::shared_ptr<ShmSession>, Error> ShmSession::open(ShmOptions options
                                                               ShmSchema schema) {
   if (!valid_supervisor_name(options.name)) {
     return unexpected<Error>(Error(EINVAL, fmt::format("supervisor name '{}' is not 1 to 31 of "
-                                                "A-Z a-z 0-9 _ -",
-                                                options.name)));
+                                                       "A-Z a-z 0-9 _ -",
+                                                       options.name)));
   }
   if (!options.group.empty() && !platform::group_id(options.group)) {
-    return unexpected<Error>(Error(EINVAL, fmt::format("group '{}' does not exist", options.group)));
+    return unexpected<Error>(
+        Error(EINVAL, fmt::format("group '{}' does not exist", options.group)));
   }
   if (schema.type_count == 0 || schema.type_count > kShmMaxTypes ||
       schema.payload_size > kShmMaxPayload) {

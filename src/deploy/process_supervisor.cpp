@@ -249,7 +249,8 @@ struct ProcessSupervisor::Impl {
     return true;
   }
 
-  // --- discovery -----------------------------------------------------------------------------------
+  // --- discovery
+  // -----------------------------------------------------------------------------------
 
   void scan() {
     const std::string prefix = bus::shm_segment_prefix(options.name);
@@ -257,7 +258,7 @@ struct ProcessSupervisor::Impl {
     // Forget rejections of files that are gone.
     for (auto it = rejected.begin(); it != rejected.end();) {
       it = std::binary_search(names.begin(), names.end(), it->first) ? std::next(it)
-                                                                      : rejected.erase(it);
+                                                                     : rejected.erase(it);
     }
     for (const std::string& name : names) {
       if (segments.count(name) != 0 || rejected.count(name) != 0) continue;
@@ -280,10 +281,10 @@ struct ProcessSupervisor::Impl {
       const bus::ShmError& e = r.error();
       // Created but not sized or initialised yet (shm_open, then ftruncate, then the header):
       // retried for a while as long as its process runs.
-      const bool young = e.field == "state" ||
-                         (e.field == "file" && (e.message.find("empty") != std::string::npos ||
-                                                e.message.find("shorter than the header") !=
-                                                    std::string::npos));
+      const bool young =
+          e.field == "state" ||
+          (e.field == "file" && (e.message.find("empty") != std::string::npos ||
+                                 e.message.find("shorter than the header") != std::string::npos));
       if (young) {
         const Nanos t = now();
         auto [it, inserted] = pending.try_emplace(name, t);
@@ -322,8 +323,13 @@ struct ProcessSupervisor::Impl {
                     [&](const Report& rep) { return rep.name == info.component_name; });
     }
     aggregator.on_join(*seg->entry);
-    placements[seg->entry->id] = Placement{p.info.pid,           p.info.name, p.info.command_line,
-                                           p.info.started_unix_ns, seg->incarnation, false, 0};
+    placements[seg->entry->id] = Placement{p.info.pid,
+                                           p.info.name,
+                                           p.info.command_line,
+                                           p.info.started_unix_ns,
+                                           seg->incarnation,
+                                           false,
+                                           0};
     if (std::find(p.info.components.begin(), p.info.components.end(), info.component_name) ==
         p.info.components.end()) {
       p.info.components.push_back(info.component_name);
@@ -417,8 +423,9 @@ struct ProcessSupervisor::Impl {
     for (const Segment* s : p.segments) {
       if (auto live = s->reader.live()) {
         if (live->exit_kind == bus::ShmExit::Exited) {
-          p.info.exit = platform::ExitStatus{platform::ExitStatus::Kind::Exited, live->exit_code, false}
-                            .describe();
+          p.info.exit =
+              platform::ExitStatus{platform::ExitStatus::Kind::Exited, live->exit_code, false}
+                  .describe();
           p.info.exit_source = "self";
           return;
         }
@@ -565,7 +572,7 @@ struct ProcessSupervisor::Impl {
       return kv.second.forget_at != 0 && t0 > kv.second.forget_at;
     });
     const Nanos t1 = now();
-    SupervisorCycle c{cycles + 1, t0, t1 - t0, static_cast<std::size_t>(messages - m0),
+    SupervisorCycle c{cycles + 1,      t0, t1 - t0, static_cast<std::size_t>(messages - m0),
                       segments.size(), 0};
     aggregator.on_cycle(c);
     ++cycles;
@@ -609,10 +616,9 @@ struct ProcessSupervisor::Impl {
       r.merge(StatusLevel::Warn, fmt::format("segment {} rejected: {}", name, why));
     }
     if (r.total_ns.count > 0 && r.total_ns.ewma > 0.9 * static_cast<double>(options.period_ns)) {
-      r.merge(StatusLevel::Warn,
-              fmt::format("busy: EWMA of cycle time {} near its {} period",
-                          format_nanos(r.total_ns.ewma),
-                          format_nanos(static_cast<double>(options.period_ns))));
+      r.merge(StatusLevel::Warn, fmt::format("busy: EWMA of cycle time {} near its {} period",
+                                             format_nanos(r.total_ns.ewma),
+                                             format_nanos(static_cast<double>(options.period_ns))));
     }
     (void)t;
     return r;
@@ -701,11 +707,12 @@ expected<std::unique_ptr<ProcessSupervisor>, Error> ProcessSupervisor::create(
     ProcessSupervisorOptions options) {
   if (!bus::valid_supervisor_name(options.name)) {
     return unexpected<Error>(Error(EINVAL, fmt::format("supervisor name '{}' is not 1 to 31 of "
-                                                "A-Z a-z 0-9 _ -",
-                                                options.name)));
+                                                       "A-Z a-z 0-9 _ -",
+                                                       options.name)));
   }
   if (!options.group.empty() && !platform::group_id(options.group)) {
-    return unexpected<Error>(Error(EINVAL, fmt::format("group '{}' does not exist", options.group)));
+    return unexpected<Error>(
+        Error(EINVAL, fmt::format("group '{}' does not exist", options.group)));
   }
   if (options.period_ns <= 0) return unexpected<Error>(Error(EINVAL, "period must be positive"));
   return std::unique_ptr<ProcessSupervisor>(
@@ -800,7 +807,8 @@ ProcessSupervisorStats ProcessSupervisor::stats() const {
   s.cycles = impl_->cycles;
   s.messages = impl_->messages;
   s.segments = impl_->segments.size();
-  for (const auto& [key, p] : impl_->processes) (p->info.alive ? s.processes : s.dead_processes) += 1;
+  for (const auto& [key, p] : impl_->processes)
+    (p->info.alive ? s.processes : s.dead_processes) += 1;
   s.rejected = impl_->rejected_total;
   s.reclaimed = impl_->reclaimed;
   s.cycle_ns = impl_->cycle_time.summary();

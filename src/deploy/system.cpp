@@ -112,9 +112,10 @@ expected<void, Error> System::start() {
                              spec_.supervision.supervisor_period_ns / kNanosPerMilli,
                              spec_.supervision.monitor_period_ns / kNanosPerMilli));
   if (const auto shm = registry_.shared_memory()) {
-    log_.push_back(fmt::format("components in shared memory: supervised by `vigil supervise "
-                               "--name {}`, not by this process",
-                               shm->session().options().name));
+    log_.push_back(
+        fmt::format("components in shared memory: supervised by `vigil supervise "
+                    "--name {}`, not by this process",
+                    shm->session().options().name));
   }
   running_ = true;
   for (auto& e : extensions_) {

@@ -6,7 +6,6 @@
 #include <string>
 #include <type_traits>
 
-
 namespace vigil {
 
 namespace {
@@ -103,8 +102,7 @@ struct Checker {
 
 bool check_shm_message(Message& m, std::string& why) { return std::visit(Checker{why}, m); }
 
-expected<void, Error> place_in_shared_memory(Registry<Message>& registry,
-                                             bus::ShmOptions options) {
+expected<void, Error> place_in_shared_memory(Registry<Message>& registry, bus::ShmOptions options) {
   options.sticky_types = kShmStickyMessages;
   auto session = bus::ShmSession::open(std::move(options), kShmMessageSchema);
   if (!session) return unexpected<Error>(session.error());

@@ -129,8 +129,7 @@ TEST_CASE("A daemon started after the process gets its identity and exact counte
   CHECK(s->counters.dropped > 0);
 }
 
-TEST_CASE("A daemon restarted while the component runs keeps its counters exact",
-          "[shm][port]") {
+TEST_CASE("A daemon restarted while the component runs keeps its counters exact", "[shm][port]") {
   Placed p;
   Running r("restarted", p.registry);
   {
@@ -215,7 +214,8 @@ TEST_CASE("VIGIL_SUPERVISOR selects shared memory; a bad name is refused with a 
 TEST_CASE("check_shm_message rejects what would be undefined to read", "[shm][port]") {
   std::string why;
   SECTION("valid messages pass") {
-    Message m{CycleSample{.release_ns = 5, .start_ns = 10, .end_ns = 20, .counters = {.cycles = 1}}};
+    Message m{
+        CycleSample{.release_ns = 5, .start_ns = 10, .end_ns = 20, .counters = {.cycles = 1}}};
     CHECK(check_shm_message(m, why));
     Message i{TaskInfo{}};
     CHECK(check_shm_message(i, why));

@@ -50,7 +50,7 @@ bool check_test(TestVariant& m, std::string& why) {
 ShmExpectation expect(std::string_view sup = "sup") { return ShmExpectation{kSchema, sup}; }
 
 struct Mutation {
-  const char* field;     // the field the error must name ("" = accepted)
+  const char* field;  // the field the error must name ("" = accepted)
   std::function<void(ShmSegmentHeader&)> apply;
 };
 
@@ -111,7 +111,11 @@ TEST_CASE("Every header field, corrupted, is rejected naming the field", "[shm][
       {"state", [](auto& h) { h.state = 7; }},
       {"exit_kind", [](auto& h) { h.exit_kind = 3; }},
       {"write_index", [](auto& h) { h.write_index = h.capacity + 1; }},
-      {"write_index", [](auto& h) { h.read_index = 5; h.write_index = 4; }},
+      {"write_index",
+       [](auto& h) {
+         h.read_index = 5;
+         h.write_index = 4;
+       }},
       {"write_index", [](auto& h) { h.write_index = ~std::uint64_t{0}; }},
       {"dropped", [](auto& h) { h.dropped = h.offered + 1; }},
       // Informative fields: any value is harmless and accepted.
@@ -121,10 +125,22 @@ TEST_CASE("Every header field, corrupted, is rejected naming the field", "[shm][
       {"", [](auto& h) { h.component_index = 0xFFFFFFFF; }},
       {"", [](auto& h) { h.flags = 0xFFFFFFFF; }},
       {"", [](auto& h) { h.exit_code = -1; }},
-      {"", [](auto& h) { h.daemon_heartbeat_ns = -1; h.daemon_pid = -1; }},
+      {"",
+       [](auto& h) {
+         h.daemon_heartbeat_ns = -1;
+         h.daemon_pid = -1;
+       }},
       {"", [](auto& h) { h.drains = ~std::uint64_t{0}; }},
-      {"", [](auto& h) { h.reserved0 = h.reserved1 = 0xFFFFFFFF; std::memset(h.reserved2, 0xFF, 64); }},
-      {"", [](auto& h) { h.read_index = 1000; h.write_index = 1000 + h.capacity; }},
+      {"",
+       [](auto& h) {
+         h.reserved0 = h.reserved1 = 0xFFFFFFFF;
+         std::memset(h.reserved2, 0xFF, 64);
+       }},
+      {"",
+       [](auto& h) {
+         h.read_index = 1000;
+         h.write_index = 1000 + h.capacity;
+       }},
   };
   for (const Mutation& m : mutations) {
     Image img = make_image(kSchema, 16);
@@ -225,7 +241,8 @@ TEST_CASE("Supervisor names and segment names", "[shm][segment]") {
   CHECK(shm_segment_prefix("robot") == "vigil.robot.");
 }
 
-// --- real segments: the reader against a misbehaving writer ---------------------------------------
+// --- real segments: the reader against a misbehaving writer
+// ---------------------------------------
 
 namespace {
 

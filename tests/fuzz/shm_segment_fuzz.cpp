@@ -36,8 +36,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (size > (1U << 20)) return 0;
   // The image in memory aligned like a mapping (the reader uses atomics on it).
   std::unique_ptr<std::byte, void (*)(std::byte*)> image(
-      static_cast<std::byte*>(::operator new(std::max<std::size_t>(size, 1), std::align_val_t{4096})),
-      [](std::byte* p) { ::operator delete(p, std::align_val_t{4096}); });
+      static_cast<std::byte*>(
+          ::operator new (std::max<std::size_t>(size, 1), std::align_val_t{4096})),
+      [](std::byte* p) { ::operator delete (p, std::align_val_t{4096}); });
   if (size > 0) std::memcpy(image.get(), data, size);
 
   const bus::ShmExpectation expect{kShmMessageSchema, ""};

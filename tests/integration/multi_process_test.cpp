@@ -116,8 +116,7 @@ std::unique_ptr<Child> spawn(const std::function<void(const ChildLink&)>& body) 
 // Child body: `names` at 1 kHz on one periodic thread, in shared memory under `sup`; says ready
 // once every component ran, then waits for "go" and does `then` (by default: runs until killed).
 void run_components(const ChildLink& link, const std::string& sup,
-                    const std::vector<std::string>& names,
-                    const std::function<void()>& then = {}) {
+                    const std::vector<std::string>& names, const std::function<void()>& then = {}) {
   Registry<Message> reg;
   bus::ShmOptions o;
   o.name = sup;
@@ -250,12 +249,10 @@ TEST_CASE("A process that exits with a code or dies of a signal is reported so",
           "[integration][multi_process]") {
   const std::string name = test::unique_supervisor_name();
   test::ShmCleanup cleanup(name);
-  auto a = spawn([&](const ChildLink& l) {
-    run_components(l, name, {"e.code"}, [] { std::exit(3); });
-  });
-  auto b = spawn([&](const ChildLink& l) {
-    run_components(l, name, {"e.signal"}, [] { ::raise(SIGUSR1); });
-  });
+  auto a =
+      spawn([&](const ChildLink& l) { run_components(l, name, {"e.code"}, [] { std::exit(3); }); });
+  auto b = spawn(
+      [&](const ChildLink& l) { run_components(l, name, {"e.signal"}, [] { ::raise(SIGUSR1); }); });
   REQUIRE(a->wait_ready());
   REQUIRE(b->wait_ready());
   Daemon d(name);
@@ -266,9 +263,8 @@ TEST_CASE("A process that exits with a code or dies of a signal is reported so",
   const auto eb = d.wait_event(deploy::ProcessEvent::Kind::Exited, b->pid);
   REQUIRE(ea.has_value());
   REQUIRE(eb.has_value());
-  CHECK(ea->message ==
-        "process " + std::to_string(a->pid) + " (" + d.sup->processes().back().name +
-            ") exited with code 3");
+  CHECK(ea->message == "process " + std::to_string(a->pid) + " (" + d.sup->processes().back().name +
+                           ") exited with code 3");
   CHECK_THAT(eb->message, Catch::Contains("killed by signal 10 (SIGUSR1)"));
   CHECK(d.sup->reports().find("e.code")->status.level() == StatusLevel::Error);
   a->reap();
@@ -279,9 +275,8 @@ TEST_CASE("A process records its own end in its segments (for a daemon that come
           "[integration][multi_process]") {
   const std::string name = test::unique_supervisor_name();
   test::ShmCleanup cleanup(name);
-  auto a = spawn([&](const ChildLink& l) {
-    run_components(l, name, {"self.rec"}, [] { ::raise(SIGUSR1); });
-  });
+  auto a = spawn(
+      [&](const ChildLink& l) { run_components(l, name, {"self.rec"}, [] { ::raise(SIGUSR1); }); });
   REQUIRE(a->wait_ready());
   a->go();
   const int status = a->reap();
@@ -397,9 +392,11 @@ TEST_CASE("A deployment's supervision.shared_memory sends its components to the 
           "[integration][multi_process]") {
   const std::string name = test::unique_supervisor_name();
   test::ShmCleanup cleanup(name);
-  const std::string yaml = "activities: [{name: a, period: 1ms}]\n"
-                           "components: [{name: dep.x, type: test.plain, activity: a}]\n"
-                           "supervision: {shared_memory: " + name + ", lock_memory: false}\n";
+  const std::string yaml =
+      "activities: [{name: a, period: 1ms}]\n"
+      "components: [{name: dep.x, type: test.plain, activity: a}]\n"
+      "supervision: {shared_memory: " +
+      name + ", lock_memory: false}\n";
   auto spec = deploy::load_deployment_string(yaml, "shm.yaml", plain_factory());
   REQUIRE(spec.has_value());
   CHECK(spec->supervision.shared_memory == name);
@@ -419,9 +416,10 @@ TEST_CASE("A deployment's supervision.shared_memory sends its components to the 
 
 TEST_CASE("A bad shared_memory name in a deployment is an error at its line",
           "[integration][multi_process]") {
-  const std::string yaml = "activities: [{name: a, period: 1ms}]\n"
-                           "components: [{name: x, type: test.plain, activity: a}]\n"
-                           "supervision: {shared_memory: no/slash}\n";
+  const std::string yaml =
+      "activities: [{name: a, period: 1ms}]\n"
+      "components: [{name: x, type: test.plain, activity: a}]\n"
+      "supervision: {shared_memory: no/slash}\n";
   auto spec = deploy::load_deployment_string(yaml, "bad.yaml", plain_factory());
   REQUIRE_FALSE(spec.has_value());
   CHECK_THAT(config::to_string(spec.error()),

@@ -169,9 +169,9 @@ struct ShmGeometry {
 struct ShmSchema {
   std::uint64_t id = 0;
   std::uint32_t type_count = 0;
-  std::uint32_t payload_size = 0;                 ///< largest type, rounded up to 8
+  std::uint32_t payload_size = 0;                   ///< largest type, rounded up to 8
   std::array<std::uint32_t, kShmMaxTypes> sizes{};  ///< sizeof each type
-  std::string_view name;                          ///< e.g. "vigil.Message/1" (<= 47 characters)
+  std::string_view name;                            ///< e.g. "vigil.Message/1" (<= 47 characters)
 };
 
 namespace detail {

@@ -55,7 +55,8 @@ std::uint32_t copy_alternative(std::byte* dst, const Variant& m,
                                std::index_sequence<I...> /*unused*/) noexcept {
   std::uint32_t size = 0;
   (void)((m.index() == I
-              ? (std::memcpy(dst, std::get_if<I>(&m), sizeof(std::variant_alternative_t<I, Variant>)),
+              ? (std::memcpy(dst, std::get_if<I>(&m),
+                             sizeof(std::variant_alternative_t<I, Variant>)),
                  size = static_cast<std::uint32_t>(sizeof(std::variant_alternative_t<I, Variant>)),
                  true)
               : false) ||
@@ -241,15 +242,16 @@ class ShmReader {
                                             std::uint32_t uid, bool allow_group) {
     auto mem = platform::SharedMemory::open(name, kShmMaxSegmentSize);
     if (!mem) return unexpected<ShmError>(ShmError{"file", mem.error().message});
-    if (auto f = check_shm_file(mem->info(), uid, allow_group); !f) return unexpected<ShmError>(f.error());
+    if (auto f = check_shm_file(mem->info(), uid, allow_group); !f)
+      return unexpected<ShmError>(f.error());
     ShmSegmentHeader copy;
     struct Ctx {
       const void* src;
       ShmSegmentHeader* dst;
     } ctx{mem->data(), &copy};
     if (mem->size() < sizeof(ShmSegmentHeader)) {
-      return unexpected<ShmError>(ShmError{"file", std::to_string(mem->size()) +
-                                             " bytes, shorter than the header (truncated)"});
+      return unexpected<ShmError>(ShmError{
+          "file", std::to_string(mem->size()) + " bytes, shorter than the header (truncated)"});
     }
     if (!platform::run_guarded(
             [](void* p) noexcept {
@@ -257,7 +259,8 @@ class ShmReader {
               std::memcpy(c.dst, c.src, sizeof(ShmSegmentHeader));
             },
             &ctx)) {
-      return unexpected<ShmError>(ShmError{"file", "truncated while being read (bus error caught)"});
+      return unexpected<ShmError>(
+          ShmError{"file", "truncated while being read (bus error caught)"});
     }
     auto info = validate_shm_header(copy, mem->size(), e);
     if (!info) return unexpected<ShmError>(info.error());
@@ -346,14 +349,15 @@ class ShmReader {
     ShmRecordHeader h;
     std::memcpy(&h, rec, sizeof h);
     if (h.seq <= last_seq_) {
-      return unexpected<ShmError>(ShmError{"record.seq", "sequence " + std::to_string(h.seq) +
-                                                   " does not follow " +
-                                                   std::to_string(last_seq_)});
+      return unexpected<ShmError>(ShmError{
+          "record.seq",
+          "sequence " + std::to_string(h.seq) + " does not follow " + std::to_string(last_seq_)});
     }
     ShmError why;
     if (!decode_shm_record(rec, out, &why)) return unexpected<ShmError>(why);
     std::string reason;
-    if (check != nullptr && !check(out, reason)) return unexpected<ShmError>(ShmError{"record", reason});
+    if (check != nullptr && !check(out, reason))
+      return unexpected<ShmError>(ShmError{"record", reason});
     last_seq_ = h.seq;
     seq = h.seq;
     return {};
@@ -368,8 +372,8 @@ class ShmReader {
       std::memcpy(&h, rec.data(), sizeof h);
       if (h.seq <= after || h.seq >= before) continue;
       if (h.type != t) {
-        return fail(ShmError{"mailbox", "mailbox " + std::to_string(t) + " holds type " +
-                                            std::to_string(h.type)});
+        return fail(ShmError{
+            "mailbox", "mailbox " + std::to_string(t) + " holds type " + std::to_string(h.type)});
       }
       Variant v;
       ShmError why;

@@ -126,7 +126,8 @@ class ShmRingReader {
   /// Reads the segment at `base`, whose header validated to geometry `g` (base must stay mapped
   /// for the reader's life). Starts at the read index the segment holds (a daemon restarted
   /// continues where the previous one stopped).
-  ShmRingReader(void* base, const ShmGeometry& g) noexcept : base_(static_cast<std::byte*>(base)), g_(g) {}
+  ShmRingReader(void* base, const ShmGeometry& g) noexcept
+      : base_(static_cast<std::byte*>(base)), g_(g) {}
 
   /// The state fields, validated (state and exit kind in range, indices consistent with what
   /// this reader consumed). An error means the segment is corrupt (or was truncated).

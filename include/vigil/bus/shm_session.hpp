@@ -139,8 +139,8 @@ class ShmPorts {
   /// Opens the shared-memory port of component `name` (capacity at least `capacity`), or
   /// returns null after reporting why (the component then uses an in-process port).
   std::shared_ptr<ShmPort<Variant>> open(std::string_view name, std::size_t capacity) {
-    auto seg = session_->create(name, static_cast<std::uint32_t>(
-                                          std::min<std::size_t>(capacity, kShmMaxCapacity)));
+    auto seg = session_->create(
+        name, static_cast<std::uint32_t>(std::min<std::size_t>(capacity, kShmMaxCapacity)));
     if (!seg) {
       session_->report("vigil: component '" + std::string(name) +
                        "' is supervised in-process only: " + seg.error().message);

@@ -73,7 +73,7 @@ struct ProcessInfo {
   /// Where that came from: "pidfd" (the kernel, Linux >= 6.15), "self" (the process recorded
   /// it), "zombie" (/proc before the parent reaped it), or "unknown".
   std::string exit_source;
-  Nanos ended_at = 0;  ///< monitor clock when the death was detected
+  Nanos ended_at = 0;                   ///< monitor clock when the death was detected
   std::vector<std::string> components;  ///< its components (alive ones, or those it had)
 };
 

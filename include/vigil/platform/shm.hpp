@@ -125,9 +125,9 @@ class ShmDirectoryWatch {
 /// Runs `fn(ctx)` and returns true, or returns false if it raised SIGBUS by touching a mapping
 /// beyond the end of its file (another process truncated the file after it was mapped). The
 /// first call installs a SIGBUS handler; a SIGBUS outside such a call goes to the handler that
-/// was there before (or the default action). `fn` must only read and write memory: it may be abandoned half-way (no destructor runs, nothing may be allocated or
-/// locked). Thread-safe (per-thread state). Not RT-safe: the daemon's guard around one
-/// segment's drain (~20 ns).
+/// was there before (or the default action). `fn` must only read and write memory: it may be
+/// abandoned half-way (no destructor runs, nothing may be allocated or locked). Thread-safe
+/// (per-thread state). Not RT-safe: the daemon's guard around one segment's drain (~20 ns).
 bool run_guarded(void (*fn)(void* ctx) noexcept, void* ctx) noexcept;
 
 }  // namespace vigil::platform

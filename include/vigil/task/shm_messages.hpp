@@ -14,12 +14,12 @@
 #include <cstdint>
 #include <string>
 
-#include "vigil/task/messages.hpp"
+#include "vigil/bus/registry.hpp"
 #include "vigil/bus/shm_layout.hpp"
 #include "vigil/bus/shm_session.hpp"
 #include "vigil/error.hpp"
 #include "vigil/expected.hpp"
-#include "vigil/bus/registry.hpp"
+#include "vigil/task/messages.hpp"
 
 namespace vigil {
 

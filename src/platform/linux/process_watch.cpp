@@ -169,8 +169,8 @@ std::int64_t start_time_unix_ns(std::uint64_t start_ticks) noexcept {
   // suspend, as the start ticks do).
   timespec boot{};
   ::clock_gettime(CLOCK_BOOTTIME, &boot);
-  const std::int64_t since_boot = static_cast<std::int64_t>(boot.tv_sec) * kNanosPerSecond +
-                                  boot.tv_nsec;
+  const std::int64_t since_boot =
+      static_cast<std::int64_t>(boot.tv_sec) * kNanosPerSecond + boot.tv_nsec;
   const long hz = ::sysconf(_SC_CLK_TCK);
   const std::int64_t start =
       hz > 0 ? static_cast<std::int64_t>(start_ticks) * (kNanosPerSecond / hz) : 0;
@@ -213,8 +213,7 @@ ExitStatus ExitStatus::from_wait_status(int status) noexcept {
 
 // --- ProcessWatch ---------------------------------------------------------------------------
 
-ProcessWatch::ProcessWatch(ProcessWatch&& o) noexcept
-    : fd_(std::exchange(o.fd_, -1)), id_(o.id_) {}
+ProcessWatch::ProcessWatch(ProcessWatch&& o) noexcept : fd_(std::exchange(o.fd_, -1)), id_(o.id_) {}
 ProcessWatch& ProcessWatch::operator=(ProcessWatch&& o) noexcept {
   if (this != &o) {
     if (fd_ >= 0) ::close(fd_);
@@ -240,7 +239,8 @@ expected<ProcessWatch, Error> ProcessWatch::open(const ProcessIdentity& id) {
   // pidfd never moves to another process).
   const StatFields f = stat_of(id.pid);
   if (!f.ok || f.start_ticks != id.start_ticks) {
-    return unexpected<Error>(Error(ESRCH, "process " + std::to_string(id.pid) + " is gone (pid reused)"));
+    return unexpected<Error>(
+        Error(ESRCH, "process " + std::to_string(id.pid) + " is gone (pid reused)"));
   }
   return w;
 }

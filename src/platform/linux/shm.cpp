@@ -81,7 +81,8 @@ expected<SharedMemory, Error> SharedMemory::create(const std::string& name, std:
   if (!valid_name(name)) {
     return unexpected<Error>(Error(EINVAL, "shared memory name '" + name + "' is not /NAME"));
   }
-  if (size == 0) return unexpected<Error>(Error(EINVAL, "shared memory segment " + name + ": size 0"));
+  if (size == 0)
+    return unexpected<Error>(Error(EINVAL, "shared memory segment " + name + ": size 0"));
   std::optional<std::uint32_t> gid;
   std::uint32_t mode = options.mode & 0777;
   if (!options.group.empty()) {
@@ -130,16 +131,18 @@ expected<SharedMemory, Error> SharedMemory::open(const std::string& name, std::s
   struct stat st {};
   if (::fstat(fd, &st) != 0) return unexpected<Error>(os_error(errno, "fstat(" + name + ")"));
   if (!S_ISREG(st.st_mode)) {
-    return unexpected<Error>(Error(EINVAL, "shared memory segment " + name + " is not a regular file"));
+    return unexpected<Error>(
+        Error(EINVAL, "shared memory segment " + name + " is not a regular file"));
   }
   m.info_ = info_of(st);
   if (st.st_size <= 0) {
-    return unexpected<Error>(Error(EINVAL, "shared memory segment " + name + " is empty (0 bytes)"));
+    return unexpected<Error>(
+        Error(EINVAL, "shared memory segment " + name + " is empty (0 bytes)"));
   }
   if (static_cast<std::uint64_t>(st.st_size) > max_size) {
     return unexpected<Error>(Error(EFBIG, "shared memory segment " + name + " is " +
-                                       std::to_string(st.st_size) + " bytes, more than " +
-                                       std::to_string(max_size) + " accepted"));
+                                              std::to_string(st.st_size) + " bytes, more than " +
+                                              std::to_string(max_size) + " accepted"));
   }
   const auto size = static_cast<std::size_t>(st.st_size);
   void* p = ::mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
@@ -156,7 +159,8 @@ expected<void, Error> SharedMemory::unlink() const {
 
 expected<ShmFileInfo, Error> SharedMemory::stat() const {
   struct stat st {};
-  if (fd_ < 0 || ::fstat(fd_, &st) != 0) return unexpected<Error>(os_error(errno, "fstat(" + name_ + ")"));
+  if (fd_ < 0 || ::fstat(fd_, &st) != 0)
+    return unexpected<Error>(os_error(errno, "fstat(" + name_ + ")"));
   return info_of(st);
 }
 
