@@ -36,7 +36,7 @@ std::string_view hint_for(std::string_view unit) {
   return "";
 }
 
-constexpr std::size_t kMinStack = 16 * 1024;
+constexpr std::size_t kMinStack = std::size_t{16} * 1024;
 constexpr std::size_t kMaxStack = std::size_t{1024} * 1024 * 1024;
 
 }  // namespace

@@ -12,6 +12,6 @@ namespace vigil {
 /// part of a cycle uses a few KiB). Under mlockall the whole stack is resident and locked, so
 /// this is what an activity's thread costs in RAM (docs/design/memory.md). Set it per activity
 /// in the deployment (`stack: 1MiB`) or in the configuration.
-inline constexpr std::size_t kDefaultActivityStackBytes = 512 * 1024;
+inline constexpr std::size_t kDefaultActivityStackBytes = std::size_t{512} * 1024;
 
 }  // namespace vigil

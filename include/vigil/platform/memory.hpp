@@ -13,7 +13,7 @@ struct RealtimeSetupOptions {
   /// mlockall(MCL_CURRENT | MCL_FUTURE): no page of the process is ever paged out.
   bool lock_memory = true;
   /// Bytes of the calling thread's stack to touch now.
-  std::size_t prefault_stack_bytes = 256 * 1024;
+  std::size_t prefault_stack_bytes = std::size_t{256} * 1024;
   /// Bytes of heap to allocate, touch and give back to malloc, which then keeps them
   /// (M_TRIM_THRESHOLD and M_MMAP_MAX are set so that glibc neither returns nor mmaps them).
   /// 4 MiB: more than a deployment of a few dozen components allocates after start (the demo
@@ -21,7 +21,7 @@ struct RealtimeSetupOptions {
   /// Under mlockall the heap's later growth is locked and made resident by the kernel at the
   /// moment it grows, so a smaller value costs a brk() call, never a page fault in a cycle.
   /// Every prefaulted byte stays resident (and locked) for the life of the process.
-  std::size_t prefault_heap_bytes = 4 * 1024 * 1024;
+  std::size_t prefault_heap_bytes = std::size_t{4} * 1024 * 1024;
   /// Upper bound on glibc's malloc arenas (mallopt M_ARENA_MAX); 0 keeps glibc's default
   /// (8 per CPU on 64-bit). 1, the default: every thread allocates from the main heap, the one
   /// prefaulted above. With more arenas, a thread that allocates gets an arena of its own, which

@@ -30,7 +30,7 @@ enum class SchedPolicy : std::uint8_t {
 /// supervisor), unless their options say otherwise: 256 KiB. Their deepest use measured in the
 /// demo is below 64 KiB (docs/design/memory.md). Under mlockall every byte of a thread's stack is
 /// resident and locked, so the size of a stack is what the thread costs in RAM.
-inline constexpr std::size_t kDefaultStackBytes = 256 * 1024;
+inline constexpr std::size_t kDefaultStackBytes = std::size_t{256} * 1024;
 
 /// What a thread is created with.
 struct ThreadConfig {
@@ -49,7 +49,7 @@ struct ThreadConfig {
   std::size_t stack_bytes = kDefaultStackBytes;
   /// Bytes of stack to touch at thread start so that the first cycles take no page fault; at
   /// most half of `stack_bytes` is touched (when `stack_bytes` is not 0).
-  std::size_t prefault_stack_bytes = 64 * 1024;
+  std::size_t prefault_stack_bytes = std::size_t{64} * 1024;
 };
 
 /// A joinable thread made by `Thread::spawn`. Move-only; joins in its destructor if still

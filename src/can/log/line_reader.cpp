@@ -24,7 +24,7 @@ namespace vigil::can::detail {
 
 namespace {
 // Large enough that a read system call moves many lines at once, small enough to stay in L2.
-constexpr std::size_t kBlockBytes = 64 * 1024;
+constexpr std::size_t kBlockBytes = std::size_t{64} * 1024;
 }  // namespace
 
 LineReader::LineReader(std::streambuf* source, std::size_t max_line_bytes)

@@ -127,7 +127,8 @@ expected<Thread, Error> Thread::spawn(const ThreadConfig& config, std::function<
     const std::size_t size = config.stack_bytes < static_cast<std::size_t>(PTHREAD_STACK_MIN)
                                  ? static_cast<std::size_t>(PTHREAD_STACK_MIN)
                                  : config.stack_bytes;
-    if ((rc = pthread_attr_setstacksize(&attr, size)) != 0) {
+    rc = pthread_attr_setstacksize(&attr, size);
+    if (rc != 0) {
       return unexpected(Error{rc, fmt::format("{}: stack size {}: {}", describe(config, ops.label),
                                               size, std::strerror(rc))});
     }
