@@ -5,7 +5,7 @@
 
 #include "vigil/bus/port.hpp"
 #include "vigil/bus/registry.hpp"
-#include "vigil/config.hpp"
+#include "vigil/build_config.hpp"
 #include "vigil/error.hpp"
 #include "vigil/exec/manual_activity.hpp"
 #include "vigil/exec/periodic_activity.hpp"
@@ -21,6 +21,7 @@
 #include "vigil/platform/rt_loss.hpp"
 #include "vigil/platform/thread.hpp"
 #include "vigil/platform/thread_stats.hpp"
+#include "vigil/service/supervision_service.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 #include "vigil/supervisor/supervisor.hpp"
 #include "vigil/task/component_supervisor.hpp"

@@ -114,3 +114,24 @@ TEST_CASE("Stress: many components push while the supervisor drains and readers 
   }
   CHECK(snapshots > 0);
 }
+
+TEST_CASE("The aggregator keeps the latest real-time loss report; counts come from the samples",
+          "[supervisor][aggregator]") {
+  Registry<Message> reg;
+  ComponentAggregator agg;
+  ComponentSupervisorLoop sup(reg, agg);
+  auto m = reg.join<16>("lossy");
+  CycleSample s;
+  s.counters.cycles = 7;
+  s.counters.losses[static_cast<std::size_t>(LossCause::Allocation)] = 3;
+  REQUIRE(m.port()->try_push(Message{RealTimeLoss{7, LossCause::Allocation, 2}}));
+  REQUIRE(m.port()->try_push(Message{s}));
+  sup.step();
+  const auto snap = agg.find("lossy");
+  REQUIRE(snap.has_value());
+  REQUIRE(snap->has_loss);
+  CHECK(snap->last_loss.cycle == 7);
+  CHECK(snap->last_loss.cause == LossCause::Allocation);
+  CHECK(snap->last_loss.count == 2);
+  CHECK(snap->counters.loss(LossCause::Allocation) == 3);  // the sample's total, not the report's
+}

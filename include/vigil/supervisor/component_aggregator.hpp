@@ -54,6 +54,11 @@ struct ComponentSnapshot {
   bool has_exception = false;
   ExceptionReport last_exception;
   std::string last_exception_type;  ///< demangled
+  /// The latest real-time loss reported (the cycle it happened in, its cause and count); the
+  /// totals by cause are in `counters.losses`.
+  bool has_loss = false;
+  RealTimeLoss last_loss;
+  Nanos last_loss_at = 0;  ///< supervisor clock when it arrived
   bool has_state_change = false;
   StateChange last_change;
   Nanos joined_at = 0;       ///< supervisor clock
