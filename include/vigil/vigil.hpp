@@ -24,7 +24,7 @@
 #include "vigil/service/supervision_service.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 #include "vigil/supervisor/supervisor.hpp"
-#include "vigil/task/component_supervisor.hpp"
+#include "vigil/task/instrumentation.hpp"
 #include "vigil/task/default_registry.hpp"
 #include "vigil/task/messages.hpp"
 #include "vigil/task/shm_messages.hpp"

@@ -87,7 +87,7 @@ struct Harness {
   FakeClock clock;
   Registry<Message> registry;
   ComponentAggregator aggregator{AggregatorOptions{.clock = clock.clock()}};
-  ComponentSupervisorLoop supervisor{registry, aggregator,
+  TaskSupervisor supervisor{registry, aggregator,
                                      SupervisorOptions{.clock = clock.clock()}};
   Monitor monitor;
 };

@@ -171,7 +171,7 @@ class SupervisionService {
 
   [[nodiscard]] ComponentRegistry& registry() noexcept { return registry_; }
   [[nodiscard]] ComponentAggregator& aggregator() noexcept { return aggregator_; }
-  [[nodiscard]] ComponentSupervisorLoop& supervisor() noexcept { return supervisor_; }
+  [[nodiscard]] TaskSupervisor& supervisor() noexcept { return supervisor_; }
   /// The monitor: add checks, set or watch thresholds here.
   [[nodiscard]] Monitor& monitor() noexcept { return monitor_; }
   [[nodiscard]] const SupervisionServiceOptions& options() const noexcept { return options_; }
@@ -186,7 +186,7 @@ class SupervisionService {
   SupervisionServiceOptions options_;
   ComponentRegistry& registry_;
   ComponentAggregator aggregator_;
-  ComponentSupervisorLoop supervisor_;
+  TaskSupervisor supervisor_;
   Monitor monitor_;
   std::uint64_t monitor_subscription_ = 0;
   std::vector<std::unique_ptr<ReportOutput>> outputs_;

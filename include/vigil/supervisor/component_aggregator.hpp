@@ -160,7 +160,9 @@ class ComponentAggregator {
 
 static_assert(SupervisorHandler<ComponentAggregator, Message>);
 
-/// The supervisor of components.
-using ComponentSupervisorLoop = Supervisor<Message, ComponentAggregator>;
+/// The supervisor of tasks: one non-RT thread (or step()) that drains the port of every
+/// component of a registry into a ComponentAggregator. Each component's own side is its
+/// Task<Derived> or Instrumentation. (Was `ComponentSupervisorLoop`.)
+using TaskSupervisor = Supervisor<Message, ComponentAggregator>;
 
 }  // namespace vigil

@@ -1,7 +1,7 @@
 #pragma once
 /// @file
 /// Supervision options, and `CycleRecorder`, the one implementation of per-cycle supervision
-/// behind both front ends: `Task<Derived>` and `ComponentSupervisor`.
+/// behind both front ends: `Task<Derived>` and `Instrumentation`.
 
 #include <atomic>
 #include <cstdint>
@@ -105,7 +105,7 @@ class CycleRecorder {
     pending_ |= kInfo;
     flush();
   }
-  /// Sends identity for code without an activity (ComponentSupervisor::init). RT-safe.
+  /// Sends identity for code without an activity (Instrumentation::init). RT-safe.
   void send_info(const TaskInfo& info) noexcept {
     info_ = info;
     info_.name.assign(name_);
