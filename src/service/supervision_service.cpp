@@ -5,7 +5,7 @@
 
 #include "vigil/export/json_report.hpp"
 
-namespace vigil {
+namespace vigil::service {
 
 namespace {
 
@@ -234,4 +234,4 @@ void SupervisionService::publish(const ReportSet& monitor_reports) {
   for (auto& o : outputs_) o->on_reports(r);
 }
 
-}  // namespace vigil
+}  // namespace vigil::service

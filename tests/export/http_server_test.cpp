@@ -439,7 +439,7 @@ TEST_CASE("serve_http: one call in a program with real threads", "[export][http]
   Registry<Message> registry;
   ComponentAggregator aggregator;
   TaskSupervisor supervisor(registry, aggregator,
-                                     SupervisorOptions{.period_ns = 5 * kNanosPerMilli});
+                            SupervisorOptions{.period_ns = 5 * kNanosPerMilli});
   Monitor monitor(aggregator, MonitorOptions{.period_ns = 20 * kNanosPerMilli});
   monitor.set_supervisor(&supervisor);
   HttpOptions o = quiet_options();

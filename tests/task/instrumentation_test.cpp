@@ -12,8 +12,7 @@ using namespace vigil;
 using vigil::test::drain;
 using vigil::test::only;
 
-TEST_CASE("Instrumentation produces the same samples as Task<Derived>",
-          "[task][instrumentation]") {
+TEST_CASE("Instrumentation produces the same samples as Task<Derived>", "[task][instrumentation]") {
   Registry<Message> reg;
   vigil::test::FakeClock fc;
   constexpr Nanos kPeriod = 1000;
@@ -53,8 +52,7 @@ TEST_CASE("Instrumentation produces the same samples as Task<Derived>",
   }
 }
 
-TEST_CASE("Instrumentation reads its thread's identity in init",
-          "[task][instrumentation]") {
+TEST_CASE("Instrumentation reads its thread's identity in init", "[task][instrumentation]") {
   Registry<Message> reg;
   Instrumentation sup("legacy", {}, reg);
   sup.init(

@@ -56,7 +56,7 @@
 #include "vigil/supervisor/running_stats.hpp"
 #include "vigil/task/default_registry.hpp"
 
-namespace vigil {
+namespace vigil::service {
 
 /// Options of a SupervisionService: an aggregate with a sensible default for every field, so
 /// `SupervisionService{}` is a working pipeline and a program names only what it changes:
@@ -200,4 +200,11 @@ class SupervisionService {
   bool stopped_ = false;
 };
 
+}  // namespace vigil::service
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using service::ReportOutput;
+using service::SupervisionService;
+using service::SupervisionServiceOptions;
 }  // namespace vigil

@@ -45,7 +45,7 @@ class BasicInstrumentation {
  public:
   /// Registers the component's port. Not RT-safe.
   explicit BasicInstrumentation(std::string name, SupervisionOptions options = {},
-                                    Registry<Message>& registry = default_registry())
+                                Registry<Message>& registry = default_registry())
       : recorder_(std::move(name), options, registry) {}
 
   /// Call once from the component's own thread before its loop: reads the thread's policy,

@@ -17,7 +17,8 @@
 #error "src/platform/cobalt is compiled with `xeno-config --posix` flags; vigil uses `--cobalt`"
 #endif
 #if !VIGIL_PLATFORM_COBALT || VIGIL_PLATFORM_LINUX
-#error "src/platform/cobalt is compiled but vigil/build_config.hpp says VIGIL_PLATFORM is not cobalt"
+#error \
+    "src/platform/cobalt is compiled but vigil/build_config.hpp says VIGIL_PLATFORM is not cobalt"
 #endif
 #if !defined(__cplusplus) || __cplusplus < 202002L
 #error "vigil's platform layer needs C++20"
