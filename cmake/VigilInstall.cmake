@@ -3,7 +3,7 @@ include(CMakePackageConfigHelpers)
 
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/vigil DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(FILES ${PROJECT_BINARY_DIR}/include/vigil/version.hpp
-              ${PROJECT_BINARY_DIR}/include/vigil/config.hpp
+              ${PROJECT_BINARY_DIR}/include/vigil/build_config.hpp
         DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/vigil)
 
 install(TARGETS ${VIGIL_MODULE_TARGETS} vigil_vigil vigil_alloc_guard

@@ -73,7 +73,7 @@ void supervised_component(benchmark::State& state) {
     state.PauseTiming();
     Registry<Message> registry;
     ComponentAggregator aggregator;
-    ComponentSupervisorLoop supervisor(registry, aggregator);
+    TaskSupervisor supervisor(registry, aggregator);
     MonitorOptions mo;
     mo.read_thread_stats = false;
     Monitor monitor(aggregator, mo);

@@ -111,7 +111,7 @@ struct World {
 
   Registry<Message> registry;
   ComponentAggregator aggregator;
-  ComponentSupervisorLoop supervisor;
+  TaskSupervisor supervisor;
   Monitor monitor;
   std::vector<Membership<Message, kCapacity>> members;
   std::vector<std::uint64_t> cycles;

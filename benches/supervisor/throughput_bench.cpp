@@ -140,7 +140,7 @@ void cpu_share(benchmark::State& state) {
   for (auto _ : state) {
     Components comps(n);
     ComponentAggregator aggregator;
-    ComponentSupervisorLoop supervisor(comps.registry, aggregator);
+    TaskSupervisor supervisor(comps.registry, aggregator);
     (void)supervisor.step();
     std::atomic<bool> quit{false};
     Nanos cpu = 0;

@@ -192,7 +192,8 @@ class Floor {
 };
 
 /// An experiment, not a floor: the same cycle pushing a 128-byte, cache-line-aligned element
-/// (a CycleSample alone) instead of the 224-byte Message, to show what the message's size costs.
+/// (a CycleSample alone) instead of the 128-byte Message in its unaligned ring, to show what
+/// alignment costs.
 class Floor128 {
  public:
   struct alignas(64) Slot {

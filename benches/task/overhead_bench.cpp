@@ -1,7 +1,7 @@
 // Per-cycle cost of supervision next to its floor, measured in the same repetition.
 //
 // Subjects: Task<Derived> with an empty on_update() stepped by a ManualActivity, for each
-// real-time-loss detector setting; the ComponentSupervisor + UpdateGuard path; and, for scale,
+// real-time-loss detector setting; the Instrumentation + UpdateGuard path; and, for scale,
 // the same activity driving an unsupervised TaskCore. The floor (bench_support.hpp): two reads
 // of vigil's clock around the same empty call and one push of the same Message into the queue
 // type behind every Port, with the same capacity.
@@ -33,7 +33,7 @@
 #include "support/bench_support.hpp"
 #include "vigil/exec/manual_activity.hpp"
 #include "vigil/platform/rt_loss.hpp"
-#include "vigil/task/component_supervisor.hpp"
+#include "vigil/task/instrumentation.hpp"
 #include "vigil/task/task.hpp"
 
 #ifdef VIGIL_BENCH_LTTNG
@@ -114,7 +114,7 @@ struct GuardSubject {
   std::uint64_t dropped() const { return sup.port()->dropped(); }
 
   Registry<Message> registry;
-  ComponentSupervisor sup;
+  Instrumentation sup;
 };
 
 #ifdef VIGIL_BENCH_LTTNG

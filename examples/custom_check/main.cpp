@@ -62,7 +62,7 @@ int main(int argc, char** argv) {
   }
 
   vigil::ComponentAggregator aggregator;
-  vigil::ComponentSupervisorLoop supervisor(vigil::default_registry(), aggregator);
+  vigil::TaskSupervisor supervisor(vigil::default_registry(), aggregator);
   vigil::Monitor monitor(aggregator, {.period_ns = 500 * vigil::kNanosPerMilli});
   monitor.set_supervisor(&supervisor);
   monitor.add_check<LatencyCheck>();         // the registration line

@@ -1,7 +1,7 @@
 // manual_instrumentation: supervision for code that cannot change its base class.
 //
 // A vendor's control loop derives from the vendor's base and owns its thread. It keeps a
-// vigil::ComponentSupervisor as a member: init() once from its thread, then an UpdateGuard per
+// vigil::Instrumentation as a member: init() once from its thread, then an UpdateGuard per
 // cycle (pre on construction, post on destruction). The data is the same as Task<Derived>'s.
 #include <cstdio>
 #include <stdexcept>
@@ -38,12 +38,12 @@ class Gripper : public VendorLoopBase {
   }
 
  private:
-  vigil::ComponentSupervisor sup_{"gripper"};
+  vigil::Instrumentation sup_{"gripper"};
 };
 
 int main() {
   vigil::ComponentAggregator aggregator;
-  vigil::ComponentSupervisorLoop supervisor(vigil::default_registry(), aggregator);
+  vigil::TaskSupervisor supervisor(vigil::default_registry(), aggregator);
   vigil::Monitor monitor(aggregator);
   supervisor.start();
 

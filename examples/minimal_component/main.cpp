@@ -2,8 +2,7 @@
 //
 // A component inherits vigil::Task<Motor> (the one line) and writes on_update(). Everything
 // else here is the set-up a real program has anyway (a periodic activity) plus the supervision
-// pipeline that reports on it: a supervisor draining the component's port and a monitor
-// checking what it collected.
+// pipeline that reports on it: one vigil::SupervisionService.
 #include <cmath>
 #include <cstdio>
 #include <thread>
@@ -30,12 +29,13 @@ class Motor : public vigil::Task<Motor> {  // <- the one line
 int main() {
   vigil::platform::setup_realtime_process();
 
-  // The supervision pipeline (once per process).
-  vigil::ComponentAggregator aggregator;
-  vigil::ComponentSupervisorLoop supervisor(vigil::default_registry(), aggregator);
-  vigil::Monitor monitor(aggregator);
-  monitor.set_supervisor(&supervisor);
-  supervisor.start();
+  // The supervision pipeline, once per process: a supervisor thread draining every component's
+  // port, a monitor checking what it collected, the summary printed at stop.
+  vigil::SupervisionService supervision({.details_at_stop = true});
+  if (auto r = supervision.start(); !r) {
+    std::fprintf(stderr, "cannot supervise: %s\n", r.error().message.c_str());
+    return 1;
+  }
 
   // The component, on a 1 kHz FIFO thread (SCHED_OTHER, reported, without the privilege).
   Motor motor;
@@ -50,10 +50,7 @@ int main() {
   }
   std::this_thread::sleep_for(std::chrono::seconds(2));
   activity.stop();
-  supervisor.stop();
 
-  const vigil::ReportSet reports = monitor.step();
-  vigil::print_summary(stdout, reports);
-  vigil::print_details(stdout, reports);
+  const vigil::ReportSet reports = supervision.stop();  // last drain, summary and details
   return reports.find("motor") != nullptr ? 0 : 1;
 }

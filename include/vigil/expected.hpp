@@ -7,7 +7,7 @@
 /// `operator*`, `value_or`); use `vigil::unexpected(e)` to return an error. GCC 12's
 /// std::expected has no monadic operations (and_then, transform): vigil does not use them.
 
-#include "vigil/config.hpp"
+#include "vigil/build_config.hpp"
 
 #if VIGIL_EXPECTED_TL
 #include <tl/expected.hpp>

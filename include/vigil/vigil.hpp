@@ -3,9 +3,9 @@
 /// Umbrella header: everything a component author and an integrator need.
 /// Library code includes the precise headers instead.
 
+#include "vigil/build_config.hpp"
 #include "vigil/bus/port.hpp"
 #include "vigil/bus/registry.hpp"
-#include "vigil/config.hpp"
 #include "vigil/error.hpp"
 #include "vigil/exec/manual_activity.hpp"
 #include "vigil/exec/periodic_activity.hpp"
@@ -21,10 +21,11 @@
 #include "vigil/platform/rt_loss.hpp"
 #include "vigil/platform/thread.hpp"
 #include "vigil/platform/thread_stats.hpp"
+#include "vigil/service/supervision_service.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 #include "vigil/supervisor/supervisor.hpp"
-#include "vigil/task/component_supervisor.hpp"
 #include "vigil/task/default_registry.hpp"
+#include "vigil/task/instrumentation.hpp"
 #include "vigil/task/messages.hpp"
 #include "vigil/task/shm_messages.hpp"
 #include "vigil/task/task.hpp"

@@ -11,7 +11,7 @@ namespace vigil::deploy {
 System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
   aggregator_ = std::make_unique<ComponentAggregator>(
       AggregatorOptions{.ewma_weight = spec_.supervision.ewma_weight});
-  supervisor_ = std::make_unique<ComponentSupervisorLoop>(
+  supervisor_ = std::make_unique<TaskSupervisor>(
       registry_, *aggregator_,
       SupervisorOptions{.period_ns = spec_.supervision.supervisor_period_ns,
                         .stack_bytes = spec_.supervision.supervisor_stack_bytes});

@@ -1,6 +1,6 @@
 #include "vigil/exec/manual_activity.hpp"
 
-namespace vigil {
+namespace vigil::exec {
 
 ManualActivity::ManualActivity(TaskCore& task, ManualConfig config)
     : task_(task),
@@ -44,4 +44,4 @@ bool ManualActivity::step() noexcept {
   return ok;
 }
 
-}  // namespace vigil
+}  // namespace vigil::exec

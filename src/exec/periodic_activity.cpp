@@ -11,7 +11,7 @@
 #include "vigil/platform/rt_loss.hpp"
 #include "vigil/platform/wait.hpp"
 
-namespace vigil {
+namespace vigil::exec {
 namespace detail {
 
 // Design: a PeriodicThread runs the tasks of every activity with one key, in slot order. Slots
@@ -278,4 +278,4 @@ void PeriodicActivity::stop() {
   thread_.reset();
 }
 
-}  // namespace vigil
+}  // namespace vigil::exec

@@ -1,6 +1,6 @@
 #include "vigil/exec/schedule.hpp"
 
-namespace vigil {
+namespace vigil::exec {
 
 Schedule::Schedule(Nanos period_ns, OverrunPolicy policy, OverrunLimit limit)
     : period_(period_ns), policy_(policy), limit_(limit) {
@@ -52,4 +52,4 @@ Schedule::Outcome Schedule::advance_slow(Nanos end) noexcept {
   return o;
 }
 
-}  // namespace vigil
+}  // namespace vigil::exec

@@ -6,7 +6,7 @@
 #include "vigil/expected.hpp"
 #include "vigil/platform/thread.hpp"
 
-namespace vigil::detail {
+namespace vigil::exec::detail {
 
 /// Spawns an activity's thread with `config`. When SCHED_FIFO is refused (EPERM) and
 /// `fallback_to_other` is set, spawns it SCHED_OTHER instead, sets `realtime_refused` and changes
@@ -27,4 +27,4 @@ inline expected<platform::Thread, Error> spawn_activity_thread(platform::ThreadC
   return t;
 }
 
-}  // namespace vigil::detail
+}  // namespace vigil::exec::detail

@@ -6,7 +6,7 @@
 #include "vigil/platform/rt_loss.hpp"
 #include "vigil/platform/wait.hpp"
 
-namespace vigil {
+namespace vigil::exec {
 
 namespace {
 constexpr std::uint32_t kStart = 1;
@@ -110,4 +110,4 @@ void TriggeredActivity::run() {
   }
 }
 
-}  // namespace vigil
+}  // namespace vigil::exec

@@ -87,7 +87,7 @@ struct Monitor::Impl {
   mutable std::mutex step_mutex;
   CheckList checks;
   std::unordered_map<std::uint32_t, Memory> memory;
-  const ComponentSupervisorLoop* supervisor = nullptr;
+  const TaskSupervisor* supervisor = nullptr;
   std::uint64_t supervisor_cycles = 0;
   Nanos supervisor_changed_at = 0;
   bool supervisor_seen = false;
@@ -123,7 +123,7 @@ struct Monitor::Impl {
     return thresholds;
   }
 
-  Report supervisor_report(const ComponentSupervisorLoop& sup, const ThresholdSet& th, Nanos now) {
+  Report supervisor_report(const TaskSupervisor& sup, const ThresholdSet& th, Nanos now) {
     const SupervisorStats st = sup.stats();
     const Thresholds& t = th.for_component(options.supervisor_name);
     Report r;
@@ -245,7 +245,7 @@ std::unique_lock<std::mutex> Monitor::lock_checks_() const {
 
 CheckList& Monitor::checks_() noexcept { return impl_->checks; }
 
-void Monitor::set_supervisor(const ComponentSupervisorLoop* supervisor) {
+void Monitor::set_supervisor(const TaskSupervisor* supervisor) {
   std::lock_guard lock(impl_->step_mutex);
   impl_->supervisor = supervisor;
   impl_->supervisor_seen = false;

@@ -144,9 +144,12 @@ void ComponentAggregator::on(const Entry& /*e*/, const CycleSample& m) {
 }
 
 void ComponentAggregator::on(const Entry& /*e*/, const RealTimeLoss& m) {
-  // The cumulative counters of the samples are authoritative; a loss report matters for its
-  // timing only, and the next sample carries its count.
-  (void)m;
+  // The cumulative counters of the samples are authoritative for counts (a loss report can be
+  // dropped by a full port); the report tells which cycle lost, and when it arrived.
+  if (current_ == nullptr) return;
+  current_->data.has_loss = true;
+  current_->data.last_loss = m;
+  current_->data.last_loss_at = drain_time_;
 }
 
 void ComponentAggregator::on(const Entry& /*e*/, const ExceptionReport& m) {

@@ -438,8 +438,8 @@ TEST_CASE("Diagnostics map reports onto a ROS 2 DiagnosticArray", "[export][diag
 TEST_CASE("serve_http: one call in a program with real threads", "[export][http]") {
   Registry<Message> registry;
   ComponentAggregator aggregator;
-  ComponentSupervisorLoop supervisor(registry, aggregator,
-                                     SupervisorOptions{.period_ns = 5 * kNanosPerMilli});
+  TaskSupervisor supervisor(registry, aggregator,
+                            SupervisorOptions{.period_ns = 5 * kNanosPerMilli});
   Monitor monitor(aggregator, MonitorOptions{.period_ns = 20 * kNanosPerMilli});
   monitor.set_supervisor(&supervisor);
   HttpOptions o = quiet_options();

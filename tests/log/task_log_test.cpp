@@ -9,7 +9,7 @@
 #include "vigil/log/log.hpp"
 #include "vigil/log/service.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
-#include "vigil/task/component_supervisor.hpp"
+#include "vigil/task/instrumentation.hpp"
 #include "vigil/task/task.hpp"
 
 using namespace vigil;
@@ -51,7 +51,7 @@ TEST_CASE("A Task logs from on_update(); lines carry its cycle and the cycle's s
   auto sink = std::make_shared<Collect>();
   service.add_sink(sink);
   agg.set_log_consumer(&service);
-  ComponentSupervisorLoop sup(reg, agg);
+  TaskSupervisor sup(reg, agg);
   test::FakeClock clock;
   Joint joint(reg, clock);
   ManualActivity act(joint, {.name = "m", .period_ns = kNanosPerMilli, .clock = clock.clock()});
@@ -85,8 +85,8 @@ TEST_CASE("Code instrumented with an UpdateGuard logs from the guarded scope", "
   ComponentAggregator agg;
   log::LogService service;
   agg.set_log_consumer(&service);
-  ComponentSupervisorLoop sup(reg, agg);
-  ComponentSupervisor drive("log_legacy_drive", {}, reg);
+  TaskSupervisor sup(reg, agg);
+  Instrumentation drive("log_legacy_drive", {}, reg);
   drive.init({.activity = "drive"});
   for (int i = 0; i < 3; ++i) {
     UpdateGuard guard(drive);
@@ -105,8 +105,8 @@ TEST_CASE("Code instrumented with an UpdateGuard logs from the guarded scope", "
 TEST_CASE("Without a log consumer the aggregator ignores records", "[log][task]") {
   Registry<Message> reg;
   ComponentAggregator agg;
-  ComponentSupervisorLoop sup(reg, agg);
-  ComponentSupervisor c("log_no_consumer", {}, reg);
+  TaskSupervisor sup(reg, agg);
+  Instrumentation c("log_no_consumer", {}, reg);
   c.init();
   {
     UpdateGuard guard(c);

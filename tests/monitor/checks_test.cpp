@@ -211,6 +211,12 @@ TEST_CASE("RealTime: losses in the window on a FIFO thread, by cause", "[monitor
   Report r = run<checks::RealTimeCheck>(s, {}, w);
   CHECK(r.status.level() == StatusLevel::Warn);
   CHECK(r.status.summary() == "real-time losses: 3 allocation, 1 blocking (8 in total)");
+  CHECK(r.value("latest_loss") == nullptr);  // no RealTimeLoss report arrived
+  s.has_loss = true;
+  s.last_loss = RealTimeLoss{42, LossCause::Blocking, 1};
+  r = run<checks::RealTimeCheck>(s, {}, w);
+  REQUIRE(r.value("latest_loss") != nullptr);
+  CHECK(*r.value("latest_loss") == "cycle 42: 1 blocking");
 
   Thresholds t;
   t.realtime.warn_losses = 4;  // 4 in the window: at the limit

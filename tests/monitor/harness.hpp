@@ -87,8 +87,7 @@ struct Harness {
   FakeClock clock;
   Registry<Message> registry;
   ComponentAggregator aggregator{AggregatorOptions{.clock = clock.clock()}};
-  ComponentSupervisorLoop supervisor{registry, aggregator,
-                                     SupervisorOptions{.clock = clock.clock()}};
+  TaskSupervisor supervisor{registry, aggregator, SupervisorOptions{.clock = clock.clock()}};
   Monitor monitor;
 };
 

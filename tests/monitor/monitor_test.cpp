@@ -313,7 +313,7 @@ TEST_CASE("Starvation, real thread: the components of a blocked thread go STALE"
           "[monitor][e2e][starvation][thread]") {
   Registry<Message> registry;
   ComponentAggregator aggregator;
-  ComponentSupervisorLoop supervisor(registry, aggregator, {.period_ns = 5 * kMs});
+  TaskSupervisor supervisor(registry, aggregator, {.period_ns = 5 * kMs});
   Monitor monitor(aggregator);
   ThresholdSet t;
   t.defaults.starvation.min_silence_ns = 200 * kMs;  // generous: sanitizers and loaded machines

@@ -6,11 +6,15 @@
 #include <stdexcept>
 #include <thread>
 
+#include "vigil/build_config.hpp"
 #include "vigil/can/sniffer.hpp"
 #include "vigil/deploy/can_extension.hpp"
 #include "vigil/deploy/deployment.hpp"
 #include "vigil/deploy/system.hpp"
 #include "vigil/vigil.hpp"
+
+// The generated build flags are installed as vigil/build_config.hpp (was vigil/config.hpp).
+static_assert(VIGIL_PLATFORM_LINUX + VIGIL_PLATFORM_COBALT == 1, "one platform");
 
 namespace {
 

@@ -7,7 +7,7 @@
 #include <string>
 
 #include "support/proc_reader.hpp"
-#include "vigil/config.hpp"
+#include "vigil/build_config.hpp"
 #include "vigil/platform/thread.hpp"
 
 using namespace vigil::platform;

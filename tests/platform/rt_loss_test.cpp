@@ -9,7 +9,7 @@
 #include <thread>
 
 #include "support/proc_reader.hpp"
-#include "vigil/config.hpp"
+#include "vigil/build_config.hpp"
 #include "vigil/platform/thread.hpp"
 
 using namespace vigil::platform;

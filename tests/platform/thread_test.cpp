@@ -6,7 +6,7 @@
 #include <catch2/catch.hpp>
 
 #include "support/proc_reader.hpp"
-#include "vigil/config.hpp"
+#include "vigil/build_config.hpp"
 #include "vigil/platform/rt_loss.hpp"
 
 using namespace vigil::platform;

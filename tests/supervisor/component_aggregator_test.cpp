@@ -7,7 +7,7 @@
 #include "support/fake_clock.hpp"
 #include "support/probe.hpp"
 #include "vigil/exec/manual_activity.hpp"
-#include "vigil/task/component_supervisor.hpp"
+#include "vigil/task/instrumentation.hpp"
 
 using namespace vigil;
 
@@ -28,7 +28,7 @@ TEST_CASE("The aggregator computes latency, period, user time and demangles exce
   fc.set(act.next_release() + 40);
   act.step();
   ComponentAggregator agg;
-  ComponentSupervisorLoop sup(reg, agg);
+  TaskSupervisor sup(reg, agg);
   sup.step();
   const auto s = agg.find("p");
   REQUIRE(s.has_value());
@@ -52,9 +52,9 @@ TEST_CASE("Records of components that left are kept for a while, then forgotten"
   Registry<Message> reg;
   vigil::test::FakeClock fc;
   ComponentAggregator agg({.retain_left_ns = 5 * kNanosPerSecond, .clock = fc.clock()});
-  ComponentSupervisorLoop sup(reg, agg);
+  TaskSupervisor sup(reg, agg);
   {
-    ComponentSupervisor c("short-lived", {}, reg);
+    Instrumentation c("short-lived", {}, reg);
     c.init();
     c.run([] {});
     sup.step();
@@ -75,7 +75,7 @@ TEST_CASE("Stress: many components push while the supervisor drains and readers 
   constexpr int kCycles = 20000;
   Registry<Message> reg;
   ComponentAggregator agg;
-  ComponentSupervisorLoop sup(reg, agg, {.period_ns = 200 * kNanosPerMicro});
+  TaskSupervisor sup(reg, agg, {.period_ns = 200 * kNanosPerMicro});
   REQUIRE(sup.start().has_value());
   std::atomic<bool> done{false};
   std::atomic<int> snapshots{0};
@@ -92,7 +92,7 @@ TEST_CASE("Stress: many components push while the supervisor drains and readers 
   std::vector<std::thread> producers;
   for (int c = 0; c < kComponents; ++c) {
     producers.emplace_back([&, c] {
-      ComponentSupervisor s("c" + std::to_string(c), {}, reg);
+      Instrumentation s("c" + std::to_string(c), {}, reg);
       s.init();
       for (int i = 0; i < kCycles; ++i) {
         s.run([] {});
@@ -113,4 +113,25 @@ TEST_CASE("Stress: many components push while the supervisor drains and readers 
     CHECK(s.samples + s.counters.dropped >= kCycles);
   }
   CHECK(snapshots > 0);
+}
+
+TEST_CASE("The aggregator keeps the latest real-time loss report; counts come from the samples",
+          "[supervisor][aggregator]") {
+  Registry<Message> reg;
+  ComponentAggregator agg;
+  TaskSupervisor sup(reg, agg);
+  auto m = reg.join<16>("lossy");
+  CycleSample s;
+  s.counters.cycles = 7;
+  s.counters.losses[static_cast<std::size_t>(LossCause::Allocation)] = 3;
+  REQUIRE(m.port()->try_push(Message{RealTimeLoss{7, LossCause::Allocation, 2}}));
+  REQUIRE(m.port()->try_push(Message{s}));
+  sup.step();
+  const auto snap = agg.find("lossy");
+  REQUIRE(snap.has_value());
+  REQUIRE(snap->has_loss);
+  CHECK(snap->last_loss.cycle == 7);
+  CHECK(snap->last_loss.cause == LossCause::Allocation);
+  CHECK(snap->last_loss.count == 2);
+  CHECK(snap->counters.loss(LossCause::Allocation) == 3);  // the sample's total, not the report's
 }

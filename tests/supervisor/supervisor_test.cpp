@@ -22,7 +22,7 @@ TEST_CASE("A component started before the supervisor exists is supervised from t
   REQUIRE(act.start());
   for (int i = 0; i < 10; ++i) act.step();
   ComponentAggregator agg;
-  ComponentSupervisorLoop sup(reg, agg);
+  TaskSupervisor sup(reg, agg);
   CHECK(sup.step() == 14);  // configure and start: TaskInfo + StateChange each; 10 samples
   const auto s = agg.find("early");
   REQUIRE(s.has_value());
@@ -35,7 +35,7 @@ TEST_CASE("A component started before the supervisor exists is supervised from t
 TEST_CASE("Components join and leave while everything runs", "[supervisor][pipeline]") {
   Registry<Message> reg;
   ComponentAggregator agg;
-  ComponentSupervisorLoop sup(reg, agg, {.period_ns = kNanosPerMilli});
+  TaskSupervisor sup(reg, agg, {.period_ns = kNanosPerMilli});
   REQUIRE(sup.start().has_value());
   auto a = std::make_unique<Probe>("a", SupervisionOptions{}, reg);
   PeriodicActivity aa(*a, {.name = "a", .period_ns = kNanosPerMilli});
@@ -101,7 +101,7 @@ TEST_CASE("Counters stay exact when the port drops samples (capacity 8, supervis
   }
   // The supervisor was "paused": nothing drained during the run. Now resume.
   ComponentAggregator agg;
-  ComponentSupervisorLoop sup(reg, agg);
+  TaskSupervisor sup(reg, agg);
   sup.step();
   // One more cycle after resuming carries the final cumulative counters.
   fc.set(act.next_release());

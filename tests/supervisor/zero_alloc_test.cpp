@@ -10,7 +10,7 @@
 #include "vigil/exec/periodic_activity.hpp"
 #include "vigil/platform/rt_loss.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
-#include "vigil/task/component_supervisor.hpp"
+#include "vigil/task/instrumentation.hpp"
 
 using namespace vigil;
 
@@ -25,7 +25,7 @@ TEST_CASE("1,000,000 supervised cycles allocate nothing on the component's threa
   REQUIRE(platform::allocation_counting_available());
   Registry<Message> reg;
   ComponentAggregator agg;
-  ComponentSupervisorLoop sup(reg, agg, {.period_ns = kNanosPerMilli});
+  TaskSupervisor sup(reg, agg, {.period_ns = kNanosPerMilli});
   REQUIRE(sup.start().has_value());
   std::uint64_t allocations = ~std::uint64_t{0};
   std::uint64_t loss_count = ~std::uint64_t{0};
@@ -85,7 +85,7 @@ TEST_CASE("Counters stay exact under loss: overruns, exceptions and RT losses",
   const auto per_throw = platform::thread_allocations() - a0;
   Registry<Message> reg;
   vigil::test::FakeClock fc;
-  BasicComponentSupervisor<8> sup("lossy", {.detectors = Detectors::Allocation}, reg);
+  BasicInstrumentation<8> sup("lossy", {.detectors = Detectors::Allocation}, reg);
   sup.init({.activity = "loop", .period_ns = 1000}, fc.clock());
   std::uint64_t overruns = 0, exceptions = 0, allocations = 0;
   Nanos release = fc.now();
@@ -108,7 +108,7 @@ TEST_CASE("Counters stay exact under loss: overruns, exceptions and RT losses",
     release += 2000;
   }
   ComponentAggregator agg;
-  ComponentSupervisorLoop loop(reg, agg);
+  TaskSupervisor loop(reg, agg);
   loop.step();
   fc.set(release);
   sup.run([] {}, release);  // one more cycle carries the final totals

@@ -63,7 +63,7 @@ class System {
   [[nodiscard]] const DeploymentSpec& spec() const noexcept { return spec_; }
   [[nodiscard]] Registry<Message>& registry() noexcept { return registry_; }
   [[nodiscard]] ComponentAggregator& aggregator() noexcept { return *aggregator_; }
-  [[nodiscard]] ComponentSupervisorLoop& supervisor() noexcept { return *supervisor_; }
+  [[nodiscard]] TaskSupervisor& supervisor() noexcept { return *supervisor_; }
   [[nodiscard]] Monitor& monitor() noexcept { return *monitor_; }
   /// The watched thresholds file (`supervision: {thresholds: FILE}`), or null when the
   /// thresholds are embedded. The monitor polls it at each cycle; `reload()` it to apply an edit
@@ -94,7 +94,7 @@ class System {
   DeploymentSpec spec_;
   Registry<Message> registry_;
   std::unique_ptr<ComponentAggregator> aggregator_;
-  std::unique_ptr<ComponentSupervisorLoop> supervisor_;
+  std::unique_ptr<TaskSupervisor> supervisor_;
   std::unique_ptr<Monitor> monitor_;
   std::optional<ThresholdFile> thresholds_file_;  // after monitor_: detached before it dies
   std::vector<std::unique_ptr<Extension>> extensions_;

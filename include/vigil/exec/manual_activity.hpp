@@ -9,7 +9,7 @@
 #include "vigil/exec/schedule.hpp"
 #include "vigil/task/task_core.hpp"
 
-namespace vigil {
+namespace vigil::exec {
 
 /// Configuration of a ManualActivity.
 struct ManualConfig {
@@ -53,4 +53,10 @@ class ManualActivity {
   std::uint32_t missed_carry_ = 0;
 };
 
+}  // namespace vigil::exec
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using exec::ManualActivity;
+using exec::ManualConfig;
 }  // namespace vigil

@@ -20,7 +20,7 @@
 #include "vigil/platform/thread.hpp"
 #include "vigil/task/task_core.hpp"
 
-namespace vigil {
+namespace vigil::exec {
 
 /// Configuration of a PeriodicActivity.
 struct PeriodicConfig {
@@ -77,4 +77,10 @@ class PeriodicActivity {
   std::size_t slot_ = 0;
 };
 
+}  // namespace vigil::exec
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using exec::PeriodicActivity;
+using exec::PeriodicConfig;
 }  // namespace vigil

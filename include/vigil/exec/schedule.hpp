@@ -9,7 +9,7 @@
 #include "vigil/platform/clock.hpp"
 #include "vigil/task/messages.hpp"
 
-namespace vigil {
+namespace vigil::exec {
 
 /// Optional escalation: after `max_overruns` overruns within the last `window_cycles` cycles,
 /// the thread's tasks are moved to Exception. Off when max_overruns == 0 (the default).
@@ -74,4 +74,10 @@ class Schedule {
   std::uint32_t in_window_ = 0;
 };
 
+}  // namespace vigil::exec
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using exec::OverrunLimit;
+using exec::Schedule;
 }  // namespace vigil

@@ -4,7 +4,7 @@
 
 #include <cstddef>
 
-namespace vigil {
+namespace vigil::exec {
 
 /// Stack of an activity's thread (PeriodicConfig::stack_bytes, TriggeredConfig::stack_bytes)
 /// unless its configuration says otherwise: 512 KiB. The thread runs the components' code, whose
@@ -14,4 +14,9 @@ namespace vigil {
 /// in the deployment (`stack: 1MiB`) or in the configuration.
 inline constexpr std::size_t kDefaultActivityStackBytes = std::size_t{512} * 1024;
 
+}  // namespace vigil::exec
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using exec::kDefaultActivityStackBytes;
 }  // namespace vigil

@@ -15,7 +15,7 @@
 #include "vigil/platform/thread.hpp"
 #include "vigil/task/task_core.hpp"
 
-namespace vigil {
+namespace vigil::exec {
 
 /// Configuration of a TriggeredActivity.
 struct TriggeredConfig {
@@ -72,4 +72,10 @@ class TriggeredActivity {
   std::atomic<std::uint64_t> cycles_{0};
 };
 
+}  // namespace vigil::exec
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using exec::TriggeredActivity;
+using exec::TriggeredConfig;
 }  // namespace vigil

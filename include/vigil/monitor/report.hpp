@@ -73,7 +73,7 @@ struct Window : Counters {
 struct ExceptionInfo {
   std::uint64_t count = 0;  ///< exceptions so far
   std::string type;         ///< demangled type name
-  std::string message;      ///< what(), as reported (truncated to 127 bytes)
+  std::string message;      ///< what(), as reported (truncated to 71 bytes)
   Hook hook = Hook::None;
   std::uint64_t cycle = 0;  ///< the component's cycle when it was thrown
 };

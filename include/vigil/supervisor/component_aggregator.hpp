@@ -54,6 +54,11 @@ struct ComponentSnapshot {
   bool has_exception = false;
   ExceptionReport last_exception;
   std::string last_exception_type;  ///< demangled
+  /// The latest real-time loss reported (the cycle it happened in, its cause and count); the
+  /// totals by cause are in `counters.losses`.
+  bool has_loss = false;
+  RealTimeLoss last_loss;
+  Nanos last_loss_at = 0;  ///< supervisor clock when it arrived
   bool has_state_change = false;
   StateChange last_change;
   Nanos joined_at = 0;       ///< supervisor clock
@@ -155,7 +160,9 @@ class ComponentAggregator {
 
 static_assert(SupervisorHandler<ComponentAggregator, Message>);
 
-/// The supervisor of components.
-using ComponentSupervisorLoop = Supervisor<Message, ComponentAggregator>;
+/// The supervisor of tasks: one non-RT thread (or step()) that drains the port of every
+/// component of a registry into a ComponentAggregator. Each component's own side is its
+/// Task<Derived> or Instrumentation. (Was `ComponentSupervisorLoop`.)
+using TaskSupervisor = Supervisor<Message, ComponentAggregator>;
 
 }  // namespace vigil

@@ -3,7 +3,7 @@
 /// `RunningStats`: the statistics the supervisor keeps for one measured quantity of one
 /// component (cycle time, user time, period...), and `StatsSummary`, its plain-value snapshot.
 ///
-/// Design: everything lives inline (a `LogLinearHistogram<>` plus a few scalars, 9.3 KB), so
+/// Design: everything lives inline (a `LogLinearHistogram<>` plus a few scalars: 9312 bytes), so
 /// `add()` is a handful of instructions on memory the supervisor thread owns: no allocation,
 /// no lock, no virtual call. Readers in other threads get copies (`summary()` or the whole
 /// object, which is trivially copyable) through whatever hand-over the Registry uses.

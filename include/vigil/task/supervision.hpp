@@ -1,7 +1,7 @@
 #pragma once
 /// @file
 /// Supervision options, and `CycleRecorder`, the one implementation of per-cycle supervision
-/// behind both front ends: `Task<Derived>` and `ComponentSupervisor`.
+/// behind both front ends: `Task<Derived>` and `Instrumentation`.
 
 #include <atomic>
 #include <cstdint>
@@ -20,9 +20,9 @@
 
 namespace vigil {
 
-/// Default capacity of a component's port: 256 messages (~56 KiB). At 1 kHz and a supervisor
-/// period of 10 ms a component queues about 10 messages, so this absorbs a supervisor stalled for
-/// a quarter of a second before any sample is dropped (counters stay exact even then).
+/// Default capacity of a component's port: 256 messages of 128 bytes (32 KiB). At 1 kHz and a
+/// supervisor period of 10 ms a component queues about 10 messages, so this absorbs a supervisor
+/// stalled for a quarter of a second before any sample is dropped (counters stay exact even then).
 inline constexpr std::size_t kDefaultPortCapacity = 256;
 
 /// Compile-time options of a supervised task (a traits struct, as quill does).
@@ -105,7 +105,7 @@ class CycleRecorder {
     pending_ |= kInfo;
     flush();
   }
-  /// Sends identity for code without an activity (ComponentSupervisor::init). RT-safe.
+  /// Sends identity for code without an activity (Instrumentation::init). RT-safe.
   void send_info(const TaskInfo& info) noexcept {
     info_ = info;
     info_.name.assign(name_);

@@ -26,6 +26,10 @@ void RealTimeCheck::run(const CheckInput& in, Report& out) const {
   if (n <= t.warn_losses) return;
   out.merge(StatusLevel::Warn, fmt::format("real-time losses: {} ({} in total)",
                                            by_cause(in.window.losses), c.counters.total_losses()));
+  if (c.has_loss) {
+    out.add("latest_loss", fmt::format("cycle {}: {} {}", c.last_loss.cycle, c.last_loss.count,
+                                       platform::to_string(c.last_loss.cause)));
+  }
 }
 
 }  // namespace vigil::checks

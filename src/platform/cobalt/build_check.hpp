@@ -2,10 +2,10 @@
 // Included first by every file of src/platform/cobalt/: refuses to compile them unless the build
 // is consistent. Two independent sources must agree: the compiler flags of `xeno-config --cobalt
 // --cflags` (which define __COBALT__), applied by src/platform/cobalt/CMakeLists.txt, and the
-// project's configuration (VIGIL_PLATFORM=cobalt, written to vigil/config.hpp by CMake).
+// project's configuration (VIGIL_PLATFORM=cobalt, written to vigil/build_config.hpp by CMake).
 // This header includes no Xenomai header itself.
 
-#include "vigil/config.hpp"
+#include "vigil/build_config.hpp"
 
 #if !defined(__COBALT__)
 // Xenomai::cobalt (cmake/FindXenomai.cmake) carries those flags.
@@ -17,7 +17,8 @@
 #error "src/platform/cobalt is compiled with `xeno-config --posix` flags; vigil uses `--cobalt`"
 #endif
 #if !VIGIL_PLATFORM_COBALT || VIGIL_PLATFORM_LINUX
-#error "src/platform/cobalt is compiled but vigil/config.hpp says VIGIL_PLATFORM is not cobalt"
+#error \
+    "src/platform/cobalt is compiled but vigil/build_config.hpp says VIGIL_PLATFORM is not cobalt"
 #endif
 #if !defined(__cplusplus) || __cplusplus < 202002L
 #error "vigil's platform layer needs C++20"

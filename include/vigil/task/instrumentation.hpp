@@ -1,15 +1,22 @@
 #pragma once
 /// @file
-/// `ComponentSupervisor`: the same supervision as Task<Derived>, as a member object, for code
+/// `Instrumentation`: the same supervision as Task<Derived>, as a member object, for code
 /// that cannot change its base class. Same implementation (CycleRecorder), same data.
+///
+/// It instruments one component on the component's own thread (it times cycles and pushes
+/// messages to the component's port); it does not supervise anything. The supervisor, which
+/// drains every component's port on its own thread, is `TaskSupervisor`
+/// (vigil/supervisor/component_aggregator.hpp), and a program gets it inside a
+/// `SupervisionService`. (Before issue 13 these were `ComponentSupervisor` and
+/// `ComponentSupervisorLoop`.)
 ///
 /// ```cpp
 /// class LegacyDrive : public SomeVendorBase {
-///   vigil::ComponentSupervisor sup_{"legacy_drive"};
+///   vigil::Instrumentation instr_{"legacy_drive"};
 ///  public:
-///   void thread_start() { sup_.init({.activity = "drive", .period_ns = 1'000'000}); }
+///   void thread_start() { instr_.init({.activity = "drive", .period_ns = 1'000'000}); }
 ///   void cycle() {
-///     vigil::UpdateGuard guard(sup_);   // pre on construction, post on destruction
+///     vigil::UpdateGuard guard(instr_);  // pre on construction, post on destruction
 ///     compute();
 ///   }
 /// };
@@ -34,11 +41,11 @@ struct ManualInfo {
 };
 
 template <std::size_t N = kDefaultPortCapacity>
-class BasicComponentSupervisor {
+class BasicInstrumentation {
  public:
   /// Registers the component's port. Not RT-safe.
-  explicit BasicComponentSupervisor(std::string name, SupervisionOptions options = {},
-                                    Registry<Message>& registry = default_registry())
+  explicit BasicInstrumentation(std::string name, SupervisionOptions options = {},
+                                Registry<Message>& registry = default_registry())
       : recorder_(std::move(name), options, registry) {}
 
   /// Call once from the component's own thread before its loop: reads the thread's policy,
@@ -129,12 +136,12 @@ class BasicComponentSupervisor {
   TaskState state_ = TaskState::PreOperational;
 };
 
-/// The component supervisor with the default port capacity.
-using ComponentSupervisor = BasicComponentSupervisor<>;
+/// The instrumentation of one component, with the default port capacity.
+using Instrumentation = BasicInstrumentation<>;
 
 /// RAII: pre_update() on construction, post_update() on destruction. An exception that leaves
 /// the guarded scope is counted and reported (its type cannot be known here: use
-/// ComponentSupervisor::run() to report it exactly). A guard destroyed while the stack unwinds
+/// Instrumentation::run() to report it exactly). A guard destroyed while the stack unwinds
 /// for another reason (a guard constructed inside a destructor during unwinding) would report
 /// that unwinding too; cycles are not run from destructors in practice, and checking only here
 /// keeps the guard at one std::uncaught_exceptions() call per cycle.

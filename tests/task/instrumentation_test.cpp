@@ -1,4 +1,4 @@
-#include "vigil/task/component_supervisor.hpp"
+#include "vigil/task/instrumentation.hpp"
 
 #include <catch2/catch.hpp>
 #include <stdexcept>
@@ -12,8 +12,7 @@ using namespace vigil;
 using vigil::test::drain;
 using vigil::test::only;
 
-TEST_CASE("ComponentSupervisor produces the same samples as Task<Derived>",
-          "[task][component_supervisor]") {
+TEST_CASE("Instrumentation produces the same samples as Task<Derived>", "[task][instrumentation]") {
   Registry<Message> reg;
   vigil::test::FakeClock fc;
   constexpr Nanos kPeriod = 1000;
@@ -29,8 +28,8 @@ TEST_CASE("ComponentSupervisor produces the same samples as Task<Derived>",
     fc.set(act.next_release() + 7 * i);
     REQUIRE(act.step());
   }
-  // Front end 2: ComponentSupervisor with the same clock, releases and work.
-  ComponentSupervisor sup("manual", {}, reg);
+  // Front end 2: Instrumentation with the same clock, releases and work.
+  Instrumentation sup("manual", {}, reg);
   sup.init({.activity = "m", .period_ns = kPeriod}, fc.clock());
   for (int i = 0; i < 10; ++i) {
     fc.set(releases[static_cast<std::size_t>(i)] + 7 * i);
@@ -53,10 +52,9 @@ TEST_CASE("ComponentSupervisor produces the same samples as Task<Derived>",
   }
 }
 
-TEST_CASE("ComponentSupervisor reads its thread's identity in init",
-          "[task][component_supervisor]") {
+TEST_CASE("Instrumentation reads its thread's identity in init", "[task][instrumentation]") {
   Registry<Message> reg;
-  ComponentSupervisor sup("legacy", {}, reg);
+  Instrumentation sup("legacy", {}, reg);
   sup.init(
       {.activity = "vendor-loop", .period_ns = 2'000'000, .requested_policy = SchedPolicy::Fifo});
   const auto ms = drain(*sup.port());
@@ -71,10 +69,10 @@ TEST_CASE("ComponentSupervisor reads its thread's identity in init",
   CHECK(sup.state() == TaskState::Running);
 }
 
-TEST_CASE("ComponentSupervisor::run catches and reports exceptions exactly",
-          "[task][component_supervisor]") {
+TEST_CASE("Instrumentation::run catches and reports exceptions exactly",
+          "[task][instrumentation]") {
   Registry<Message> reg;
-  ComponentSupervisor sup("legacy", {}, reg);
+  Instrumentation sup("legacy", {}, reg);
   sup.init();
   (void)drain(*sup.port());
   CHECK(sup.run([] {}));
@@ -89,9 +87,9 @@ TEST_CASE("ComponentSupervisor::run catches and reports exceptions exactly",
   CHECK(sup.state() == TaskState::Running);
 }
 
-TEST_CASE("An exception leaving an UpdateGuard is counted", "[task][component_supervisor]") {
+TEST_CASE("An exception leaving an UpdateGuard is counted", "[task][instrumentation]") {
   Registry<Message> reg;
-  ComponentSupervisor sup("legacy", {}, reg);
+  Instrumentation sup("legacy", {}, reg);
   sup.init();
   (void)drain(*sup.port());
   try {
