@@ -17,7 +17,7 @@
 #include "commands.hpp"
 #include "demo_components.hpp"
 #include "vigil/deploy/system.hpp"
-#include "vigil/export/http_service.hpp"
+#include "vigil/export/http_server.hpp"
 #include "vigil/export/json_report.hpp"
 #include "vigil/export/log_report.hpp"
 #include "vigil/export/text_report.hpp"
@@ -136,6 +136,18 @@ int run_demo(const DemoOptions& o) {
   std::string json_path = o.json;
   if (json_path.empty() && spec->outputs.json) json_path = spec->outputs.json->string();
 
+  // Command-line overrides of the deployment's outputs (the System starts them).
+  if (!o.http.empty()) {
+    auto listen = exporter::parse_listen(o.http);
+    if (!listen) {
+      std::fprintf(stderr, "vigil demo: --http %s\n", listen.error().c_str());
+      return 2;
+    }
+    if (!spec->outputs.http) spec->outputs.http.emplace();
+    spec->outputs.http->listen = *listen;
+  }
+  if (!o.textfile.empty()) spec->outputs.textfile = o.textfile;
+
   auto sys = deploy::System::create(std::move(*spec));
   if (!sys) {
     std::fprintf(stderr, "vigil demo: cannot build the system:\n%s\n",
@@ -143,39 +155,6 @@ int run_demo(const DemoOptions& o) {
     return 1;
   }
   deploy::System& system = **sys;
-
-  // HTTP and the textfile: started before the components, so that a taken port stops the demo
-  // before anything runs.
-  exporter::ExportOptions exports;
-  if (!o.http.empty()) {
-    auto listen = exporter::parse_listen(o.http);
-    if (!listen) {
-      std::fprintf(stderr, "vigil demo: --http %s\n", listen.error().c_str());
-      return 2;
-    }
-    exports.http.emplace();
-    exports.http->listen = *listen;
-  } else if (const auto& h = system.spec().outputs.http) {
-    exports.http.emplace();
-    exports.http->listen = h->listen;
-    exports.http->threads = h->threads;
-    exports.http->dashboard = h->dashboard;
-  }
-  if (exports.http)
-    exports.http->log = [](const std::string& line) { std::printf("%s\n", line.c_str()); };
-  exports.textfile = o.textfile;
-  exports.augment = [&system](ReportSet& r) { r = system.reports(); };  // with CAN's reports
-  std::unique_ptr<exporter::MonitorExporter> exporter;
-  if (exports.http || !exports.textfile.empty()) {
-    auto e = exporter::MonitorExporter::start(system.monitor(), &system.aggregator(),
-                                              std::move(exports));
-    if (!e) {
-      std::fprintf(stderr, "vigil demo: %s\n", e.error().message.c_str());
-      return 1;
-    }
-    exporter = std::move(*e);
-    std::fflush(stdout);
-  }
 
   // The components' log: formatted on the supervisor thread, never on theirs.
   const bool tty = platform::is_terminal(stdout);
@@ -273,11 +252,8 @@ int run_demo(const DemoOptions& o) {
   ReportSet final_reports = system.step_monitor();
   exporter::add_log_lines(logs,
                           final_reports);  // log counts and recent lines, in --details and the JSON
-  if (exporter) {
-    exporter->publish(final_reports);  // served until the demo exits
-    if (const std::string err = exporter->textfile_error(); !err.empty()) {
-      std::fprintf(stderr, "vigil demo: %s\n", err.c_str());
-    }
+  if (const std::string& err = system.output_error(); !err.empty()) {
+    std::fprintf(stderr, "vigil demo: %s\n", err.c_str());
   }
   std::printf("\n%s after %.1f s. Final report:\n", interrupted ? "Interrupted" : "Stopped",
               static_cast<double>(platform::now_ns() - start) / 1e9);

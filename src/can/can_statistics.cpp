@@ -475,6 +475,61 @@ std::uint64_t CanAggregator::cycles() const {
   return impl_->cycles;
 }
 
+void CanAggregator::visit_gap_distributions(
+    std::span<const GroupSpec> groups,
+    const std::function<void(const GapDistribution&)>& visit) const {
+  Impl& m = *impl_;
+  std::lock_guard lock(m.mutex);
+  std::vector<NodeAccumulator*> nodes;
+  nodes.reserve(m.nodes.size());
+  m.nodes.for_each([&](std::uint64_t, NodeAccumulator& a) {
+    if (a.timing.records > 0) nodes.push_back(&a);
+  });
+  std::sort(nodes.begin(), nodes.end(), [](const NodeAccumulator* a, const NodeAccumulator* b) {
+    return std::make_tuple(a->key.bus, a->key.node, static_cast<int>(a->key.direction)) <
+           std::make_tuple(b->key.bus, b->key.node, static_cast<int>(b->key.direction));
+  });
+  for (const NodeAccumulator* a : nodes) {
+    GapDistribution d;
+    d.bus = a->key.bus;
+    d.node = a->key.node;
+    d.direction = a->key.direction;
+    d.stats = a->timing.gap.get();
+    if (d.stats == nullptr) d.samples = a->timing.gaps;
+    visit(d);
+  }
+  const bool exact = m.options.exact_percentiles;
+  RunningStats merged;  // 9 KB: reused for every group (reset() clears the histogram)
+  std::vector<Nanos> gaps;
+  for (const GroupSpec& g : groups) {
+    for (const Direction dir : {Direction::Rx, Direction::Tx}) {
+      merged.reset();
+      gaps.clear();
+      bool any = false;
+      for (const NodeAccumulator* a : nodes) {
+        if (a->key.direction != dir || a->key.node == kNoNode) continue;
+        if (!g.contains(a->key.bus, a->key.node)) continue;
+        any = true;
+        if (exact) {
+          gaps.insert(gaps.end(), a->timing.gaps.begin(), a->timing.gaps.end());
+        } else {
+          merged.merge(*a->timing.gap);
+        }
+      }
+      if (!any) continue;
+      GapDistribution d;
+      d.group = g.name;
+      d.direction = dir;
+      if (exact) {
+        d.samples = gaps;
+      } else {
+        d.stats = &merged;
+      }
+      visit(d);
+    }
+  }
+}
+
 CanSnapshot CanAggregator::snapshot(std::span<const GroupSpec> groups) const {
   Impl& m = *impl_;
   std::lock_guard lock(m.mutex);

@@ -4,6 +4,7 @@
 
 #include <map>
 #include <string>
+#include <utility>
 
 #include "vigil/platform/clock.hpp"
 
@@ -26,7 +27,15 @@ void CanExtension::stopping() { stopped_at_.store(platform::now_ns(), std::memor
 
 void CanExtension::stop() { supervisor_->stop(); }
 
-void CanExtension::contribute(ReportSet& reports) {
+void CanExtension::contribute(ReportSet& reports) { add_reports(reports, nullptr); }
+
+void CanExtension::contribute_metrics(ReportSet& reports,
+                                      std::vector<exporter::CanHistograms>& histograms) {
+  add_reports(reports, &histograms);
+}
+
+void CanExtension::add_reports(ReportSet& reports,
+                               std::vector<exporter::CanHistograms>* histograms) {
   if (!supervisor_->running()) supervisor_->step();
   // After a stop, nodes are judged as of the moment the system began to stop: the bus went quiet
   // because the system stopped, not because a node failed.
@@ -34,11 +43,13 @@ void CanExtension::contribute(ReportSet& reports) {
   const Nanos now = stopped != 0 ? stopped : platform::now_ns();
   const can::CanReport r = monitor_->evaluate(*statistics_, now);
   std::map<std::string, Report> groups;
+  std::map<std::pair<std::uint8_t, std::uint32_t>, std::string> names;  // of the nodes seen
   for (const auto& n : r.nodes) {
     if (!n.is_node()) continue;  // the frames of no node (SYNC, NMT...) are not judged
     Report rep;
     rep.kind = ReportKind::CanNode;
     rep.name = fmt::format("can{}/{}", n.bus ? std::to_string(*n.bus) : std::string("*"), n.name);
+    if (histograms != nullptr && n.bus) names.emplace(std::pair{*n.bus, n.node}, rep.name);
     rep.status = n.status;
     rep.silence_ns = n.silence_ns;
     const std::uint64_t rx = n.rx ? n.rx->frames : 0;
@@ -76,6 +87,30 @@ void CanExtension::contribute(ReportSet& reports) {
     g.state_label = g.status.level() == StatusLevel::Ok ? "all responding" : "degraded";
     reports.components.push_back(std::move(g));
   }
+  if (histograms == nullptr) return;
+  // The buckets, from the aggregator's histograms: one more pass under its lock, right after
+  // the snapshot the reports were judged on (a batch applied in between shows in the buckets,
+  // not in the reports: the figures differ by at most one supervisor cycle's frames).
+  std::map<std::string, exporter::CanHistograms> by_name;
+  const auto group_specs = config_.group_specs();
+  statistics_->visit_gap_distributions(group_specs, [&](const can::GapDistribution& d) {
+    std::string name;
+    ReportKind kind = ReportKind::CanNode;
+    if (d.group.empty()) {
+      const auto it = names.find({d.bus, d.node});
+      if (it == names.end()) return;  // the frames of no node
+      name = it->second;
+    } else {
+      name = "can group " + std::string(d.group);
+      kind = ReportKind::CanGroup;
+    }
+    exporter::CanHistograms& h = by_name[name];
+    h.name = name;
+    h.kind = kind;
+    (d.direction == can::Direction::Tx ? h.tx_gap : h.rx_gap) = exporter::reduce_to_buckets(d);
+  });
+  histograms->reserve(histograms->size() + by_name.size());
+  for (auto& [name, h] : by_name) histograms->push_back(std::move(h));
 }
 
 void register_can_extension() {

@@ -208,8 +208,11 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
     }
   }
   if (const config::Node o = root["outputs"]; o.defined()) {
-    o.reject_unknown_keys({"json", "http"});
+    o.reject_unknown_keys({"json", "http", "textfile"});
     if (o.has("json")) d.outputs.json = o.required<std::string>("json", config::non_empty());
+    if (o.has("textfile")) {
+      d.outputs.textfile = o.required<std::string>("textfile", config::non_empty());
+    }
     if (const config::Node h = o["http"]; h.defined()) {
       h.reject_unknown_keys({"listen", "threads", "dashboard"});
       HttpOutputSpec http;

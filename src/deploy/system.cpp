@@ -88,9 +88,46 @@ expected<std::unique_ptr<System>, config::ConfigErrors> System::create(
   return sys;
 }
 
+expected<void, Error> System::start_outputs() {
+  const OutputSpec& o = spec_.outputs;
+  output_error_.clear();
+  if (!o.http && !o.textfile) return {};
+  exporter::ExportOptions e;
+  if (o.http) {
+    e.http.emplace();
+    e.http->listen = o.http->listen;
+    e.http->threads = o.http->threads;
+    e.http->dashboard = o.http->dashboard;
+    // The server logs at start only (its URL; a warning for a non-loopback address).
+    e.http->log = [this](const std::string& line) { log_.push_back(line); };
+  }
+  if (o.textfile) e.textfile = *o.textfile;
+  // Each monitor cycle with the extensions' reports (CAN nodes, groups) and their buckets.
+  e.augment_metrics = [this](ReportSet& r, std::vector<exporter::CanHistograms>& h) {
+    contribute(r, &h);
+  };
+  auto started = exporter::MonitorExporter::start(*monitor_, aggregator_.get(), std::move(e));
+  if (!started) {
+    return vigil::unexpected(
+        Error{started.error().code, fmt::format("outputs.http: {}", started.error().message)});
+  }
+  exporter_ = std::move(*started);
+  if (o.textfile)
+    log_.push_back(fmt::format("textfile {} rewritten every monitor cycle", o.textfile->string()));
+  return {};
+}
+
+void System::stop_outputs() {
+  if (!exporter_) return;
+  output_error_ = exporter_->textfile_error();
+  exporter_.reset();  // unsubscribes (waits for a publication in progress), stops the server
+}
+
 expected<void, Error> System::start() {
   if (running_) return {};
   log_.clear();
+  // Outputs first: a taken port fails here, before anything runs.
+  if (auto r = start_outputs(); !r) return r;
   if (spec_.supervision.lock_memory) {
     rt_setup_ = platform::setup_realtime_process();
     log_.push_back(rt_setup_.memory_locked
@@ -103,9 +140,13 @@ expected<void, Error> System::start() {
                                      "real-time threads",
                                      rt_setup_.lock_errno));
   }
-  if (auto r = supervisor_->start(); !r) return r;
+  if (auto r = supervisor_->start(); !r) {
+    stop_outputs();
+    return r;
+  }
   if (auto r = monitor_->start(); !r) {
     supervisor_->stop();
+    stop_outputs();
     return r;
   }
   log_.push_back(fmt::format("supervisor every {} ms, monitor every {} ms",
@@ -158,6 +199,7 @@ void System::stop() {
   for (auto it = extensions_.rbegin(); it != extensions_.rend(); ++it) (*it)->stop();
   supervisor_->stop();  // joins after a last full drain
   monitor_->stop();
+  stop_outputs();
   running_ = false;
 }
 
@@ -165,6 +207,17 @@ ReportSet System::reports() const {
   ReportSet r = monitor_->latest();
   for (const auto& e : extensions_) e->contribute(r);
   return r;
+}
+
+void System::contribute(ReportSet& reports,
+                        std::vector<exporter::CanHistograms>* histograms) const {
+  for (const auto& e : extensions_) {
+    if (histograms != nullptr) {
+      e->contribute_metrics(reports, *histograms);
+    } else {
+      e->contribute(reports);
+    }
+  }
 }
 
 ReportSet System::step_monitor() {

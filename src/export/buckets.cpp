@@ -49,4 +49,23 @@ BucketCounts reduce_to_buckets(const Histogram& histogram, double sum_ns, Nanos 
   return reduce(histogram, 0, Histogram::kBucketCount - 1, shift_ns, sum_ns);
 }
 
+BucketCounts reduce_samples_to_buckets(std::span<const Nanos> samples) noexcept {
+  BucketCounts out;
+  std::array<std::uint64_t, kBucketBounds> own{};
+  long double sum = 0;
+  for (const Nanos v : samples) {
+    sum += static_cast<long double>(v);
+    const auto it = std::lower_bound(kBucketBoundsNs.begin(), kBucketBoundsNs.end(), v);
+    if (it != kBucketBoundsNs.end()) ++own[static_cast<std::size_t>(it - kBucketBoundsNs.begin())];
+  }
+  out.count = samples.size();
+  out.sum_ns = static_cast<double>(sum);
+  std::uint64_t running = 0;
+  for (std::size_t k = 0; k < kBucketBounds; ++k) {
+    running += own[k];
+    out.cumulative[k] = running;
+  }
+  return out;
+}
+
 }  // namespace vigil::exporter

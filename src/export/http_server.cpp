@@ -674,13 +674,17 @@ std::string HttpServer::url() const {
   return "http://" + a.to_string() + "/";
 }
 
-void HttpServer::publish(const ReportSet& reports, std::vector<ComponentHistograms> histograms) {
+void HttpServer::publish(const ReportSet& reports, std::vector<ComponentHistograms> histograms,
+                         std::vector<CanHistograms> can_histograms) {
   Impl& m = *impl_;
   auto snap = std::make_shared<MetricsSnapshot>();
   snap->reports = reports;
   snap->histograms = std::move(histograms);
   std::sort(snap->histograms.begin(), snap->histograms.end(),
             [](const auto& a, const auto& b) { return a.id < b.id; });
+  snap->can_histograms = std::move(can_histograms);
+  std::sort(snap->can_histograms.begin(), snap->can_histograms.end(),
+            [](const auto& a, const auto& b) { return a.name < b.name; });
   snap->wall_time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                            std::chrono::system_clock::now().time_since_epoch())
                            .count();

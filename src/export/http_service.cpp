@@ -1,5 +1,6 @@
 #include "vigil/export/http_service.hpp"
 
+#include <algorithm>
 #include <chrono>
 
 #include "vigil/export/textfile.hpp"
@@ -40,27 +41,32 @@ MonitorExporter::~MonitorExporter() {
 }
 
 void MonitorExporter::on_cycle(const ReportSet& reports) {
-  if (options_.augment) {
-    ReportSet copy = reports;
-    options_.augment(copy);
-    publish(copy);
-  } else {
+  if (!options_.augment && !options_.augment_metrics) {
     publish(reports);
+    return;
   }
+  ReportSet copy = reports;
+  std::vector<CanHistograms> can;
+  if (options_.augment) options_.augment(copy);
+  if (options_.augment_metrics) options_.augment_metrics(copy, can);
+  publish(copy, std::move(can));
 }
 
-void MonitorExporter::publish(const ReportSet& reports) {
+void MonitorExporter::publish(const ReportSet& reports, std::vector<CanHistograms> can_histograms) {
   std::lock_guard lock(mutex_);
   std::vector<ComponentHistograms> histograms;
   if (aggregator_ != nullptr) histograms = collect_histograms(*aggregator_);
   std::shared_ptr<const MetricsSnapshot> snap;
   if (http_) {
-    http_->publish(reports, std::move(histograms));
+    http_->publish(reports, std::move(histograms), std::move(can_histograms));
     snap = http_->snapshot();
   } else if (!options_.textfile.empty()) {
     auto s = std::make_shared<MetricsSnapshot>();
     s->reports = reports;
     s->histograms = std::move(histograms);
+    s->can_histograms = std::move(can_histograms);
+    std::sort(s->can_histograms.begin(), s->can_histograms.end(),
+              [](const auto& a, const auto& b) { return a.name < b.name; });
     s->wall_time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                           std::chrono::system_clock::now().time_since_epoch())
                           .count();

@@ -47,4 +47,20 @@ const ComponentHistograms* MetricsSnapshot::histograms_of(const Report& report) 
   return &*it;
 }
 
+const CanHistograms* MetricsSnapshot::can_histograms_of(const Report& report) const noexcept {
+  if (report.kind != ReportKind::CanNode && report.kind != ReportKind::CanGroup) return nullptr;
+  const auto it = std::lower_bound(
+      can_histograms.begin(), can_histograms.end(), report.name,
+      [](const CanHistograms& h, const std::string& name) { return h.name < name; });
+  if (it == can_histograms.end() || it->name != report.name || it->kind != report.kind) {
+    return nullptr;
+  }
+  return &*it;
+}
+
+BucketCounts reduce_to_buckets(const can::GapDistribution& distribution) noexcept {
+  if (distribution.stats != nullptr) return reduce_to_buckets(*distribution.stats);
+  return reduce_samples_to_buckets(distribution.samples);
+}
+
 }  // namespace vigil::exporter

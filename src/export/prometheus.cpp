@@ -213,6 +213,26 @@ void histogram_samples(Writer& w, std::string_view base, std::string_view compon
   w.sample_u(std::string(base) + "_count", component, {}, count);
 }
 
+// A histogram series with a `direction` label (CAN gaps): buckets when known, else count and sum
+// alone.
+void direction_histogram_samples(Writer& w, std::string_view base, std::string_view component,
+                                 std::string_view direction, const BucketCounts* buckets,
+                                 std::uint64_t count, double sum_ns) {
+  const std::string bucket = std::string(base) + "_bucket";
+  if (buckets != nullptr) {
+    const auto& le = le_labels();
+    for (std::size_t i = 0; i < kBucketBounds; ++i) {
+      w.sample_u(bucket, component, {{"direction", direction}, {"le", le[i]}},
+                 buckets->cumulative[i]);
+    }
+    count = buckets->count;
+    sum_ns = buckets->sum_ns;
+  }
+  w.sample_u(bucket, component, {{"direction", direction}, {"le", "+Inf"}}, count);
+  w.sample(std::string(base) + "_sum", component, {{"direction", direction}}, seconds(sum_ns));
+  w.sample_u(std::string(base) + "_count", component, {{"direction", direction}}, count);
+}
+
 void summary_samples(Writer& w, std::string_view base, std::string_view component,
                      const StatsSummary& s) {
   const std::string_view b = base;
@@ -600,10 +620,21 @@ void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFor
     if (rx) w.sample_u("vigil_can_frames_total", r.name, {{"direction", "rx"}}, *rx);
     if (tx) w.sample_u("vigil_can_frames_total", r.name, {{"direction", "tx"}}, *tx);
   });
-  w.family("vigil_can_rx_gap_seconds", Type::Summary,
-           "Time between consecutive frames received from a CAN node.");
-  each(can_node,
-       [&](const Report& r) { summary_samples(w, "vigil_can_rx_gap_seconds", r.name, r.user_ns); });
+  w.family("vigil_can_gap_seconds", Type::Histogram,
+           "Time between consecutive frames of a CAN node by direction: rx (from the node), tx "
+           "(to the node).");
+  each(can_node, [&](const Report& r) {
+    const CanHistograms* h = snap.can_histograms_of(r);
+    // Without buckets (a publisher that collected none): the count and sum of the report's
+    // receive gaps.
+    const StatsSummary& rx = r.user_ns;
+    direction_histogram_samples(w, "vigil_can_gap_seconds", r.name, "rx",
+                                h != nullptr && h->rx_gap ? &*h->rx_gap : nullptr, rx.count,
+                                rx.mean * static_cast<double>(rx.count));
+    if (h != nullptr && h->tx_gap) {
+      direction_histogram_samples(w, "vigil_can_gap_seconds", r.name, "tx", &*h->tx_gap, 0, 0.0);
+    }
+  });
   w.family("vigil_can_read_seconds", Type::Summary,
            "Time of the read call that returned a CAN node's frame.");
   each(can_node, [&](const Report& r) {
@@ -619,6 +650,21 @@ void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFor
            "CAN frames of a group's nodes, both directions.");
   each(can_group, [&](const Report& r) {
     w.sample_u("vigil_can_group_frames_total", r.name, {}, r.counters.cycles);
+  });
+  w.family("vigil_can_group_gap_seconds", Type::Histogram,
+           "Time between consecutive frames of each member of a CAN group, merged, by "
+           "direction (absent when not collected).");
+  each(can_group, [&](const Report& r) {
+    const CanHistograms* h = snap.can_histograms_of(r);
+    if (h == nullptr) return;
+    if (h->rx_gap) {
+      direction_histogram_samples(w, "vigil_can_group_gap_seconds", r.name, "rx", &*h->rx_gap, 0,
+                                  0.0);
+    }
+    if (h->tx_gap) {
+      direction_histogram_samples(w, "vigil_can_group_gap_seconds", r.name, "tx", &*h->tx_gap, 0,
+                                  0.0);
+    }
   });
 
   w.end();

@@ -1,5 +1,6 @@
 #include "vigil/can/can_statistics.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <catch2/catch.hpp>
 #include <thread>
@@ -288,4 +289,72 @@ TEST_CASE("Two sniffers on two buses", "[can][statistics]") {
   CHECK(s.ids[1].bus == 1);
   CHECK(s.ids[1].frames == 20);
   CHECK(s.sniffers.size() == 2);
+}
+
+TEST_CASE("Gap distributions are visited per node and per group, live and exact",
+          "[can][statistics][groups]") {
+  for (const bool exact : {false, true}) {
+    INFO((exact ? "exact" : "live"));
+    Pipeline<4096> p({.node_map = NodeMap::canopen()}, {.exact_percentiles = exact});
+    // Nodes 11, 12 answer every 1 ms; we write to node 11 every 2 ms; node 21 every 3 ms.
+    for (int ms = 1; ms <= 60; ++ms) {
+      const Nanos t = ms * kNanosPerMilli;
+      p.read(frame(0x180 + 11, t));
+      p.read(frame(0x180 + 12, t));
+      if (ms % 2 == 0) p.write(frame(0x200 + 11, t));
+      if (ms % 3 == 0) p.read(frame(0x180 + 21, t));
+    }
+    p.read(frame(0x080, 61 * kNanosPerMilli));  // SYNC: the frames of no node
+    p.read(frame(0x080, 62 * kNanosPerMilli));
+    static_cast<void>(p.step());
+    const std::vector<GroupSpec> groups{{.name = "arm", .nodes = {11, 12}},
+                                        {.name = "empty", .nodes = {99}}};
+    struct Seen {
+      std::string group;
+      std::uint32_t node;
+      Direction direction;
+      std::uint64_t count;
+      Nanos min;
+      Nanos max;
+    };
+    std::vector<Seen> seen;
+    p.aggregator.visit_gap_distributions(groups, [&](const GapDistribution& d) {
+      CHECK((d.stats == nullptr) == exact);
+      CHECK((d.samples.empty()) == !exact);
+      Nanos lo = 0;
+      Nanos hi = 0;
+      if (d.stats != nullptr) {
+        lo = d.stats->min();
+        hi = d.stats->max();
+      } else {
+        lo = *std::min_element(d.samples.begin(), d.samples.end());
+        hi = *std::max_element(d.samples.begin(), d.samples.end());
+      }
+      seen.push_back({std::string(d.group), d.node, d.direction, d.count(), lo, hi});
+    });
+    // Nodes by (bus, node, direction) with the frames of no node (kNoNode) last, then the
+    // groups with gaps (none for "empty").
+    REQUIRE(seen.size() == 7);
+    CHECK(seen[0].node == 11);
+    CHECK(seen[0].direction == Direction::Rx);
+    CHECK(seen[0].count == 59);
+    CHECK(seen[0].min == kNanosPerMilli);
+    CHECK(seen[1].node == 11);
+    CHECK(seen[1].direction == Direction::Tx);
+    CHECK(seen[1].count == 29);
+    CHECK(seen[1].min == 2 * kNanosPerMilli);
+    CHECK(seen[2].node == 12);
+    CHECK(seen[3].node == 21);
+    CHECK(seen[3].count == 19);
+    CHECK(seen[3].max == 3 * kNanosPerMilli);
+    CHECK(seen[4].group.empty());
+    CHECK(seen[4].node == kNoNode);
+    CHECK(seen[5].group == "arm");
+    CHECK(seen[5].direction == Direction::Rx);
+    CHECK(seen[5].count == 2 * 59);  // the members' gaps, merged
+    CHECK(seen[5].max == kNanosPerMilli);
+    CHECK(seen[6].group == "arm");
+    CHECK(seen[6].direction == Direction::Tx);
+    CHECK(seen[6].count == 29);
+  }
 }

@@ -86,6 +86,38 @@ can:
   const Report* arm = r.find("can group arm");
   REQUIRE(arm != nullptr);
   CHECK(arm->status.level() == StatusLevel::Error);
+
+  // The gap buckets of the same reports, matched by name (what /metrics serves).
+  ReportSet with = (*sys)->monitor().latest();
+  std::vector<exporter::CanHistograms> histograms;
+  (*sys)->contribute(with, &histograms);
+  CHECK(with.find("can0/drive_1") != nullptr);
+  const auto find = [&](std::string_view name) -> const exporter::CanHistograms* {
+    for (const auto& h : histograms) {
+      if (h.name == name) return &h;
+    }
+    return nullptr;
+  };
+  const auto* h1 = find("can0/drive_1");
+  REQUIRE(h1 != nullptr);
+  CHECK(h1->kind == ReportKind::CanNode);
+  REQUIRE(h1->rx_gap);
+  CHECK_FALSE(h1->tx_gap);  // nothing was sent to it
+  CHECK(h1->rx_gap->count > 20);
+  CHECK(h1->rx_gap->count < drive->counters.cycles);  // one gap fewer than frames (or more lost)
+  // Gaps of about 5 ms (the activity's period): none under 1 ms, all under 1 s.
+  CHECK(h1->rx_gap->cumulative[0] == 0);
+  CHECK(exporter::kBucketBoundsNs[36] == kNanosPerSecond);
+  CHECK(h1->rx_gap->cumulative[36] == h1->rx_gap->count);
+  const auto* h3 = find("can0/3");
+  REQUIRE(h3 != nullptr);
+  const auto* h2 = find("can0/2");
+  REQUIRE(h2 != nullptr);
+  const auto* group = find("can group arm");
+  REQUIRE(group != nullptr);
+  CHECK(group->kind == ReportKind::CanGroup);
+  REQUIRE(group->rx_gap);
+  CHECK(group->rx_gap->count == h1->rx_gap->count + h2->rx_gap->count + h3->rx_gap->count);
 }
 
 TEST_CASE("A bad can: section is refused at build time with file:line:col", "[deploy][can]") {

@@ -1,6 +1,7 @@
 #include "vigil/export/prometheus.hpp"
 
 #include <catch2/catch.hpp>
+#include <map>
 #include <set>
 
 #include "export/exposition.hpp"
@@ -65,6 +66,19 @@ MetricsSnapshot rich_snapshot() {
   group.state_label = "degraded";
   group.counters.cycles = 238;
   s.reports.components.push_back(group);
+  // Their gap buckets: the node's gaps exact (samples), the group's from a histogram.
+  const std::vector<Nanos> rx = {900'000, 1'000'000, 1'000'000, 1'100'000, 4'000'000};
+  const std::vector<Nanos> tx = {10'000'000, 10'000'000};
+  RunningStats merged;
+  for (Nanos v : rx) merged.add(v);
+  s.can_histograms.push_back(CanHistograms{.name = "can group left_arm",
+                                           .kind = ReportKind::CanGroup,
+                                           .rx_gap = reduce_to_buckets(merged),
+                                           .tx_gap = std::nullopt});
+  s.can_histograms.push_back(CanHistograms{.name = "can0/drive_5",
+                                           .kind = ReportKind::CanNode,
+                                           .rx_gap = reduce_samples_to_buckets(rx),
+                                           .tx_gap = reduce_samples_to_buckets(tx)});
   return s;
 }
 
@@ -188,7 +202,7 @@ TEST_CASE("Histograms are cumulative with +Inf equal to the count", "[export][pr
     std::map<std::string, std::vector<const test::Sample*>> buckets;
     std::map<std::string, double> counts;
     for (const auto& s : f.samples) {
-      const std::string c = s.label("component");
+      const std::string c = s.label("component") + "/" + s.label("direction");
       if (s.name == f.name + "_bucket") buckets[c].push_back(&s);
       if (s.name == f.name + "_count") counts[c] = s.value;
     }
@@ -208,7 +222,7 @@ TEST_CASE("Histograms are cumulative with +Inf equal to the count", "[export][pr
       ++checked;
     }
   }
-  CHECK(checked >= 8);  // 4 timing families x 2 components
+  CHECK(checked >= 8 + 3);  // 4 timing families x 2 components, CAN gaps rx, tx, group rx
 
   // The fast component's execution time (30 us per cycle) sits under le=3e-05 or the next one.
   const auto* exec = e.find("vigil_component_execution_seconds");
@@ -263,4 +277,72 @@ TEST_CASE("An empty snapshot is a valid exposition without empty families",
                                                    "vigil_reports"});
     CHECK(e.eof == om);
   }
+}
+
+TEST_CASE("CAN gaps are histograms per node and direction, and per group",
+          "[export][prometheus][can]") {
+  const MetricsSnapshot snap = rich_snapshot();
+  for (const bool om : {false, true}) {
+    const Exposition e = parse_exposition(
+        render_metrics(snap, om ? ExpositionFormat::OpenMetrics : ExpositionFormat::Prometheus),
+        om);
+    const auto* gap = e.find("vigil_can_gap_seconds");
+    REQUIRE(gap != nullptr);
+    CHECK(gap->type == "histogram");
+    CHECK(e.find("vigil_can_rx_gap_seconds") == nullptr);  // the summary it replaced
+    std::map<std::string, double> at;                      // "direction le" -> cumulative count
+    for (const auto& smp : gap->samples) {
+      CHECK(smp.label("component") == "can0/drive_5");
+      if (smp.name.ends_with("_bucket"))
+        at[smp.label("direction") + " " + smp.label("le")] = smp.value;
+      if (smp.name.ends_with("_count") && smp.label("direction") == "rx") CHECK(smp.value == 5);
+      if (smp.name.ends_with("_sum") && smp.label("direction") == "rx") {
+        CHECK(smp.value == Approx(8e-3));
+      }
+    }
+    // Exact samples: 0.9 ms under le=0.001 with the two 1 ms ones; 1.1 ms under 0.0015.
+    CHECK(at.at("rx 0.0007") == 0);
+    CHECK(at.at("rx 0.001") == 3);
+    CHECK(at.at("rx 0.0015") == 4);
+    CHECK(at.at("rx 0.005") == 5);
+    CHECK(at.at("rx +Inf") == 5);
+    CHECK(at.at("tx 0.007") == 0);
+    CHECK(at.at("tx 0.01") == 2);
+    CHECK(at.at("tx +Inf") == 2);
+
+    const auto* group = e.find("vigil_can_group_gap_seconds");
+    REQUIRE(group != nullptr);
+    CHECK(group->type == "histogram");
+    double count = -1;
+    for (const auto& smp : group->samples) {
+      CHECK(smp.label("component") == "can group left_arm");
+      CHECK(smp.label("direction") == "rx");  // no tx gaps in the group
+      if (smp.name.ends_with("_count")) count = smp.value;
+    }
+    CHECK(count == 5);
+  }
+
+  // Without buckets (a publisher that collected none): the node's rx count and sum from its
+  // report; no group family.
+  MetricsSnapshot bare = rich_snapshot();
+  bare.can_histograms.clear();
+  const Exposition e = parse_exposition(render_metrics(bare, ExpositionFormat::Prometheus), false);
+  const auto* gap = e.find("vigil_can_gap_seconds");
+  REQUIRE(gap != nullptr);
+  REQUIRE(gap->samples.size() == 3);  // +Inf, sum, count
+  CHECK(gap->samples[0].label("le") == "+Inf");
+  CHECK(gap->samples[0].value == 10);
+  CHECK(e.find("vigil_can_group_gap_seconds") == nullptr);
+}
+
+TEST_CASE("Samples reduce to exact buckets", "[export][prometheus][buckets]") {
+  const std::vector<Nanos> samples = {0, 999, 1'000, 1'001, 1'500, 7'000'000'000, 10'000'000'001};
+  const BucketCounts b = reduce_samples_to_buckets(samples);
+  CHECK(b.count == samples.size());
+  CHECK(b.cumulative[0] == 3);                  // le 1 us: 0, 999, 1000
+  CHECK(b.cumulative[1] == 5);                  // le 1.5 us
+  CHECK(b.cumulative[kBucketBounds - 2] == 6);  // le 7 s
+  CHECK(b.cumulative[kBucketBounds - 1] == 6);  // le 10 s: the last one only in +Inf
+  CHECK(b.sum_ns == Approx(17'000'004'501.0));
+  CHECK(reduce_samples_to_buckets({}).count == 0);
 }

@@ -32,10 +32,12 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -162,6 +164,25 @@ struct CanSnapshot {
                                        Direction d, bool rtr = false) const noexcept;
 };
 
+/// One gap distribution as the aggregator holds it, handed to a visitor of
+/// `CanAggregator::visit_gap_distributions` (e.g. to reduce it to Prometheus buckets). Valid
+/// only during the visitor's call.
+struct GapDistribution {
+  std::string_view group;  ///< a group's name; empty for a node
+  std::uint8_t bus = 0;    ///< a node's bus (0 for a group)
+  std::uint32_t node = 0;  ///< a node's number (`kNoNode`: the frames of no node; 0 for a group)
+  Direction direction = Direction::Rx;
+  /// Live: the gaps' statistics with their histogram. Null in exact mode.
+  const RunningStats* stats = nullptr;
+  /// Exact mode: every gap, in no particular order (min, max, sum are exact). Empty live.
+  std::span<const Nanos> samples{};
+
+  /// Gaps in the distribution.
+  [[nodiscard]] std::uint64_t count() const noexcept {
+    return stats != nullptr ? stats->count() : samples.size();
+  }
+};
+
 /// Options of the aggregator.
 struct CanAggregatorOptions {
   /// Keep every gap sample so that gap percentiles are exact (offline replay: memory grows by
@@ -220,6 +241,15 @@ class CanAggregator {
   [[nodiscard]] CanSnapshot snapshot(std::span<const GroupSpec> groups = {}) const;
   /// Supervisor cycles applied so far.
   [[nodiscard]] std::uint64_t cycles() const;
+  /// Calls `visit` with every node's gap distribution (each (bus, node, direction) with at
+  /// least one record), then, for each of `groups` and each direction, the merged gaps of its
+  /// members (`GroupSpec::contains`, the frames of no node excluded) when they have any. Holds
+  /// the statistics lock during the visit, so the distributions are consistent with each other
+  /// (the supervisor waits meanwhile: keep `visit` short, e.g. a bucket reduction). A group
+  /// costs one merge of its members' histograms (live) or one copy of their gaps (exact).
+  /// Allocates; any non-RT thread; `visit` must not call back into the aggregator.
+  void visit_gap_distributions(std::span<const GroupSpec> groups,
+                               const std::function<void(const GapDistribution&)>& visit) const;
 
   struct Impl;
 

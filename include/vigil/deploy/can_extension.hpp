@@ -23,6 +23,7 @@
 #include <atomic>
 #include <memory>
 #include <string_view>
+#include <vector>
 
 #include "vigil/can/can_config.hpp"
 #include "vigil/can/can_monitor.hpp"
@@ -48,6 +49,10 @@ class CanExtension : public Extension {
   void stop() override;
   /// Adds one report per CAN node and one per group to `reports`.
   void contribute(ReportSet& reports) override;
+  /// The same, plus the gap buckets of every node (rx and tx) and group from the CAN
+  /// aggregator's histograms (its samples in exact mode), taken right after the reports.
+  void contribute_metrics(ReportSet& reports,
+                          std::vector<exporter::CanHistograms>& histograms) override;
 
   /// Where the deployment's sniffers join. Thread-safe.
   [[nodiscard]] can::CanRegistry& registry() noexcept { return registry_; }
@@ -62,6 +67,8 @@ class CanExtension : public Extension {
   std::unique_ptr<can::CanAggregator> statistics_;
   std::unique_ptr<can::CanSupervisor> supervisor_;
   std::unique_ptr<can::CanMonitor> monitor_;
+  void add_reports(ReportSet& reports, std::vector<exporter::CanHistograms>* histograms);
+
   std::atomic<Nanos> stopped_at_{0};  // once stopping: the time liveness is judged at
 };
 

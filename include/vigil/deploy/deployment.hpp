@@ -16,7 +16,7 @@
 ///   ewma_weight: 0.05
 ///   thresholds: {defaults: {overrun: {near_fraction: 0.9}}}   # or a file name
 ///   shared_memory: robot      # optional: supervised by `vigil supervise --name robot`
-/// outputs: {json: final.json, http: {listen: 9479}}
+/// outputs: {json: final.json, http: {listen: 9479}, textfile: vigil.prom}
 /// can: {node_map: canopen}        # a section of a registered extension
 /// (vigil/deploy/extension.hpp)
 /// ```
@@ -89,6 +89,8 @@ struct HttpOutputSpec {
 struct OutputSpec {
   std::optional<std::filesystem::path> json;  ///< final reports (the monitor's JSON schema)
   std::optional<HttpOutputSpec> http;         ///< live HTTP endpoint
+  /// node-exporter textfile (`.prom`), rewritten atomically after every monitor cycle.
+  std::optional<std::filesystem::path> textfile;
 };
 
 /// A top-level section handled by an extension (e.g. `can:`), unparsed.

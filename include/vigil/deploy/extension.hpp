@@ -28,6 +28,7 @@
 #include "vigil/config/node.hpp"
 #include "vigil/error.hpp"
 #include "vigil/expected.hpp"
+#include "vigil/export/metrics_snapshot.hpp"
 #include "vigil/monitor/report.hpp"
 
 namespace vigil::deploy {
@@ -51,6 +52,14 @@ class Extension {
   virtual void stop() {}
   /// Adds the extension's reports (e.g. one per CAN node) to a monitor cycle's reports.
   virtual void contribute(ReportSet& /*reports*/) {}
+  /// Like `contribute`, and also adds the gap distributions of those reports as Prometheus
+  /// buckets, matched by report name (the CAN extension: one per node and group), for the
+  /// HTTP exporter's `/metrics`. Runs on the thread that publishes (the monitor's). Default:
+  /// `contribute(reports)` alone.
+  virtual void contribute_metrics(ReportSet& reports,
+                                  std::vector<exporter::CanHistograms>& /*histograms*/) {
+    contribute(reports);
+  }
 };
 
 /// Makes an extension from its deployment section. Errors are the section's configuration

@@ -4,11 +4,14 @@
 /// components of a DeploymentSpec, configures and starts everything in the right order, and stops
 /// it in reverse; the user never orders anything by hand.
 ///
-/// Start order: process set-up for real time (memory locking, prefault) -> supervisor and monitor
-/// threads (so that nothing a component sends is missed) -> extensions (e.g. CAN) -> every
-/// component configured, in file order (all before any starts: a failure leaves nothing
-/// running) -> every activity started, in file order of its components. Stop order: activities
-/// (reverse), extensions, a last supervisor drain, a last monitor cycle.
+/// Start order: the outputs of the deployment (`outputs.http`, `outputs.textfile`: a
+/// `vigil::exporter::MonitorExporter` publishing every monitor cycle with the extensions'
+/// reports; a taken port fails start() here, before anything runs) -> process set-up for real
+/// time (memory locking, prefault) -> supervisor and monitor threads (so that nothing a component
+/// sends is missed) -> extensions (e.g. CAN) -> every component configured, in file order (all
+/// before any starts: a failure leaves nothing running) -> every activity started, in file order of
+/// its components. Stop order: activities (reverse), extensions, a last supervisor drain, the
+/// monitor, the outputs.
 ///
 /// Not RT-safe; call from one control thread.
 
@@ -22,6 +25,7 @@
 #include "vigil/deploy/deployment.hpp"
 #include "vigil/deploy/extension.hpp"
 #include "vigil/error.hpp"
+#include "vigil/export/http_service.hpp"
 #include "vigil/monitor/monitor.hpp"
 #include "vigil/monitor/threshold_file.hpp"
 #include "vigil/platform/memory.hpp"
@@ -41,7 +45,8 @@ class System {
   System& operator=(const System&) = delete;
 
   /// Starts everything in order (see the file comment). On failure stops what was started and
-  /// returns what failed.
+  /// returns what failed (e.g. "outputs.http: HTTP server: cannot listen on 127.0.0.1:9479: the
+  /// port is taken ...").
   expected<void, Error> start();
   /// Stops everything in reverse order. Idempotent.
   void stop();
@@ -49,6 +54,10 @@ class System {
 
   /// The latest reports: the monitor's, plus the extensions'.
   [[nodiscard]] ReportSet reports() const;
+  /// Adds the extensions' reports to `reports` (one monitor cycle's) and, when `histograms` is
+  /// given, the gap buckets of those reports (`Extension::contribute_metrics`). Any thread.
+  void contribute(ReportSet& reports,
+                  std::vector<exporter::CanHistograms>* histograms = nullptr) const;
   /// Runs one monitor cycle now and returns its reports with the extensions' (e.g. final
   /// reports after stop()).
   ReportSet step_monitor();
@@ -65,6 +74,13 @@ class System {
   [[nodiscard]] ComponentAggregator& aggregator() noexcept { return *aggregator_; }
   [[nodiscard]] TaskSupervisor& supervisor() noexcept { return *supervisor_; }
   [[nodiscard]] Monitor& monitor() noexcept { return *monitor_; }
+  /// The exporter serving `outputs.http` / `outputs.textfile` while the system runs (e.g.
+  /// `exporter()->http()->address()` for the port chosen for `listen: 0`); null when the
+  /// deployment has neither or the system is stopped. Control thread.
+  [[nodiscard]] exporter::MonitorExporter* exporter() noexcept { return exporter_.get(); }
+  /// The latest textfile write error (kept after stop()); empty when every write succeeded
+  /// or no textfile is written. Control thread.
+  [[nodiscard]] const std::string& output_error() const noexcept { return output_error_; }
   /// The watched thresholds file (`supervision: {thresholds: FILE}`), or null when the
   /// thresholds are embedded. The monitor polls it at each cycle; `reload()` it to apply an edit
   /// at once.
@@ -84,6 +100,8 @@ class System {
 
  private:
   explicit System(DeploymentSpec spec);
+  expected<void, Error> start_outputs();
+  void stop_outputs();
 
   struct Slot {
     std::unique_ptr<TaskCore> task;
@@ -99,6 +117,9 @@ class System {
   std::optional<ThresholdFile> thresholds_file_;  // after monitor_: detached before it dies
   std::vector<std::unique_ptr<Extension>> extensions_;
   std::vector<Slot> slots_;
+  // After monitor_ and extensions_ (its publication uses both): destroyed before them.
+  std::unique_ptr<exporter::MonitorExporter> exporter_;
+  std::string output_error_;
   std::vector<std::string> log_;
   platform::RealtimeSetupReport rt_setup_;
   bool running_ = false;

@@ -18,6 +18,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 
 #include "vigil/platform/clock.hpp"
 #include "vigil/supervisor/running_stats.hpp"
@@ -63,5 +64,10 @@ struct BucketCounts {
 /// The same from a bare histogram with a known sum. O(histogram buckets).
 [[nodiscard]] BucketCounts reduce_to_buckets(const RunningStats::Histogram& histogram,
                                              double sum_ns, Nanos shift_ns = 0) noexcept;
+
+/// The same from every sample of a distribution (e.g. the CAN aggregator's exact mode): each
+/// sample counts under the smallest boundary >= it, exactly; the sum is exact up to the double
+/// rounding. O(samples x log boundaries). Allocation-free; any thread.
+[[nodiscard]] BucketCounts reduce_samples_to_buckets(std::span<const Nanos> samples) noexcept;
 
 }  // namespace vigil::exporter

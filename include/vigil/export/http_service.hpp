@@ -1,7 +1,7 @@
 #pragma once
 /// @file
 /// `MonitorExporter`: connects a `Monitor` to the HTTP server and/or the node-exporter textfile
-/// in one call, for a user's own program (and for `vigil demo`).
+/// in one call, for a user's own program (and for a `deploy::System`'s `outputs`).
 ///
 /// It subscribes to the monitor: after every monitor cycle, on the monitor's thread, it copies
 /// the reports (plus those an `augment` function adds, e.g. a deployment's CAN nodes), reduces
@@ -47,6 +47,10 @@ struct ExportOptions {
   /// (e.g. `[&system](ReportSet& r) { r = system.reports(); }` for a deploy::System's
   /// extensions). Runs on the monitor's thread.
   std::function<void(ReportSet&)> augment;
+  /// Like `augment` (called after it), and also adds the gap histograms of the CAN reports it
+  /// adds, matched by name (e.g. a deploy::System's CAN extension). Runs on the monitor's
+  /// thread.
+  std::function<void(ReportSet&, std::vector<CanHistograms>&)> augment_metrics;
 };
 
 class MonitorExporter {
@@ -63,9 +67,10 @@ class MonitorExporter {
   MonitorExporter(const MonitorExporter&) = delete;
   MonitorExporter& operator=(const MonitorExporter&) = delete;
 
-  /// Publishes `reports` now (e.g. the final reports after the system stopped, which a
-  /// `System::step_monitor()` does not pass through `augment`). Any thread.
-  void publish(const ReportSet& reports);
+  /// Publishes `reports` (and the gap buckets of its CAN reports, by name) now (e.g. the final
+  /// reports after the system stopped, which a `System::step_monitor()` does not pass through
+  /// `augment`). Any thread.
+  void publish(const ReportSet& reports, std::vector<CanHistograms> can_histograms = {});
 
   /// The server, or null when HTTP was not asked for.
   [[nodiscard]] HttpServer* http() noexcept { return http_.get(); }
@@ -96,7 +101,8 @@ class MonitorExporter {
     Monitor& monitor, const ComponentAggregator& aggregator, HttpOptions options = {}) {
   return MonitorExporter::start(
       monitor, &aggregator,
-      ExportOptions{.http = std::move(options), .textfile = {}, .augment = {}});
+      ExportOptions{
+          .http = std::move(options), .textfile = {}, .augment = {}, .augment_metrics = {}});
 }
 
 }  // namespace vigil::exporter

@@ -10,9 +10,12 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
+#include "vigil/can/can_statistics.hpp"
 #include "vigil/export/buckets.hpp"
 #include "vigil/monitor/report.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
@@ -33,6 +36,24 @@ struct ComponentHistograms {
 /// time of one reduction (microseconds). Not RT-safe (allocates); any non-RT thread.
 [[nodiscard]] std::vector<ComponentHistograms> collect_histograms(
     const ComponentAggregator& aggregator);
+
+/// The gap distributions of one CAN node or group report as Prometheus buckets (served as
+/// `vigil_can_gap_seconds` and `vigil_can_group_gap_seconds`).
+struct CanHistograms {
+  /// The report's name: "can0/drive_5" (kind CanNode), "can group left_arm" (kind CanGroup).
+  std::string name;
+  ReportKind kind = ReportKind::CanNode;
+  /// Time between consecutive frames received from the node (a group: from each member);
+  /// none when no gap was measured in that direction.
+  std::optional<BucketCounts> rx_gap;
+  /// Time between consecutive frames sent to the node (a group: to each member).
+  std::optional<BucketCounts> tx_gap;
+};
+
+/// Reduces one of the CAN aggregator's gap distributions to the fixed boundaries: its
+/// histogram (live, the same rule as the components') or its samples (exact mode: exact).
+/// Allocation-free; call inside `CanAggregator::visit_gap_distributions`.
+[[nodiscard]] BucketCounts reduce_to_buckets(const can::GapDistribution& distribution) noexcept;
 
 /// One component at one point of the dashboard's history.
 struct HistoryPoint {
@@ -62,11 +83,16 @@ struct MetricsSnapshot {
   std::vector<ComponentHistograms> histograms;
   /// The recent history, oldest first (shared between consecutive snapshots).
   std::vector<std::shared_ptr<const HistoryFrame>> history;
+  /// The CAN nodes' and groups' gap buckets, sorted by name; empty without CAN (or when the
+  /// publisher did not collect them: the gap families then carry only their count and sum).
+  std::vector<CanHistograms> can_histograms;
   std::int64_t wall_time_ns = 0;  ///< Unix time at publication (for ROS header stamps)
   Nanos published_ns = 0;         ///< monotonic time at publication
 
   /// The buckets of `report` (a component), or null. O(log n).
   [[nodiscard]] const ComponentHistograms* histograms_of(const Report& report) const noexcept;
+  /// The gap buckets of `report` (a CAN node or group), or null. O(log n).
+  [[nodiscard]] const CanHistograms* can_histograms_of(const Report& report) const noexcept;
 };
 
 }  // namespace vigil::exporter
