@@ -367,7 +367,7 @@ class MemoryStream final : public httplib::Stream {
 struct HttpServer::Impl {
   HttpOptions options;
   std::unique_ptr<Server> server;
-  std::mutex memory_mutex;        // creates `memory` once
+  std::mutex memory_mutex;         // creates `memory` once
   std::unique_ptr<Server> memory;  // answer()'s server: the same configuration, no socket
   platform::Thread listener;
   std::mutex control_mutex;  // serialises start() and stop()
@@ -433,7 +433,8 @@ void replace_all(std::string& s, std::string_view from, std::string_view to) {
 HttpServer::Impl::Impl(HttpOptions o) : options(std::move(o)) {
   if (options.dashboard) {
     page = std::string(detail::kDashboardHtml);
-    replace_all(page, "{{REFRESH_MS}}", std::to_string(options.dashboard_refresh_ns / kNanosPerMilli));
+    replace_all(page, "{{REFRESH_MS}}",
+                std::to_string(options.dashboard_refresh_ns / kNanosPerMilli));
     replace_all(page, "{{CHARTS}}", detail::kChartJs.empty() ? "0" : "1");
     replace_all(page, "{{VERSION}}", kVersion);
   } else {

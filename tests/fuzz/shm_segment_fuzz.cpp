@@ -12,8 +12,9 @@
 //    (so the writer is alive); anything else is read as it is.
 //  - odd: the rest is a sequence of messages in a valid segment of this process: each one is a
 //    byte k (type: k's low 7 bits mod the types; bit 7: in the type's mailbox instead of the
-//    ring) and the type's payload bytes; bit 1 of the first byte closes the segment (the component left).
-//    This reaches the message checks and everything downstream (aggregator, monitor) at once.
+//    ring) and the type's payload bytes; bit 1 of the first byte closes the segment (the component
+//    left). This reaches the message checks and everything downstream (aggregator, monitor) at
+//    once.
 // Whatever the bytes: no crash, no read outside the segment, no undefined behaviour downstream,
 // and every rejection names a field and says why.
 #include <sys/mman.h>
@@ -76,8 +77,8 @@ void read_image(const std::uint8_t* data, std::size_t size) {
   const std::size_t mapped = std::max<std::size_t>(size, 1);
   void* p = ::mmap(nullptr, mapped, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
   if (p == MAP_FAILED) return;
-  std::unique_ptr<void, std::function<void(void*)>> unmap(p,
-                                                          [mapped](void* q) { ::munmap(q, mapped); });
+  std::unique_ptr<void, std::function<void(void*)>> unmap(
+      p, [mapped](void* q) { ::munmap(q, mapped); });
   auto* image = static_cast<std::byte*>(p);
   if (size > 0) std::memcpy(image, data, size);
 

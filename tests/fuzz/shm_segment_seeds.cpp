@@ -102,7 +102,8 @@ void write(const std::filesystem::path& dir, const char* name, std::uint8_t mode
            const std::vector<std::byte>& bytes) {
   std::ofstream out(dir / name, std::ios::binary | std::ios::trunc);
   out.put(static_cast<char>(mode));
-  out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  out.write(reinterpret_cast<const char*>(bytes.data()),
+            static_cast<std::streamsize>(bytes.size()));
 }
 
 template <class T>
