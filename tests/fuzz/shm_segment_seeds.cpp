@@ -21,8 +21,17 @@ namespace {
 
 using namespace vigil;
 
+// A message with every byte zero, padding included, before its fields are set: the seeds must be
+// the same bytes on every run.
+template <class T>
+T zeroed() {
+  T t;
+  std::memset(static_cast<void*>(&t), 0, sizeof t);
+  return t;
+}
+
 TaskInfo task_info() {
-  TaskInfo t;
+  auto t = zeroed<TaskInfo>();
   t.name = "motor";
   t.activity = "periodic";
   t.requested_policy = SchedPolicy::Fifo;
@@ -38,7 +47,7 @@ TaskInfo task_info() {
 }
 
 CycleSample sample(std::uint64_t cycle, bool overrun) {
-  CycleSample s;
+  auto s = zeroed<CycleSample>();
   s.release_ns = static_cast<Nanos>(cycle) * kNanosPerMilli;
   s.start_ns = s.release_ns + 20 * kNanosPerMicro;
   s.end_ns = s.start_ns + (overrun ? 1200 : 300) * kNanosPerMicro;
@@ -50,7 +59,7 @@ CycleSample sample(std::uint64_t cycle, bool overrun) {
 }
 
 StateChange state_change(TaskState from, TaskState to) {
-  StateChange c;
+  auto c = zeroed<StateChange>();
   c.time_ns = kNanosPerSecond;
   c.from = from;
   c.to = to;
@@ -60,7 +69,7 @@ StateChange state_change(TaskState from, TaskState to) {
 }
 
 ExceptionReport exception() {
-  ExceptionReport e;
+  auto e = zeroed<ExceptionReport>();
   e.cycle = 7;
   e.count = 1;
   e.hook = Hook::None;
@@ -158,7 +167,8 @@ int main(int argc, char** argv) {
   append_message(sticky, 0x80, task_info());
   append_message(sticky, 0x84, state_change(TaskState::Running, TaskState::Stopped));
   append_message(sticky, 0x81, sample(100, true));
-  RealTimeLoss loss;
+  RealTimeLoss loss;  // zeroed in place: 16 bytes are returned in registers, padding not kept
+  std::memset(static_cast<void*>(&loss), 0, sizeof loss);
   loss.cycle = 3;
   loss.cause = LossCause::Allocation;
   loss.count = 2;
