@@ -316,13 +316,59 @@ bool loopback_host(std::string_view host) {
   return host == "localhost" || host.starts_with("127.");
 }
 
+// cpp-httplib's server with one request served from any Stream (process_request is protected):
+// what a connection's thread runs, used on an in-memory stream by HttpServer::answer().
+class Server final : public httplib::Server {
+ public:
+  bool serve_one(httplib::Stream& stream) {
+    bool closed = false;
+    // As on a connection with keep-alive count 1: the request is the connection's last.
+    return process_request(stream, true, closed, nullptr);
+  }
+};
+
+// A connection in memory: reads the request's bytes, collects the response's.
+class MemoryStream final : public httplib::Stream {
+ public:
+  explicit MemoryStream(std::string_view in) : in_(in) {}
+  bool is_readable() const override { return true; }
+  bool is_writable() const override { return true; }
+  ssize_t read(char* ptr, size_t size) override {
+    const std::size_t n = std::min(size, in_.size() - pos_);
+    std::memcpy(ptr, in_.data() + pos_, n);
+    pos_ += n;
+    return static_cast<ssize_t>(n);
+  }
+  ssize_t write(const char* ptr, size_t size) override {
+    out_.append(ptr, size);
+    return static_cast<ssize_t>(size);
+  }
+  void get_remote_ip_and_port(std::string& ip, int& port) const override {
+    ip = "127.0.0.1";
+    port = 40000;
+  }
+  void get_local_ip_and_port(std::string& ip, int& port) const override {
+    ip = "127.0.0.1";
+    port = kDefaultHttpPort;
+  }
+  socket_t socket() const override { return INVALID_SOCKET; }
+  std::string take() { return std::move(out_); }
+
+ private:
+  std::string_view in_;
+  std::size_t pos_ = 0;
+  std::string out_;
+};
+
 }  // namespace
 
 // --- the server --------------------------------------------------------------------------------
 
 struct HttpServer::Impl {
   HttpOptions options;
-  std::unique_ptr<httplib::Server> server;
+  std::unique_ptr<Server> server;
+  std::mutex memory_mutex;         // creates `memory` once
+  std::unique_ptr<Server> memory;  // answer()'s server: the same configuration, no socket
   platform::Thread listener;
   std::mutex control_mutex;  // serialises start() and stop()
   std::atomic<bool> running{false};
@@ -339,7 +385,7 @@ struct HttpServer::Impl {
 
   std::atomic<std::uint64_t> requests{0}, client_errors{0}, server_errors{0}, publications{0};
 
-  explicit Impl(HttpOptions o) : options(std::move(o)) {}
+  explicit Impl(HttpOptions o);
 
   void log(const std::string& line) const {
     if (options.log) {
@@ -359,7 +405,9 @@ struct HttpServer::Impl {
     return std::max<Nanos>(3 * interval.load(std::memory_order_relaxed), 3 * kNanosPerSecond);
   }
 
-  void routes();
+  // Everything a server does with a request: limits, timeouts, checks and routes.
+  void configure(Server& s);
+  void routes(Server& s);
 };
 
 namespace {
@@ -382,8 +430,32 @@ void replace_all(std::string& s, std::string_view from, std::string_view to) {
 
 }  // namespace
 
-void HttpServer::Impl::routes() {
-  httplib::Server& s = *server;
+HttpServer::Impl::Impl(HttpOptions o) : options(std::move(o)) {
+  if (options.dashboard) {
+    page = std::string(detail::kDashboardHtml);
+    replace_all(page, "{{REFRESH_MS}}",
+                std::to_string(options.dashboard_refresh_ns / kNanosPerMilli));
+    replace_all(page, "{{CHARTS}}", detail::kChartJs.empty() ? "0" : "1");
+    replace_all(page, "{{VERSION}}", kVersion);
+  } else {
+    page = index_page();
+  }
+}
+
+void HttpServer::Impl::configure(Server& s) {
+  const HttpOptions& o = options;
+  s.set_keep_alive_max_count(1);  // one request per connection: no thread held between requests
+  s.set_keep_alive_timeout(
+      std::max<time_t>(1, static_cast<time_t>(o.read_timeout_ns / kNanosPerSecond)));
+  s.set_read_timeout(o.read_timeout_ns / kNanosPerSecond,
+                     (o.read_timeout_ns % kNanosPerSecond) / 1000);
+  s.set_write_timeout(o.write_timeout_ns / kNanosPerSecond,
+                      (o.write_timeout_ns % kNanosPerSecond) / 1000);
+  s.set_payload_max_length(o.max_body_bytes);
+  routes(s);
+}
+
+void HttpServer::Impl::routes(Server& s) {
   using HR = httplib::Server::HandlerResponse;
   const bool check_host = options.listen.loopback();
 
@@ -566,8 +638,8 @@ expected<void, Error> HttpServer::start() {
         Error(EINVAL, "HTTP server: the dashboard refresh must be 200 ms..1 s (1 to 5 Hz)"));
   }
 
-  m.server = std::make_unique<httplib::Server>();
-  httplib::Server& s = *m.server;
+  m.server = std::make_unique<Server>();
+  Server& s = *m.server;
   // SO_REUSEADDR (restart while old connections linger in TIME_WAIT) but not SO_REUSEPORT:
   // a second server on the same port must fail, not share the port.
   // The hook also remembers the socket, whose listen backlog is raised after the bind.
@@ -580,24 +652,7 @@ expected<void, Error> HttpServer::start() {
   const unsigned threads = o.threads;
   const std::string name = o.thread_name;
   s.new_task_queue = [threads, name] { return new Pool(threads, name); };
-  s.set_keep_alive_max_count(1);  // one request per connection: no thread held between requests
-  s.set_keep_alive_timeout(
-      std::max<time_t>(1, static_cast<time_t>(o.read_timeout_ns / kNanosPerSecond)));
-  s.set_read_timeout(o.read_timeout_ns / kNanosPerSecond,
-                     (o.read_timeout_ns % kNanosPerSecond) / 1000);
-  s.set_write_timeout(o.write_timeout_ns / kNanosPerSecond,
-                      (o.write_timeout_ns % kNanosPerSecond) / 1000);
-  s.set_payload_max_length(o.max_body_bytes);
-
-  if (o.dashboard) {
-    m.page = std::string(detail::kDashboardHtml);
-    replace_all(m.page, "{{REFRESH_MS}}", std::to_string(o.dashboard_refresh_ns / kNanosPerMilli));
-    replace_all(m.page, "{{CHARTS}}", detail::kChartJs.empty() ? "0" : "1");
-    replace_all(m.page, "{{VERSION}}", kVersion);
-  } else {
-    m.page = index_page();
-  }
-  m.routes();
+  m.configure(s);
 
   errno = 0;
   int port = o.listen.port;
@@ -664,6 +719,22 @@ void HttpServer::stop() {
 }
 
 bool HttpServer::running() const noexcept { return impl_->running; }
+
+std::string HttpServer::answer(std::string_view request) {
+  Impl& m = *impl_;
+  Server* s = nullptr;
+  {
+    std::lock_guard lock(m.memory_mutex);
+    if (!m.memory) {
+      m.memory = std::make_unique<Server>();
+      m.configure(*m.memory);
+    }
+    s = m.memory.get();
+  }
+  MemoryStream stream(request);
+  (void)s->serve_one(stream);
+  return stream.take();
+}
 
 ListenAddress HttpServer::address() const { return impl_->bound; }
 

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <catch2/catch.hpp>
+#include <chrono>
 #include <cstdlib>
 #include <cstring>
 #include <string>
@@ -256,4 +257,19 @@ TEST_CASE("check_shm_message rejects what would be undefined to read", "[shm][po
     REQUIRE(check_shm_message(m, why));
     CHECK(std::get<ExceptionReport>(m).message.size() == sizeof e.message.data_ - 1);
   }
+}
+
+TEST_CASE("A segment's start ticks, however large, give a start time no later than now",
+          "[shm][port]") {
+  // Found by fuzzing (tests/fuzz/regressions/shm_segment/start_ticks_overflow.bin): the ticks
+  // come from the segment header; ticks * ns-per-tick overflowed.
+  const std::int64_t self = platform::start_time_unix_ns(
+      platform::process_start_ticks(platform::current_pid()).value_or(0));
+  const std::int64_t huge = platform::start_time_unix_ns(~std::uint64_t{0});
+  const std::int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                               std::chrono::system_clock::now().time_since_epoch())
+                               .count();
+  CHECK(huge >= self);
+  CHECK(huge <= now + kNanosPerSecond);
+  CHECK(std::llabs(platform::start_time_unix_ns(std::uint64_t{1} << 62) - huge) < kNanosPerSecond);
 }

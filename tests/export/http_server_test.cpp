@@ -243,6 +243,33 @@ TEST_CASE("The server is read-only and rejects bad requests with 4xx", "[export]
   CHECK(server.stats().client_errors >= 5);
 }
 
+TEST_CASE("answer() serves raw request bytes like a connection, without a socket",
+          "[export][http]") {
+  Fixture f;
+  HttpServer server(quiet_options());  // not started: answer() needs no socket
+  CHECK(server.answer("GET /healthz HTTP/1.1\r\nHost: localhost\r\n\r\n")
+            .starts_with("HTTP/1.1 503 "));  // nothing published yet
+  server.publish(f.h.step());
+  const auto status = [&](const std::string& request) {
+    const std::string r = server.answer(request);
+    return r.size() >= 12 && r.starts_with("HTTP/1.") ? std::stoi(r.substr(9, 3)) : -1;
+  };
+  const std::string ok = server.answer("GET /metrics HTTP/1.1\r\nHost: localhost\r\n\r\n");
+  CHECK(ok.starts_with("HTTP/1.1 200 OK\r\n"));
+  CHECK(ok.find("X-Content-Type-Options: nosniff") != std::string::npos);
+  CHECK(ok.find("vigil_") != std::string::npos);
+  CHECK(status("GET /api/v1/reports/can0/arm HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n") == 200);
+  CHECK(status("GET /api/v1/reports/nobody HTTP/1.1\r\n\r\n") == 404);
+  CHECK(status("POST /metrics HTTP/1.1\r\nContent-Length: 1\r\n\r\nx") == 405);
+  CHECK(status("GET /metrics HTTP/1.1\r\nHost: evil.example\r\n\r\n") == 403);
+  CHECK(status("GET /nope HTTP/1.1\r\n\r\n") == 404);
+  CHECK(status("GET /" + std::string(9000, 'a') + " HTTP/1.1\r\n\r\n") == 414);
+  CHECK(status("GARBAGE\r\n\r\n") == 400);
+  CHECK(server.answer("").empty());  // no request line: closed without an answer
+  CHECK(server.stats().requests >= 9);
+  CHECK(server.stats().server_errors == 1);  // the 503 before the first publication
+}
+
 TEST_CASE("100 concurrent scrapers are all served", "[export][http]") {
   Fixture f;
   HttpServer server(quiet_options());

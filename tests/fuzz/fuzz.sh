@@ -7,10 +7,12 @@
 # fuzzer instead (on a loaded machine, at nice 19, wall time says little): the run is then
 # stopped with SIGINT once the fuzzer has used that much CPU.
 #
-# TARGET: candump, trc, deployment, thresholds, can_config (tests/fuzz/CMakeLists.txt).
+# TARGET: candump, trc, deployment, thresholds, can_config, http_request, shm_segment
+# (tests/fuzz/CMakeLists.txt).
 # WORKDIR (outside the repository) receives corpus/ (grows from run to run), seeds/ (copied from
 # seeds.txt), artifacts/ (crash-*, timeout-*, oom-* inputs) and fuzz.log. The run uses
-# -rss_limit_mb=2048 -timeout=10, the YAML dictionary for YAML targets, and fails (exit != 0) on
+# -rss_limit_mb=2048 -timeout=10, the YAML dictionary for YAML targets (http.dict for
+# http_request), and fails (exit != 0) on
 # any crash, hang, out-of-memory or sanitizer report. Build first:
 #   cmake --preset fuzz && cmake --build build/fuzz
 # Keep every input found in tests/fuzz/regressions/TARGET/ once fixed.
@@ -28,7 +30,11 @@ while read -r t pattern; do
   for f in $root/$pattern; do [[ -f "$f" ]] && cp "$f" "$work/seeds/"; done
 done < <(grep -v '^#' "$root/tests/fuzz/seeds.txt")
 dict=()
-case "$target" in candump | trc) ;; *) dict=(-dict="$root/tests/fuzz/yaml.dict") ;; esac
+case "$target" in
+  candump | trc | shm_segment) ;;
+  http_request) dict=(-dict="$root/tests/fuzz/http.dict") ;;
+  *) dict=(-dict="$root/tests/fuzz/yaml.dict") ;;
+esac
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"
 # Without -fork a crash stops the run (exit != 0), which is what CI and the campaign want.

@@ -1,51 +1,92 @@
 // Fuzz target: a shared-memory port segment as another process could leave it (truncated,
-// corrupted, hostile), read the way `vigil supervise` reads it: header validation, then the ring
-// (indices, records) and the mailboxes, each message decoded and checked, then aggregated.
-// Whatever the bytes: no crash, no read outside the image, no undefined behaviour downstream,
+// corrupted, hostile), read the way `vigil supervise` reads it. The first byte chooses how the
+// rest is used:
+//  - even: the rest is a whole segment image. (1) In anonymous memory: header validation
+//    (validate_shm_image), then the ring (indices, records) and the mailboxes, each record
+//    decoded and checked (check_shm_message) and aggregated. (2) As a real segment
+//    (/dev/shm/vigil.<name>.<pid>.0, owner-only, like a process's) read by the daemon itself:
+//    deploy::ProcessSupervisor::step() (discovery, file and header checks, attach, sticky
+//    mailboxes, drain, settle, end of a dead process) and a monitor cycle on what it aggregated.
+//    Placeholders keep the daemon's path reachable from a fixed image: a supervisor name "fuzz"
+//    stands for this process's daemon name, and pid 4242 with start ticks 123 for this process
+//    (so the writer is alive); anything else is read as it is.
+//  - odd: the rest is a sequence of messages in a valid segment of this process: each one is a
+//    byte k (type: k's low 7 bits mod the types; bit 7: in the type's mailbox instead of the
+//    ring) and the type's payload bytes; bit 1 of the first byte closes the segment (the component
+//    left). This reaches the message checks and everything downstream (aggregator, monitor) at
+//    once.
+// Whatever the bytes: no crash, no read outside the segment, no undefined behaviour downstream,
 // and every rejection names a field and says why.
+#include <sys/mman.h>
+
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <functional>
 #include <memory>
-#include <new>
+#include <string>
 #include <vector>
 
 #include "vigil/bus/shm_port.hpp"
 #include "vigil/bus/shm_segment.hpp"
+#include "vigil/deploy/process_supervisor.hpp"
+#include "vigil/platform/process_watch.hpp"
+#include "vigil/platform/shm.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 #include "vigil/task/shm_messages.hpp"
 
 namespace {
 
+using namespace vigil;
+
 void check(bool ok) {
   if (!ok) __builtin_trap();
 }
 
-class NoPort final : public vigil::PortReader<vigil::Message> {
+constexpr std::int32_t kSelfPidPlaceholder = 4242;
+constexpr std::uint64_t kSelfTicksPlaceholder = 123;
+constexpr char kSupervisorPlaceholder[] = "fuzz";
+
+struct Self {
+  std::int32_t pid = platform::current_pid();
+  std::uint64_t ticks = platform::process_start_ticks(pid).value_or(0);
+  std::uint32_t uid = platform::effective_uid();
+  // Per process: fuzzers running side by side (CI, a campaign, CTest) never see each other's
+  // segments.
+  std::string supervisor = "fuzz-" + std::to_string(pid);
+  std::string segment = bus::shm_segment_name(supervisor, pid, 0);
+};
+
+const Self& self() {
+  static const Self s;
+  return s;
+}
+
+class NoPort final : public PortReader<Message> {
  public:
-  std::size_t pop(vigil::Message* /*out*/, std::size_t /*max*/) noexcept override { return 0; }
+  std::size_t pop(Message* /*out*/, std::size_t /*max*/) noexcept override { return 0; }
   [[nodiscard]] std::size_t read_available() const noexcept override { return 0; }
   [[nodiscard]] std::size_t capacity() const noexcept override { return 1; }
 };
 
-}  // namespace
+// (1) The image in anonymous memory, read with the reader's primitives.
+void read_image(const std::uint8_t* data, std::size_t size) {
+  const std::size_t mapped = std::max<std::size_t>(size, 1);
+  void* p = ::mmap(nullptr, mapped, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+  if (p == MAP_FAILED) return;
+  std::unique_ptr<void, std::function<void(void*)>> unmap(
+      p, [mapped](void* q) { ::munmap(q, mapped); });
+  auto* image = static_cast<std::byte*>(p);
+  if (size > 0) std::memcpy(image, data, size);
 
-extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  using namespace vigil;
-  if (size > (1U << 20)) return 0;
-  // The image in memory aligned like a mapping (the reader uses atomics on it).
-  std::unique_ptr<std::byte, void (*)(std::byte*)> image(
-      static_cast<std::byte*>(
-          ::operator new (std::max<std::size_t>(size, 1), std::align_val_t{4096})),
-      [](std::byte* p) { ::operator delete (p, std::align_val_t{4096}); });
-  if (size > 0) std::memcpy(image.get(), data, size);
-
-  const bus::ShmExpectation expect{kShmMessageSchema, ""};
-  auto info = bus::validate_shm_image(image.get(), size, expect);
+  const bus::ShmExpectation expect{kShmMessageSchema, kSupervisorPlaceholder};
+  auto info = bus::validate_shm_image(image, size, expect);
   if (!info) {
     check(!info.error().field.empty() && !info.error().message.empty());
-    return 0;
+    return;
   }
   const bus::ShmGeometry& g = info->geometry;
   check(g.segment_size == size);
@@ -68,10 +109,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     aggregator.end(entry, PortDrain{});
   };
 
-  bus::ShmRingReader reader(image.get(), g);
+  bus::ShmRingReader reader(image, g);
   if (auto a = reader.attach(); !a) {
     check(!a.error().message.empty());
-    return 0;
+    return;
   }
   std::vector<std::byte> raw(static_cast<std::size_t>(g.record_size) * g.capacity);
   auto n = reader.pop_raw(raw.data(), g.capacity);
@@ -95,5 +136,127 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   (void)reader.live();
   for (const auto& s : aggregator.snapshot()) check(s.name == info->component_name);
+}
+
+// Replaces the placeholders (see the top of the file) in a header at `image`.
+void substitute(std::byte* image, std::size_t size) {
+  if (size < sizeof(bus::ShmSegmentHeader)) return;
+  bus::ShmSegmentHeader h;
+  std::memcpy(&h, image, sizeof h);
+  if (std::memcmp(h.supervisor_name, kSupervisorPlaceholder, sizeof kSupervisorPlaceholder) == 0) {
+    std::memset(h.supervisor_name, 0, sizeof h.supervisor_name);
+    std::memcpy(h.supervisor_name, self().supervisor.data(), self().supervisor.size());
+  }
+  if (h.pid == kSelfPidPlaceholder && h.start_ticks == kSelfTicksPlaceholder) {
+    h.pid = self().pid;
+    h.start_ticks = self().ticks;
+    h.uid = self().uid;
+  }
+  std::memcpy(image, &h, sizeof h);
+}
+
+// (2) The bytes as this process's segment, read by the daemon.
+void supervise(const std::byte* image, std::size_t size) {
+  const Self& me = self();
+  (void)platform::unlink_shared_memory(me.segment);
+  if (size == 0) return;
+  auto mem = platform::SharedMemory::create(me.segment, size);
+  if (!mem) return;
+  std::memcpy(mem->data(), image, size);
+  substitute(static_cast<std::byte*>(mem->data()), size);
+
+  deploy::ProcessSupervisorOptions o;
+  o.name = me.supervisor;
+  auto daemon = deploy::ProcessSupervisor::create(o);
+  check(daemon.has_value());
+  std::vector<deploy::ProcessEvent> events;
+  (*daemon)->subscribe([&](const deploy::ProcessEvent& e) { events.push_back(e); });
+  (void)(*daemon)->step();
+  (void)(*daemon)->step();
+  const ReportSet reports = (*daemon)->step_monitor();
+  for (const Report& r : reports.components) (void)r.name.size();
+  static const bool verbose = std::getenv("VIGIL_FUZZ_VERBOSE") != nullptr;
+  if (verbose) {
+    for (const Report& r : reports.components) {
+      std::fprintf(stderr, "  report %s: %s, %llu cycles\n", r.name.c_str(),
+                   to_string(r.status.level()), static_cast<unsigned long long>(r.counters.cycles));
+    }
+  }
+  for (const deploy::ProcessEvent& e : events) {
+    if (verbose) std::fprintf(stderr, "  event: %s\n", e.message.c_str());
+    check(!e.message.empty());
+    if (e.kind == deploy::ProcessEvent::Kind::Rejected) {
+      // "segment /vigil... rejected: <field>: <why>"
+      check(e.message.find("rejected: ") != std::string::npos);
+    }
+  }
+  daemon->reset();
+  (void)platform::unlink_shared_memory(me.segment);
+}
+
+// The messages of a valid segment of this process (see the top of the file).
+std::vector<std::byte> message_image(std::uint8_t mode, const std::uint8_t* data,
+                                     std::size_t size) {
+  const Self& me = self();
+  const bus::ShmGeometry g =
+      bus::ShmGeometry::make(kShmMessageSchema.type_count, kShmMessageSchema.payload_size, 8);
+  std::vector<std::byte> image(g.segment_size);
+  bus::ShmIdentity who;
+  who.supervisor_name = me.supervisor;
+  who.component_name = "fuzzed";
+  who.pid = me.pid;
+  who.uid = me.uid;
+  who.start_ticks = me.ticks;
+  who.process_name = "fuzz";
+  who.command_line = "fuzz --messages";
+  bus::init_shm_segment(image.data(), g, kShmMessageSchema, who);
+  constexpr auto sizes = bus::detail::VariantTypes<Message>::sizes;
+  std::uint64_t seq = 0;
+  std::uint64_t write = 0;
+  std::size_t at = 0;
+  while (at < size) {
+    const std::uint8_t k = data[at++];
+    const std::uint32_t type = (k & 0x7FU) % kShmMessageSchema.type_count;
+    const bool mailbox = (k & 0x80U) != 0 || write == g.capacity;
+    std::byte* rec = mailbox ? image.data() + g.mailbox_offset + type * g.mailbox_stride + 8
+                             : image.data() + g.ring_offset + write * g.record_size;
+    const bus::ShmRecordHeader h{++seq, type, sizes[type]};
+    std::memcpy(rec, &h, sizeof h);
+    const std::size_t n = std::min<std::size_t>(sizes[type], size - at);
+    std::memcpy(rec + sizeof h, data + at, n);
+    at += n;
+    if (mailbox) {
+      const std::uint64_t version = 2;  // even: written
+      std::memcpy(rec - 8, &version, sizeof version);
+    } else {
+      ++write;
+    }
+  }
+  bus::ShmSegmentHeader header;
+  std::memcpy(&header, image.data(), sizeof header);
+  header.write_index = write;
+  header.offered = seq;
+  header.dropped = seq - write;
+  if ((mode & 2U) != 0) header.state = static_cast<std::uint32_t>(bus::ShmState::Closed);
+  std::memcpy(image.data(), &header, sizeof header);
+  return image;
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  if (size < 1 || size > (1U << 20)) return 0;
+  const std::uint8_t mode = data[0];
+  ++data;
+  --size;
+  if ((mode & 1U) == 0) {
+    read_image(data, size);
+    std::vector<std::byte> copy(size);
+    if (size > 0) std::memcpy(copy.data(), data, size);
+    supervise(copy.data(), copy.size());
+  } else {
+    const std::vector<std::byte> image = message_image(mode, data, size);
+    supervise(image.data(), image.size());
+  }
   return 0;
 }

@@ -115,6 +115,15 @@ class HttpServer {
   void stop();
   [[nodiscard]] bool running() const noexcept;
 
+  /// Answers one request given as the raw bytes a client would send on a connection
+  /// ("GET /metrics HTTP/1.1\r\nHost: localhost\r\n\r\n"): the same request parsing (cpp-httplib),
+  /// limits, method and Host checks, routes and error pages as a connection of the running
+  /// server, without any socket; whether or not the server runs. Returns the raw response
+  /// (status line, headers, body), empty when the bytes hold no request line (the connection
+  /// would be closed without an answer). Counted in stats(). For tests and fuzzing
+  /// (tests/fuzz/http_request_fuzz.cpp). Thread-safe; not RT-safe.
+  [[nodiscard]] std::string answer(std::string_view request);
+
   /// The address actually bound (the chosen port when the options asked for 0). Valid after a
   /// successful start().
   [[nodiscard]] ListenAddress address() const;

@@ -56,6 +56,8 @@ struct ProcessIdentity {
 [[nodiscard]] std::string self_process_name();
 
 /// Wall-clock time (ns since the Unix epoch) at which a process with `start_ticks` started.
+/// A value beyond the ticks since boot (a corrupt one: it may come from a segment header) gives
+/// now.
 [[nodiscard]] std::int64_t start_time_unix_ns(std::uint64_t start_ticks) noexcept;
 /// The wall clock now (ns since the Unix epoch). RT-safe: yes (vDSO).
 [[nodiscard]] std::int64_t unix_now_ns() noexcept;

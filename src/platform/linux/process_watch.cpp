@@ -172,8 +172,12 @@ std::int64_t start_time_unix_ns(std::uint64_t start_ticks) noexcept {
   const std::int64_t since_boot =
       static_cast<std::int64_t>(boot.tv_sec) * kNanosPerSecond + boot.tv_nsec;
   const long hz = ::sysconf(_SC_CLK_TCK);
-  const std::int64_t start =
-      hz > 0 ? static_cast<std::int64_t>(start_ticks) * (kNanosPerSecond / hz) : 0;
+  if (hz <= 0) return unix_now_ns() - since_boot;
+  // start_ticks may come from another process's memory (a segment header): a process cannot
+  // have started after now, so a larger value is taken as now (no overflow, whatever it is).
+  const std::int64_t tick_ns = kNanosPerSecond / hz;
+  const auto ticks_now = static_cast<std::uint64_t>(since_boot / tick_ns);
+  const auto start = static_cast<std::int64_t>(std::min(start_ticks, ticks_now)) * tick_ns;
   return unix_now_ns() - since_boot + start;
 }
 

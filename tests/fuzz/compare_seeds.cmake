@@ -1,0 +1,20 @@
+# Runs TOOL OUT (a seed writer) and checks that every file it wrote equals the one in COMMITTED.
+file(REMOVE_RECURSE ${OUT})
+execute_process(COMMAND ${TOOL} ${OUT} RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "${TOOL} failed (${rc})")
+endif()
+file(GLOB written RELATIVE ${OUT} ${OUT}/*)
+list(LENGTH written n)
+if(n EQUAL 0)
+  message(FATAL_ERROR "${TOOL} wrote nothing")
+endif()
+foreach(f IN LISTS written)
+  execute_process(COMMAND ${CMAKE_COMMAND} -E compare_files ${OUT}/${f} ${COMMITTED}/${f}
+                  RESULT_VARIABLE differ)
+  if(NOT differ EQUAL 0)
+    message(FATAL_ERROR "${COMMITTED}/${f} is not what ${TOOL} writes now (the segment format or a "
+                        "message changed): regenerate the seeds with\n  ${TOOL} ${COMMITTED}")
+  endif()
+endforeach()
+message(STATUS "${n} seeds as committed")
