@@ -530,7 +530,7 @@ TEST_CASE("A custom check registered in one line runs after the built-in ones",
   CHECK(find(h.step(), "c").status.ok());
 
   CHECK(h.monitor.remove_check("cycle_count") == 1);
-  CHECK(h.monitor.check_names().size() == 8);
+  CHECK(h.monitor.check_names().size() == 9);
 }
 
 TEST_CASE("Without built-in checks, only custom checks run", "[monitor][check]") {
