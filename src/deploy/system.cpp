@@ -9,8 +9,15 @@
 namespace vigil::deploy {
 
 System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
+  const SupervisionSpec& sv = spec_.supervision;
   aggregator_ = std::make_unique<ComponentAggregator>(
-      AggregatorOptions{.ewma_weight = spec_.supervision.ewma_weight});
+      AggregatorOptions{.ewma_weight = sv.ewma_weight,
+                        .warmup_ns = sv.warmup_ns,
+                        .watchdog = sv.watchdog,
+                        .recorder = sv.recorder,
+                        .events = {.queue_capacity = sv.event_queue},
+                        .auto_clear_ns = sv.auto_clear_ns,
+                        .state_events = sv.state_events});
   supervisor_ = std::make_unique<ComponentSupervisorLoop>(
       registry_, *aggregator_,
       SupervisorOptions{.period_ns = spec_.supervision.supervisor_period_ns,

@@ -253,7 +253,7 @@ void ComponentAggregator::on(const Entry& /*e*/, const RealTimeLoss& m) {
   p.severity = rt ? EventSeverity::Error : EventSeverity::Warn;
   p.cycle = m.cycle;
   p.count = m.count;
-  p.detail = fmt::format("{} x{} in one cycle{}", platform::to_string(m.cause), m.count,
+  p.detail = fmt::format("{} in one cycle{}", platform::to_string(m.cause),
                          rt ? "" : " (not a real-time thread)");
   s.pending.push_back(std::move(p));
   // Its sample came first (it was kept and pushed again later): resolve it now.

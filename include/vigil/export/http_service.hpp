@@ -47,6 +47,9 @@ struct ExportOptions {
   /// (e.g. `[&system](ReportSet& r) { r = system.reports(); }` for a deploy::System's
   /// extensions). Runs on the monitor's thread.
   std::function<void(ReportSet&)> augment;
+  /// Serve the aggregator's events (`/api/v1/events`) and on-demand traces
+  /// (`/api/v1/trace/<name>`) over HTTP, unless the HttpOptions name their own.
+  bool events = true;
 };
 
 class MonitorExporter {
@@ -96,7 +99,7 @@ class MonitorExporter {
     Monitor& monitor, const ComponentAggregator& aggregator, HttpOptions options = {}) {
   return MonitorExporter::start(
       monitor, &aggregator,
-      ExportOptions{.http = std::move(options), .textfile = {}, .augment = {}});
+      ExportOptions{.http = std::move(options), .textfile = {}, .augment = {}, .events = true});
 }
 
 }  // namespace vigil::exporter

@@ -199,8 +199,9 @@ class ComponentAggregator {
   void set_log_consumer(log::RecordConsumer* c) noexcept { log_consumer_.store(c); }
 
   // --- events, latches, flight recorder (any thread) ---
-  /// The events raised by this aggregator: subscribe there.
-  [[nodiscard]] EventHub& events() noexcept { return events_; }
+  /// The events raised by this aggregator: subscribe there (thread-safe, hence usable through
+  /// a const aggregator).
+  [[nodiscard]] EventHub& events() const noexcept { return events_; }
   /// Clears the latched fault of every component named `name`; raises a Cleared event each.
   /// Returns how many were latched. Any thread.
   std::size_t clear(std::string_view name);
@@ -236,7 +237,7 @@ class ComponentAggregator {
   mutable std::mutex frozen_mutex_;  // frozen_: taken before the hub's lock, never after
   std::deque<std::shared_ptr<const FlightRecord>> frozen_;
   std::size_t frozen_total_ = 0;
-  EventHub events_;  // last: destroyed first, its dispatchers may still read the above
+  mutable EventHub events_;  // last: destroyed first, its dispatchers may still read the above
 };
 
 static_assert(SupervisorHandler<ComponentAggregator, Message>);
