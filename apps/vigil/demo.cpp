@@ -11,8 +11,8 @@
 #include <cstring>
 #include <deque>
 #include <future>
-#include <mutex>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <thread>
 
@@ -190,8 +190,8 @@ int run_demo(const DemoOptions& o) {
     exports.http->threads = h->threads;
     exports.http->dashboard = h->dashboard;
   }
-  if (exports.http && (o.http_clear || (system.spec().outputs.http &&
-                                        system.spec().outputs.http->clear))) {
+  if (exports.http &&
+      (o.http_clear || (system.spec().outputs.http && system.spec().outputs.http->clear))) {
     exports.http->clear = [&system](const std::string& name) {
       return name.empty() ? system.aggregator().clear_all() : system.aggregator().clear(name);
     };
@@ -253,9 +253,9 @@ int run_demo(const DemoOptions& o) {
   std::unique_ptr<exporter::TraceWriter> traces;
   if (!o.trace_dir.empty()) {
     auto w = exporter::TraceWriter::start(
-        system.aggregator(),
-        {.directory = o.trace_dir,
-         .log = [](const std::string& line) { std::fprintf(stderr, "vigil demo: %s\n", line.c_str()); }});
+        system.aggregator(), {.directory = o.trace_dir, .log = [](const std::string& line) {
+                                std::fprintf(stderr, "vigil demo: %s\n", line.c_str());
+                              }});
     if (!w) {
       std::fprintf(stderr, "vigil demo: %s\n", w.error().message.c_str());
       return 1;
@@ -265,8 +265,8 @@ int run_demo(const DemoOptions& o) {
   const bool events_live = platform::is_terminal(stdout) && !o.no_live;
   auto event_panel = std::make_shared<EventPanel>();
   auto limiter = std::make_shared<EventLineLimiter>(kNanosPerSecond);
-  const std::uint64_t line_sub = system.aggregator().events().subscribe(
-      [event_panel, limiter, events_live](const Event& e) {
+  const std::uint64_t line_sub =
+      system.aggregator().events().subscribe([event_panel, limiter, events_live](const Event& e) {
         if (e.kind == EventKind::StateChange) return;  // the lifecycle is in the table
         std::string line = limiter->line(e);
         if (line.empty()) return;

@@ -137,8 +137,8 @@ void BM_Reaction(benchmark::State& state, Fault fault) {
   int missed = 0;
   for (auto _ : state) {
     for (int i = 0; i < trials; ++i) {
-      const std::string name = "r" + std::to_string(static_cast<int>(fault)) + "_" +
-                               std::to_string(i);
+      const std::string name =
+          "r" + std::to_string(static_cast<int>(fault)) + "_" + std::to_string(i);
       Injected task(name, s.reg);
       task.fault = fault;
       PeriodicActivity act(task, {.name = name,

@@ -544,11 +544,9 @@ void HttpServer::Impl::routes() {
       const Nanos wait_ns = std::min(static_cast<Nanos>(wait_s * 1e9), options.events_max_wait_ns);
       if (wait_ns > 0) (void)hub.wait(after, wait_ns);
       const auto events = hub.since(after, 1000);
-      std::string body = fmt::format(R"({{"last_seq":{},"lost_before":{},"events":[)",
-                                     hub.last_seq(),
-                                     !events.empty() && events.front().seq > after + 1
-                                         ? events.front().seq - after - 1
-                                         : 0);
+      std::string body = fmt::format(
+          R"({{"last_seq":{},"lost_before":{},"events":[)", hub.last_seq(),
+          !events.empty() && events.front().seq > after + 1 ? events.front().seq - after - 1 : 0);
       for (std::size_t i = 0; i < events.size(); ++i) {
         if (i > 0) body += ',';
         body += event_json(events[i]);

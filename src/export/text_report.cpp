@@ -176,10 +176,9 @@ std::string format_detail(const Report& r, bool color) {
     line("cycle time", stats_line(r.total_ns));
   } else {
     line("cycles", fmt::format("{} ({} samples)", r.counters.cycles, r.samples));
-    line("overruns",
-         fmt::format("{} ({} cycles missed; {} overruns in the {} warm-up cycles)",
-                     r.counters.overruns, r.counters.missed_cycles, r.warmup.overruns,
-                     r.warmup_cycles));
+    line("overruns", fmt::format("{} ({} cycles missed; {} overruns in the {} warm-up cycles)",
+                                 r.counters.overruns, r.counters.missed_cycles, r.warmup.overruns,
+                                 r.warmup_cycles));
     line("window",
          fmt::format("{}{}: {} cycles, {} overruns, {} missed, {} rt losses, {} exceptions, "
                      "{} dropped",

@@ -51,10 +51,9 @@ std::string trace_event_json(const FlightRecord& r) {
   meta(w, "process_name", pid, tid, "vigil: " + r.component);
   std::string thread = r.component;
   if (r.has_info) {
-    thread += fmt::format(" ({}, {} {}, period {} us)",
-                          r.info.activity.empty() ? "-" : r.info.activity.view(),
-                          platform::to_string(r.info.policy), r.info.priority,
-                          r.info.period_ns / kNanosPerMicro);
+    thread += fmt::format(
+        " ({}, {} {}, period {} us)", r.info.activity.empty() ? "-" : r.info.activity.view(),
+        platform::to_string(r.info.policy), r.info.priority, r.info.period_ns / kNanosPerMicro);
   }
   meta(w, "thread_name", pid, tid, thread);
 
@@ -194,9 +193,9 @@ expected<void, Error> write_file_atomically(const std::filesystem::path& path,
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
   if (ec) {
-    return vigil::unexpected(
-        Error(ec.value(), fmt::format("cannot rename {} to {}: {}", tmp.string(), path.string(),
-                                      ec.message())));
+    return vigil::unexpected(Error(
+        ec.value(),
+        fmt::format("cannot rename {} to {}: {}", tmp.string(), path.string(), ec.message())));
   }
   return {};
 }
@@ -228,8 +227,8 @@ void TraceWriter::on_event(const Event& e) {
   const auto record = aggregator_.frozen_record(e.seq);
   if (!record) {
     std::lock_guard lock(mutex_);
-    error_ = fmt::format("the flight record of event {} ({}) is no longer kept", e.seq,
-                         e.component);
+    error_ =
+        fmt::format("the flight record of event {} ({}) is no longer kept", e.seq, e.component);
     return;
   }
   (void)write(*record, fmt::format("{}-{}", file_stem(e.component), e.seq));
@@ -288,8 +287,8 @@ expected<std::unique_ptr<EventLogWriter>, Error> EventLogWriter::start(
   std::FILE* f = std::fopen(path.c_str(), "wb");
   if (f == nullptr) {
     const int err = errno != 0 ? errno : EIO;
-    return vigil::unexpected(
-        Error(err, fmt::format("cannot write events to {}: {}", path.string(), std::strerror(err))));
+    return vigil::unexpected(Error(
+        err, fmt::format("cannot write events to {}: {}", path.string(), std::strerror(err))));
   }
   std::unique_ptr<EventLogWriter> w(new EventLogWriter(hub, f, path));
   w->subscription_ = hub.subscribe([raw = w.get()](const Event& e) {

@@ -51,8 +51,8 @@ struct ComponentAggregator::Slot {
     int drains = 0;  // drains it has waited through
   };
   std::vector<Pending> pending;
-  bool warm_armed = true;  // the next sample starts a warm-up
-  Nanos warm_until = 0;    // component clock
+  bool warm_armed = true;            // the next sample starts a warm-up
+  Nanos warm_until = 0;              // component clock
   std::uint64_t drain_overruns = 0;  // overrun samples in this drain (one coalesced event)
   std::uint64_t overrun_cycle = 0;
   Nanos overrun_end = 0;
@@ -310,7 +310,7 @@ void ComponentAggregator::on(const Entry& /*e*/, const StateChange& m) {
   if (!fault && !options_.state_events) return;
   Event ev;
   ev.kind = fault ? EventKind::FaultState : EventKind::StateChange;
-  ev.severity = fault ? EventSeverity::Error
+  ev.severity = fault       ? EventSeverity::Error
                 : m.refused ? EventSeverity::Warn
                             : EventSeverity::Info;
   ev.cycle = d.has_sample ? d.last.cycle() : 0;
@@ -440,8 +440,8 @@ std::size_t ComponentAggregator::clear_slot(Slot& s, const char* why) {
   Event ev;
   ev.kind = EventKind::Cleared;
   ev.severity = EventSeverity::Info;
-  ev.detail = fmt::format("{}: {} error event{} since {} ({})", why, l.count, l.count == 1 ? "" : "s",
-                          to_string(l.first_kind), l.first_detail);
+  ev.detail = fmt::format("{}: {} error event{} since {} ({})", why, l.count,
+                          l.count == 1 ? "" : "s", to_string(l.first_kind), l.first_detail);
   raise(s, std::move(ev));
   return 1;
 }

@@ -48,14 +48,17 @@ const char* to_string(EventSeverity s) noexcept {
 }
 
 std::string format_event(const Event& e) {
-  std::string s = fmt::format("{} {}: {}", e.severity == EventSeverity::Error  ? "ERROR"
-                                           : e.severity == EventSeverity::Warn ? "WARN"
-                                                                               : "INFO",
+  std::string s = fmt::format("{} {}: {}",
+                              e.severity == EventSeverity::Error  ? "ERROR"
+                              : e.severity == EventSeverity::Warn ? "WARN"
+                                                                  : "INFO",
                               e.component, to_string(e.kind));
   if (!e.detail.empty()) s += ": " + e.detail;
   if (e.count > 1) s += fmt::format(" (x{})", e.count);
-  if (e.cycle > 0) s += fmt::format(" [cycle {}", e.cycle);
-  else s += " [";
+  if (e.cycle > 0)
+    s += fmt::format(" [cycle {}", e.cycle);
+  else
+    s += " [";
   if (e.fault_ns > 0) {
     s += fmt::format("{}detected {:.1f} ms after the fault", e.cycle > 0 ? ", " : "",
                      static_cast<double>(e.latency_ns()) / 1e6);
@@ -102,11 +105,11 @@ std::string event_json(const Event& e) {
   std::string out = fmt::format(R"({{"seq":{},"kind":"{}","severity":"{}","component":)", e.seq,
                                 to_string(e.kind), to_string(e.severity));
   append_escaped(out, e.component);
-  out += fmt::format(
-      R"(,"component_id":{},"cycle":{},"fault_ns":{},"detected_ns":{},"latency_ns":{},)"
-      R"("count":{},"latched":{},"traced":{},"detail":)",
-      e.component_id, e.cycle, e.fault_ns, e.detected_ns, e.latency_ns(), e.count, e.latched,
-      e.traced);
+  out +=
+      fmt::format(R"(,"component_id":{},"cycle":{},"fault_ns":{},"detected_ns":{},"latency_ns":{},)"
+                  R"("count":{},"latched":{},"traced":{},"detail":)",
+                  e.component_id, e.cycle, e.fault_ns, e.detected_ns, e.latency_ns(), e.count,
+                  e.latched, e.traced);
   append_escaped(out, e.detail);
   out += '}';
   return out;

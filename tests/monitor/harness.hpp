@@ -88,8 +88,8 @@ struct Harness {
   Registry<Message> registry;
   // No warm-up: the tests count every cycle in the statistics; no watchdog: the starvation
   // tests see the monitor's view alone (both have their own tests, tests/supervisor).
-  ComponentAggregator aggregator{AggregatorOptions{
-      .clock = clock.clock(), .warmup_ns = 0, .watchdog = {.enabled = false}}};
+  ComponentAggregator aggregator{
+      AggregatorOptions{.clock = clock.clock(), .warmup_ns = 0, .watchdog = {.enabled = false}}};
   ComponentSupervisorLoop supervisor{registry, aggregator,
                                      SupervisorOptions{.clock = clock.clock()}};
   Monitor monitor;

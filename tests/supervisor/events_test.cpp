@@ -89,8 +89,8 @@ TEST_CASE("An exception becomes an event with its cycle, fault time and detectio
   CHECK(ex[0].detected_ns >= before);
   CHECK(ex[0].detected_ns <= after);
   CHECK(ex[0].latency_ns() == ex[0].detected_ns - s->last.end_ns);
-  CHECK_THAT(ex[0].detail, Catch::Contains("std::out_of_range") &&
-                               Catch::Contains("update failed at cycle 51"));
+  CHECK_THAT(ex[0].detail,
+             Catch::Contains("std::out_of_range") && Catch::Contains("update failed at cycle 51"));
   CHECK(ex[0].latched);
   CHECK(ex[0].traced);
   const auto fault = of_kind(all, EventKind::FaultState);

@@ -42,8 +42,8 @@ struct LatchedFault {
   bool active = false;
   EventKind first_kind = EventKind::Exception;
   EventKind last_kind = EventKind::Exception;
-  Nanos first_ns = 0;  ///< detection time of the first event (supervisor clock)
-  Nanos last_ns = 0;   ///< detection time of the latest event
+  Nanos first_ns = 0;       ///< detection time of the first event (supervisor clock)
+  Nanos last_ns = 0;        ///< detection time of the latest event
   std::uint64_t count = 0;  ///< Error events since it was raised
   std::string first_detail;
   std::string last_detail;
@@ -90,7 +90,7 @@ struct ComponentSnapshot {
   LatchedFault latch;
   /// Watchdog: the silence after which a Deadline event is raised (0: not watched).
   Nanos deadline_ns = 0;
-  bool silent = false;  ///< the deadline passed and no cycle arrived since
+  bool silent = false;                ///< the deadline passed and no cycle arrived since
   std::uint64_t deadline_misses = 0;  ///< Deadline events so far
   std::uint64_t events = 0;           ///< events raised for it so far
 

@@ -82,7 +82,7 @@ struct FlightRecord {
   std::string component;
   std::uint32_t component_id = 0;
   bool has_info = false;
-  TaskInfo info;  ///< activity, period, thread id, policy (when has_info)
+  TaskInfo info;                    ///< activity, period, thread id, policy (when has_info)
   std::vector<CycleRecord> cycles;  ///< oldest first
   /// Why it was frozen: the event (kind, cycle, fault time, detail); for a record taken on
   /// demand, kind is StateChange with detail "on demand" and no fault time.
