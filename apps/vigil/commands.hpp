@@ -18,6 +18,9 @@ struct DemoOptions {
   std::string textfile;  ///< node-exporter textfile (.prom) rewritten every monitor cycle
   std::string log_file;  ///< rotating log file (empty: none)
   std::string log_level = "info";  ///< the components' run-time log level
+  std::string events;              ///< write every event to FILE as JSON lines (empty: none)
+  std::string trace_dir;           ///< write flight-recorder traces to DIR (empty: none)
+  bool http_clear = false;         ///< enable POST /api/v1/clear on the HTTP endpoint
 };
 /// Runs `vigil demo`. Exit codes (docs/guide/faults.md):
 ///  0 ran for --duration or was stopped by SIGINT/SIGTERM; final report printed, JSON written;

@@ -9,8 +9,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <deque>
 #include <future>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <thread>
 
@@ -21,6 +23,7 @@
 #include "vigil/export/json_report.hpp"
 #include "vigil/export/log_report.hpp"
 #include "vigil/export/text_report.hpp"
+#include "vigil/export/trace_event.hpp"
 #include "vigil/log/service.hpp"
 #include "vigil/log/source.hpp"
 #include "vigil/platform/process.hpp"
@@ -46,8 +49,33 @@ void print_log_panel(std::string& out, const log::TailSink& tail) {
   for (const auto& l : lines) out += "  " + l + '\n';
 }
 
+/// The latest event lines (rate-limited: one per component per second), for the live view.
+class EventPanel {
+ public:
+  static constexpr std::size_t kLines = 6;
+  void add(std::string line) {
+    std::lock_guard lock(mutex_);
+    lines_.push_back(std::move(line));
+    if (lines_.size() > kLines) lines_.pop_front();
+    ++total_;
+  }
+  void print(std::string& out) const {
+    std::lock_guard lock(mutex_);
+    if (total_ == 0) return;
+    out += fmt::format("\nevents ({} line{}; the last {} here):\n", total_, total_ == 1 ? "" : "s",
+                       kLines);
+    for (const auto& l : lines_) out += "  " + l + '\n';
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::deque<std::string> lines_;
+  std::uint64_t total_ = 0;
+};
+
 void print_view(const deploy::System& sys, const ReportSet& reports, double elapsed_s,
-                bool live_tty, bool color, const log::TailSink* log_tail) {
+                bool live_tty, bool color, const log::TailSink* log_tail,
+                const EventPanel* events) {
   std::string out;
   if (live_tty) out += "\x1b[H\x1b[2J";  // home + clear: redraw in place
   out += fmt::format("vigil demo — {} — {:.0f} s — worst: {}\n", sys.spec().name, elapsed_s,
@@ -56,6 +84,7 @@ void print_view(const deploy::System& sys, const ReportSet& reports, double elap
   // The log stays below the table: a line written to the terminal between two redraws would
   // push the view down, so while the view is live the lines are shown here instead.
   if (log_tail != nullptr) print_log_panel(out, *log_tail);
+  if (events != nullptr) events->print(out);
   if (!live_tty) out += '\n';
   std::fwrite(out.data(), 1, out.size(), stdout);
   std::fflush(stdout);
@@ -147,6 +176,7 @@ int run_demo(const DemoOptions& o) {
     spec->outputs.http->listen = *listen;
   }
   if (!o.textfile.empty()) spec->outputs.textfile = o.textfile;
+  if (o.http_clear && spec->outputs.http) spec->outputs.http->clear = true;
 
   auto sys = deploy::System::create(std::move(*spec));
   if (!sys) {
@@ -182,6 +212,49 @@ int run_demo(const DemoOptions& o) {
     deploy::System& s;
     ~Detach() { s.aggregator().set_log_consumer(nullptr); }
   } detach{system};
+
+  // Events: the JSON-lines file, the traces, and rate-limited lines for people. Each is a
+  // subscriber with its own thread: none can delay the supervisor.
+  std::unique_ptr<exporter::EventLogWriter> event_file;
+  if (!o.events.empty()) {
+    auto w = exporter::EventLogWriter::start(system.aggregator().events(), o.events);
+    if (!w) {
+      std::fprintf(stderr, "vigil demo: %s\n", w.error().message.c_str());
+      return 1;
+    }
+    event_file = std::move(*w);
+  }
+  std::unique_ptr<exporter::TraceWriter> traces;
+  if (!o.trace_dir.empty()) {
+    auto w = exporter::TraceWriter::start(
+        system.aggregator(), {.directory = o.trace_dir, .log = [](const std::string& line) {
+                                std::fprintf(stderr, "vigil demo: %s\n", line.c_str());
+                              }});
+    if (!w) {
+      std::fprintf(stderr, "vigil demo: %s\n", w.error().message.c_str());
+      return 1;
+    }
+    traces = std::move(*w);
+  }
+  const bool events_live = platform::is_terminal(stdout) && !o.no_live;
+  auto event_panel = std::make_shared<EventPanel>();
+  auto limiter = std::make_shared<EventLineLimiter>(kNanosPerSecond);
+  const std::uint64_t line_sub =
+      system.aggregator().events().subscribe([event_panel, limiter, events_live](const Event& e) {
+        if (e.kind == EventKind::StateChange) return;  // the lifecycle is in the table
+        std::string line = limiter->line(e);
+        if (line.empty()) return;
+        if (events_live) {
+          event_panel->add(std::move(line));
+        } else {
+          std::fprintf(stderr, "event: %s\n", line.c_str());
+        }
+      });
+  struct Unsubscribe {
+    deploy::System& s;
+    std::uint64_t id;
+    ~Unsubscribe() { s.aggregator().events().unsubscribe(id); }
+  } unsubscribe{system, line_sub};
 
   platform::install_stop_signals();  // Ctrl-C and SIGTERM stop cleanly
 
@@ -219,7 +292,7 @@ int run_demo(const DemoOptions& o) {
     if (!o.no_live && now >= next_view) {
       next_view += kNanosPerSecond;
       print_view(system, system.reports(), static_cast<double>(now - start) / 1e9, tty, color,
-                 log_tail.get());
+                 log_tail.get(), events_live ? event_panel.get() : nullptr);
     }
   }
   const bool interrupted = platform::stop_requested();
@@ -249,6 +322,22 @@ int run_demo(const DemoOptions& o) {
     std::_Exit(kDemoExitStuck);
   }
   logs.flush();  // after the last drain: the suppressed counts still pending
+  (void)system.aggregator().events().flush(2 * kNanosPerSecond);  // files and traces written
+  if (event_file) {
+    if (const std::string err = event_file->error(); !err.empty()) {
+      std::fprintf(stderr, "vigil demo: %s\n", err.c_str());
+    }
+    std::printf("%llu events written to %s%s\n",
+                static_cast<unsigned long long>(event_file->written()), o.events.c_str(),
+                event_file->lost() > 0
+                    ? fmt::format(" ({} lost: the writer fell behind)", event_file->lost()).c_str()
+                    : "");
+  }
+  if (traces) {
+    std::printf("%zu trace%s written to %s (open them in https://ui.perfetto.dev)\n",
+                traces->written().size(), traces->written().size() == 1 ? "" : "s",
+                o.trace_dir.c_str());
+  }
   ReportSet final_reports = system.step_monitor();
   exporter::add_log_lines(logs,
                           final_reports);  // log counts and recent lines, in --details and the JSON

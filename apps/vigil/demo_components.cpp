@@ -216,6 +216,35 @@ class Stuck : public Task<Stuck> {
   Nanos start_ns_ = 0;
 };
 
+/// Fault injection: once, after `after`, on_update blocks for `for` (a driver call that times
+/// out), then the component runs normally again. The watchdog reports it within its deadline
+/// (max(10 periods, 30 ms) by default) and reports its recovery.
+class Hang : public Task<Hang> {
+ public:
+  explicit Hang(const ComponentContext& c)
+      : Task(c.name, c.supervision, c.registry()),
+        after_ns_(param_duration(c, "after", 1500 * kNanosPerMilli)),
+        for_ns_(param_duration(c, "for", 300 * kNanosPerMilli)) {}
+  bool on_start() {
+    start_ns_ = platform::now_ns();
+    return true;
+  }
+  void on_update() {
+    if (!hung_ && platform::now_ns() - start_ns_ > after_ns_) {
+      hung_ = true;
+      VIGIL_LOG_WARN("driver call blocks for {} ms", for_ns_ / kNanosPerMilli);
+      std::this_thread::sleep_for(std::chrono::nanoseconds(for_ns_));  // the injected fault
+    }
+    burn(10 * kNanosPerMicro);
+  }
+
+ private:
+  Nanos after_ns_;
+  Nanos for_ns_;
+  Nanos start_ns_ = 0;
+  bool hung_ = false;
+};
+
 /// A CAN I/O component: every millisecond it sends SYNC and one RPDO1 (control word) to each of
 /// `drives` simulated CANopen drives and reads their TPDO1 answers, timing every driver call into
 /// the sniffer of the deployment's CAN supervision. Drive `silent_node` stops answering after
@@ -301,6 +330,7 @@ void register_components() {
   f.add<Leaky>("demo.leaky", "fault: allocates every N cycles");
   f.add<Faulty>("demo.faulty", "fault: throws after a delay");
   f.add<Stuck>("demo.stuck", "fault: never returns from on_update after a delay");
+  f.add<Hang>("demo.hang", "fault: blocks once in on_update for a while, then recovers");
   f.add<CanIo>("demo.can_io", "CAN I/O with simulated CANopen drives (needs a `can:` section)");
   deploy::register_can_extension();  // also done by linking vigil::deploy_can
 }
@@ -316,6 +346,7 @@ activities:
   - {name: ramp, period: 2ms, policy: OTHER}
   - {name: aux, period: 1ms, policy: FIFO, priority: 50, cpu: 0}
   - {name: io, period: 1ms, policy: FIFO, priority: 75, cpu: 0}
+  - {name: drive, period: 1ms, policy: FIFO, priority: 60, cpu: 0}
 components:
   - {name: motor_left, type: demo.motor, activity: control}
   - {name: motor_right, type: demo.motor, activity: control}
@@ -333,7 +364,11 @@ components:
   - name: encoder
     type: demo.faulty
     activity: aux
-    parameters: {after: 4s}
+    parameters: {after: 2500ms}
+  - name: gripper
+    type: demo.hang
+    activity: drive
+    parameters: {after: 1500ms, for: 300ms}
   - name: can_io
     type: demo.can_io
     activity: io
@@ -342,6 +377,10 @@ supervision:
   supervisor_period: 10ms
   monitor_period: 1s
   ewma_weight: 0.05
+  warmup: 100ms                           # start-up cycles: counted, kept out of statistics
+  watchdog: {periods: 10, floor: 30ms}    # a 1 kHz component is silent after 30 ms
+  events: {auto_clear: 0s}                # latched faults stay until cleared
+  flight_recorder: {cycles: 1024, min_interval: 10s}
   thresholds:
     defaults:
       window: 2s

@@ -53,6 +53,15 @@ int main(int argc, char** argv) {
                    "The components' log level: debug, info (default), warn, error or off")
       ->check(CLI::IsMember({"debug", "info", "warn", "error", "off"}));
 
+  demo_cmd->add_option("--events", demo.events,
+                       "Write every event (exceptions, deadlines, overruns, ...) to FILE as JSON "
+                       "lines");
+  demo_cmd->add_option("--trace-dir", demo.trace_dir,
+                       "Write a component's last cycles as a Perfetto/Chrome trace into DIR when "
+                       "it goes to ERROR (open them in ui.perfetto.dev)");
+  demo_cmd->add_flag("--http-clear", demo.http_clear,
+                     "Enable POST /api/v1/clear (clears latched faults) on the HTTP endpoint");
+
   vigil::app::CheckConfigOptions check;
   auto* check_cmd = app.add_subcommand(
       "check-config", "Validate a deployment or thresholds file; errors name file:line:col");

@@ -168,7 +168,8 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
 
   if (const config::Node s = root["supervision"]; s.defined()) {
     s.reject_unknown_keys({"supervisor_period", "monitor_period", "ewma_weight", "thresholds",
-                           "lock_memory", "supervisor_stack", "monitor_stack", "shared_memory"});
+                           "lock_memory", "supervisor_stack", "monitor_stack", "shared_memory",
+                           "warmup", "watchdog", "events", "flight_recorder"});
     auto& sp = d.supervision;
     sp.supervisor_period_ns =
         s.optional_period("supervisor_period", sp.supervisor_period_ns,
@@ -182,6 +183,36 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
         detail::optional_stack(s, "supervisor_stack", sp.supervisor_stack_bytes);
     sp.monitor_stack_bytes = detail::optional_stack(s, "monitor_stack", sp.monitor_stack_bytes);
     sp.shared_memory = s.optional<std::string>("shared_memory", "");
+    sp.warmup_ns = s.optional_duration("warmup", sp.warmup_ns,
+                                       config::duration_in_range(0, 3600 * kNanosPerSecond));
+    if (const config::Node w = s["watchdog"]; w.defined()) {
+      w.reject_unknown_keys({"enabled", "periods", "floor", "aperiodic"});
+      sp.watchdog.enabled = w.optional("enabled", sp.watchdog.enabled);
+      sp.watchdog.periods = w.optional("periods", sp.watchdog.periods, config::in_range(1.0, 1e6));
+      sp.watchdog.floor_ns = w.optional_duration(
+          "floor", sp.watchdog.floor_ns, config::duration_in_range(0, 3600 * kNanosPerSecond));
+      sp.watchdog.aperiodic_ns =
+          w.optional_duration("aperiodic", sp.watchdog.aperiodic_ns,
+                              config::duration_in_range(0, 3600 * kNanosPerSecond));
+    }
+    if (const config::Node e = s["events"]; e.defined()) {
+      e.reject_unknown_keys({"queue", "auto_clear", "state_changes"});
+      sp.event_queue = e.optional<std::size_t>("queue", sp.event_queue,
+                                               config::in_range<std::size_t>(1, 1U << 20U));
+      sp.auto_clear_ns = e.optional_duration("auto_clear", sp.auto_clear_ns,
+                                             config::duration_in_range(0, 86400 * kNanosPerSecond));
+      sp.state_events = e.optional("state_changes", sp.state_events);
+    }
+    if (const config::Node f = s["flight_recorder"]; f.defined()) {
+      f.reject_unknown_keys({"cycles", "min_interval", "max_records"});
+      sp.recorder.cycles = f.optional<std::size_t>("cycles", sp.recorder.cycles,
+                                                   config::in_range<std::size_t>(0, 1U << 20U));
+      sp.recorder.min_interval_ns =
+          f.optional_duration("min_interval", sp.recorder.min_interval_ns,
+                              config::duration_in_range(0, 86400 * kNanosPerSecond));
+      sp.recorder.max_records = f.optional<std::size_t>(
+          "max_records", sp.recorder.max_records, config::in_range<std::size_t>(0, 1U << 20U));
+    }
     if (const config::Node m = s["shared_memory"];
         m.defined() && !bus::valid_supervisor_name(sp.shared_memory)) {
       m.error(fmt::format("'{}' is not a supervisor name: 1 to 31 of A-Z a-z 0-9 _ -",
@@ -214,7 +245,7 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
       d.outputs.textfile = o.required<std::string>("textfile", config::non_empty());
     }
     if (const config::Node h = o["http"]; h.defined()) {
-      h.reject_unknown_keys({"listen", "threads", "dashboard"});
+      h.reject_unknown_keys({"listen", "threads", "dashboard", "clear"});
       HttpOutputSpec http;
       const auto listen_check = [](const std::string& v) -> std::optional<std::string> {
         auto a = exporter::parse_listen(v);
@@ -225,6 +256,7 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
       if (auto a = exporter::parse_listen(listen)) http.listen = *a;
       http.threads = h.optional("threads", 3U, config::in_range(1U, 16U));
       http.dashboard = h.optional("dashboard", true);
+      http.clear = h.optional("clear", false);
       d.outputs.http = http;
     }
   }

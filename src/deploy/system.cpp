@@ -9,8 +9,15 @@
 namespace vigil::deploy {
 
 System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
+  const SupervisionSpec& sv = spec_.supervision;
   aggregator_ = std::make_unique<ComponentAggregator>(
-      AggregatorOptions{.ewma_weight = spec_.supervision.ewma_weight});
+      AggregatorOptions{.ewma_weight = sv.ewma_weight,
+                        .warmup_ns = sv.warmup_ns,
+                        .watchdog = sv.watchdog,
+                        .recorder = sv.recorder,
+                        .events = {.queue_capacity = sv.event_queue},
+                        .auto_clear_ns = sv.auto_clear_ns,
+                        .state_events = sv.state_events});
   supervisor_ = std::make_unique<TaskSupervisor>(
       registry_, *aggregator_,
       SupervisorOptions{.period_ns = spec_.supervision.supervisor_period_ns,
@@ -98,6 +105,11 @@ expected<void, Error> System::start_outputs() {
     e.http->listen = o.http->listen;
     e.http->threads = o.http->threads;
     e.http->dashboard = o.http->dashboard;
+    if (o.http->clear) {  // POST /api/v1/clear: off unless the deployment enables it
+      e.http->clear = [this](const std::string& name) {
+        return name.empty() ? aggregator_->clear_all() : aggregator_->clear(name);
+      };
+    }
     // The server logs at start only (its URL; a warning for a non-loopback address).
     e.http->log = [this](const std::string& line) { log_.push_back(line); };
   }

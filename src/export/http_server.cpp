@@ -459,8 +459,11 @@ void HttpServer::Impl::routes(Server& s) {
   using HR = httplib::Server::HandlerResponse;
   const bool check_host = options.listen.loopback();
 
-  s.set_pre_routing_handler([check_host](const httplib::Request& req, httplib::Response& res) {
-    if (req.method != "GET" && req.method != "HEAD") {
+  const bool clear_enabled = static_cast<bool>(options.clear);
+  s.set_pre_routing_handler([check_host, clear_enabled](const httplib::Request& req,
+                                                        httplib::Response& res) {
+    const bool clear_post = clear_enabled && req.method == "POST" && req.path == "/api/v1/clear";
+    if (req.method != "GET" && req.method != "HEAD" && !clear_post) {
       res.status = 405;
       res.set_header("Allow", "GET, HEAD");
       res.set_content(fmt::format("405 method not allowed: {} (this endpoint is read-only: GET "
@@ -594,6 +597,62 @@ void HttpServer::Impl::routes(Server& s) {
     res.set_content(component_json(*p->snap, *r), kJson);
   });
 
+  if (options.events != nullptr) {
+    s.Get("/api/v1/events", [this](const httplib::Request& req, httplib::Response& res) {
+      EventHub& hub = *options.events;
+      std::uint64_t after = 0;
+      double wait_s = 0;
+      try {
+        if (req.has_param("after")) after = std::stoull(req.get_param_value("after"));
+        if (req.has_param("wait")) wait_s = std::stod(req.get_param_value("wait"));
+      } catch (const std::exception&) {
+        res.status = 400;
+        res.set_content(error_json("after must be an event sequence number and wait a number "
+                                   "of seconds"),
+                        kJson);
+        return;
+      }
+      if (!(wait_s >= 0)) wait_s = 0;
+      const Nanos wait_ns = std::min(static_cast<Nanos>(wait_s * 1e9), options.events_max_wait_ns);
+      if (wait_ns > 0) (void)hub.wait(after, wait_ns);
+      const auto events = hub.since(after, 1000);
+      std::string body = fmt::format(
+          R"({{"last_seq":{},"lost_before":{},"events":[)", hub.last_seq(),
+          !events.empty() && events.front().seq > after + 1 ? events.front().seq - after - 1 : 0);
+      for (std::size_t i = 0; i < events.size(); ++i) {
+        if (i > 0) body += ',';
+        body += event_json(events[i]);
+      }
+      body += "]}\n";
+      res.set_content(body, kJson);
+    });
+  }
+  if (options.trace) {
+    s.Get(R"(/api/v1/trace/(.+))", [this](const httplib::Request& req, httplib::Response& res) {
+      const std::string name = req.matches[1];
+      auto body = options.trace(name);
+      if (!body) {
+        res.status = 404;
+        res.set_content(error_json("no component named '" + name + "'"), kJson);
+        return;
+      }
+      res.set_header("Content-Disposition", "attachment; filename=\"vigil-trace.json\"");
+      res.set_content(*body, kJson);
+    });
+  }
+  if (options.clear) {
+    s.Post("/api/v1/clear", [this](const httplib::Request& req, httplib::Response& res) {
+      if (req.get_header_value("X-Vigil-Clear") != "1") {
+        res.status = 403;
+        res.set_content(error_json("POST /api/v1/clear needs the header X-Vigil-Clear: 1"), kJson);
+        return;
+      }
+      const std::string name = req.has_param("component") ? req.get_param_value("component") : "";
+      const std::size_t n = options.clear(name);
+      res.set_content(fmt::format(R"({{"cleared":{}}})", n) + "\n", kJson);
+    });
+  }
+
   s.Get("/healthz", [this](const httplib::Request&, httplib::Response& res) {
     auto p = published();
     JsonWriter w;
@@ -712,6 +771,7 @@ void HttpServer::stop() {
   Impl& m = *impl_;
   std::lock_guard control(m.control_mutex);
   if (!m.running) return;
+  if (m.options.events != nullptr) m.options.events->cancel_waits();  // end the long polls
   m.server->stop();
   m.listener.join();
   m.server.reset();

@@ -4,6 +4,7 @@
 #include <chrono>
 
 #include "vigil/export/textfile.hpp"
+#include "vigil/export/trace_event.hpp"
 
 namespace vigil::exporter {
 
@@ -15,6 +16,17 @@ expected<std::unique_ptr<MonitorExporter>, Error> MonitorExporter::start(
     Monitor& monitor, const ComponentAggregator* aggregator, ExportOptions options) {
   std::unique_ptr<MonitorExporter> e(new MonitorExporter(monitor, aggregator, std::move(options)));
   if (e->options_.http) {
+    if (aggregator != nullptr && e->options_.events) {
+      HttpOptions& h = *e->options_.http;
+      if (h.events == nullptr) h.events = &aggregator->events();
+      if (!h.trace) {
+        h.trace = [aggregator](const std::string& name) -> std::optional<std::string> {
+          auto r = aggregator->flight_record(name);
+          if (!r) return std::nullopt;
+          return trace_event_json(*r);
+        };
+      }
+    }
     e->http_ = std::make_unique<HttpServer>(*e->options_.http);
     if (auto ok = e->http_->start(); !ok) return vigil::unexpected(ok.error());
   }

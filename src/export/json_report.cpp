@@ -108,6 +108,29 @@ void write_json(JsonWriter& w, const Report& r) {
   w.field("dropped", r.window.dropped);
   w.end_object();
 
+  w.key("warmup").begin_object();
+  w.field("cycles", r.warmup_cycles);
+  w.field("overruns", r.warmup.overruns);
+  w.field("missed_cycles", r.warmup.missed_cycles);
+  w.field("rt_losses", r.warmup.total_losses());
+  w.field("exceptions", r.warmup.exceptions);
+  w.end_object();
+
+  w.key("latch").begin_object();
+  w.field("active", r.latch.active);
+  w.field("first_kind", r.latch.active ? to_string(r.latch.first_kind) : "");
+  w.field("first_detail", r.latch.active ? r.latch.first_detail : std::string());
+  w.field("last_kind", r.latch.active ? to_string(r.latch.last_kind) : "");
+  w.field("first_ns", r.latch.active ? r.latch.first_ns : 0);
+  w.field("last_ns", r.latch.active ? r.latch.last_ns : 0);
+  w.field("count", r.latch.active ? r.latch.count : 0);
+  w.field("raised", r.latch.raised);
+  w.field("cleared", r.latch.cleared);
+  w.end_object();
+  w.field("events", r.events);
+  w.field("deadline_ns", r.deadline_ns);
+  w.field("deadline_misses", r.deadline_misses);
+
   w.key("timing").begin_object();
   w.key("user_ns");
   write_json(w, r.user_ns);

@@ -122,7 +122,8 @@ std::string format_summary_line(const Report& r, bool color) {
   std::string line = status_word(r.status.level(), color, 7);
   line += fmt::format(" {:<{}} {:<14} {:>10}  {:<19} {:>9} {:>8} {:>7}", printable(r.name),
                       kNameWidth, state_of(r), r.counters.cycles, user, latency,
-                      r.counters.overruns, r.counters.total_losses());
+                      r.counters.overruns - std::min(r.counters.overruns, r.warmup.overruns),
+                      r.counters.total_losses());
   const std::string messages = r.status.summary();
   if (!messages.empty()) {
     line += "  ";
@@ -175,8 +176,9 @@ std::string format_detail(const Report& r, bool color) {
     line("cycle time", stats_line(r.total_ns));
   } else {
     line("cycles", fmt::format("{} ({} samples)", r.counters.cycles, r.samples));
-    line("overruns",
-         fmt::format("{} ({} cycles missed)", r.counters.overruns, r.counters.missed_cycles));
+    line("overruns", fmt::format("{} ({} cycles missed; {} overruns in the {} warm-up cycles)",
+                                 r.counters.overruns, r.counters.missed_cycles, r.warmup.overruns,
+                                 r.warmup_cycles));
     line("window",
          fmt::format("{}{}: {} cycles, {} overruns, {} missed, {} rt losses, {} exceptions, "
                      "{} dropped",

@@ -43,9 +43,12 @@ Window delta(const Counters& now, const Counters& then) noexcept {
 
 // The window ending now: from the newest baseline at least `window_ns` old (the previous cycle
 // when window_ns is 0), or from the oldest one kept; from the counters' origin the first time.
-Window window_of(const Memory& m, const Counters& now_counters, Nanos now, Nanos window_ns) {
+// Never from before the end of the component's warm-up: what it counted then stays out of every
+// window (it stays in the totals).
+Window window_of(const Memory& m, const Counters& now_counters, const Counters& warmup, Nanos now,
+                 Nanos window_ns) {
   if (m.history.empty()) {
-    Window w = delta(now_counters, Counters{});
+    Window w = delta(now_counters, warmup);
     w.first = true;
     return w;
   }
@@ -56,7 +59,9 @@ Window window_of(const Memory& m, const Counters& now_counters, Nanos now, Nanos
       break;
     }
   }
-  Window w = delta(now_counters, base->counters);
+  Counters from = base->counters;
+  from.merge(warmup);
+  Window w = delta(now_counters, from);
   w.first = false;
   w.duration_ns = now - base->time;
   return w;
@@ -346,7 +351,7 @@ ReportSet Monitor::step() {
     Memory& mem = m.memory[s.id];
     const bool first = mem.seen_cycle == 0;
     mem.seen_cycle = set.cycle;
-    r.window = window_of(mem, s.counters, t0, t.window_ns);
+    r.window = window_of(mem, s.counters, s.warmup_counters, t0, t.window_ns);
 
     const bool running = s.alive && s.state == TaskState::Running;
     if (first) {

@@ -74,6 +74,12 @@ void fill_report(Report& r, const ComponentSnapshot& s) {
   r.overhead_share = s.overhead_share();
   r.port_capacity = s.port_capacity;
   r.port_high_water = s.port_high_water;
+  r.warmup_cycles = s.warmup_cycles;
+  r.warmup = s.warmup_counters;
+  r.latch = s.latch;
+  r.deadline_ns = s.deadline_ns;
+  r.deadline_misses = s.deadline_misses;
+  r.events = s.events;
   r.has_exception = s.has_exception;
   if (s.has_exception) {
     r.exception.count = s.counters.exceptions;

@@ -2,6 +2,8 @@
 
 #include <cxxabi.h>
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cstdlib>
 
@@ -37,9 +39,31 @@ struct ComponentAggregator::Slot {
   RunningStats user, latency, period, overhead;
   TotalStats total;
   Nanos last_overhead = 0;
+  FlightRing ring;  // allocated at join
+
+  // An exception or loss report waiting for the sample of its cycle (which carries its time).
+  struct Pending {
+    EventKind kind = EventKind::Exception;
+    EventSeverity severity = EventSeverity::Error;
+    std::uint64_t cycle = 0;
+    std::uint64_t count = 1;
+    std::string detail;
+    int drains = 0;  // drains it has waited through
+  };
+  std::vector<Pending> pending;
+  bool warm_armed = true;            // the next sample starts a warm-up
+  Nanos warm_until = 0;              // component clock
+  std::uint64_t drain_overruns = 0;  // overrun samples in this drain (one coalesced event)
+  std::uint64_t overrun_cycle = 0;
+  Nanos overrun_end = 0;
+  bool watched = false;  // a cycle arrived since the component entered Running
+  Nanos last_frozen = 0;
 };
 
 namespace {
+
+// Frozen flight records kept for readers (the trace writer takes them as their events arrive).
+constexpr std::size_t kKeptRecords = 64;
 
 std::string demangle(const char* mangled) {
   int status = 0;
@@ -53,7 +77,7 @@ std::string demangle(const char* mangled) {
 }  // namespace
 
 ComponentAggregator::ComponentAggregator(AggregatorOptions options)
-    : options_(options), ewma_weight_(options.ewma_weight) {}
+    : options_(options), ewma_weight_(options.ewma_weight), events_(options.events) {}
 ComponentAggregator::~ComponentAggregator() = default;
 
 ComponentAggregator::Slot* ComponentAggregator::slot_for(const Entry& e) {
@@ -71,6 +95,7 @@ ComponentAggregator::Slot* ComponentAggregator::slot_for(const Entry& e) {
 
 void ComponentAggregator::on_join(const Entry& e) {
   auto slot = std::make_unique<Slot>();
+  slot->ring = FlightRing(options_.recorder.cycles);
   slot->data.id = e.id;
   slot->data.name = e.name;
   slot->data.joined_at = options_.clock.now();
@@ -104,6 +129,21 @@ void ComponentAggregator::begin(const Entry& e) {
 
 void ComponentAggregator::end(const Entry& /*e*/, const PortDrain& d) {
   if (current_ == nullptr) return;
+  Slot& s = *current_;
+  if (s.drain_overruns > 0) {
+    Event ev;
+    ev.kind = EventKind::Overrun;
+    ev.severity = EventSeverity::Warn;
+    ev.cycle = s.overrun_cycle;
+    ev.fault_ns = s.overrun_end;
+    ev.count = s.drain_overruns;
+    ev.detail = s.drain_overruns == 1
+                    ? std::string("a cycle ended after its next release")
+                    : fmt::format("{} cycles ended after their next release", s.drain_overruns);
+    s.drain_overruns = 0;
+    raise(s, std::move(ev));
+  }
+  if (!s.pending.empty()) resolve_pending(s, nullptr);
   auto& data = current_->data;
   data.port_high_water = std::max(data.port_high_water, d.occupancy);
   data.counters.dropped = std::max(data.counters.dropped, d.dropped);
@@ -115,6 +155,7 @@ void ComponentAggregator::on(const Entry& /*e*/, const TaskInfo& m) {
   if (current_ == nullptr) return;
   current_->data.has_info = true;
   current_->data.info = m;
+  current_->data.deadline_ns = options_.watchdog.limit(m.period_ns);
 }
 
 void ComponentAggregator::on(const Entry& /*e*/, const CycleSample& m) {
@@ -126,30 +167,101 @@ void ComponentAggregator::on(const Entry& /*e*/, const CycleSample& m) {
   d.counters.merge(m.counters);
   d.state = m.state;
   if (m.totals_only) return;
-  if (d.has_sample && m.cycle() == d.last.cycle() + 1) {
-    s.period.add(m.start_ns - d.last.start_ns);
+  // Warm-up: from the first cycle after the component entered Running, on its own clock.
+  if (s.warm_armed) {
+    s.warm_armed = false;
+    s.warm_until = m.start_ns + options_.warmup_ns;
+    d.warming_up = options_.warmup_ns > 0;
   }
-  if (m.overhead_ns > 0) {
-    s.last_overhead = m.overhead_ns;
-    s.overhead.add(m.overhead_ns);
+  const bool warm = d.warming_up && m.start_ns < s.warm_until;
+  if (d.warming_up && !warm) d.warming_up = false;
+  if (warm) {
+    d.warmup_counters = d.counters;
+    ++d.warmup_cycles;
   }
-  const Nanos user = m.end_ns - m.start_ns;
-  s.user.add(user);
-  s.total.add(user + s.last_overhead);
-  s.latency.add(m.start_ns - m.release_ns);
+  const bool gap = d.has_sample && m.cycle() != d.last.cycle() + 1;
+  s.ring.push(CycleRecord{
+      m.cycle(), m.release_ns, m.start_ns, m.end_ns, m.overhead_ns, m.missed_before,
+      static_cast<std::uint8_t>((m.overrun ? CycleRecord::kOverrun : 0) |
+                                (gap ? CycleRecord::kGap : 0) | (warm ? CycleRecord::kWarmup : 0)),
+      m.state});
+  if (!warm) {
+    if (d.has_sample && !gap) s.period.add(m.start_ns - d.last.start_ns);
+    if (m.overhead_ns > 0) {
+      s.last_overhead = m.overhead_ns;
+      s.overhead.add(m.overhead_ns);
+    }
+    const Nanos user = m.end_ns - m.start_ns;
+    s.user.add(user);
+    s.total.add(user + s.last_overhead);
+    s.latency.add(m.start_ns - m.release_ns);
+    if (m.overrun) {
+      if (s.drain_overruns++ == 0) {
+        s.overrun_cycle = m.cycle();
+        s.overrun_end = m.end_ns;
+      }
+    }
+  }
+  if (d.silent) {
+    d.silent = false;
+    Event ev;
+    ev.kind = EventKind::Recovered;
+    ev.severity = EventSeverity::Info;
+    ev.cycle = m.cycle();
+    ev.fault_ns = m.end_ns;
+    ev.detail = fmt::format("cycling again after {:.1f} ms without a cycle",
+                            static_cast<double>(drain_time_ - d.last_sample_at) / 1e6);
+    raise(s, std::move(ev));
+  }
+  s.watched = true;
   d.has_sample = true;
   d.last = m;
   ++d.samples;
   d.last_sample_at = drain_time_;
+  if (!s.pending.empty()) resolve_pending(s, &m);
+}
+
+void ComponentAggregator::resolve_pending(Slot& s, const CycleSample* sample) {
+  // With a sample: the reports of its cycle get its end as their fault time; reports of older
+  // cycles (whose sample was dropped) are raised without one. Without (end of a drain): reports
+  // that waited one drain already are raised without a fault time.
+  std::erase_if(s.pending, [&](Slot::Pending& p) {
+    const bool mine = sample != nullptr && sample->cycle() == p.cycle;
+    const bool older = sample != nullptr && sample->cycle() > p.cycle;
+    const bool expired = sample == nullptr && ++p.drains > 1;
+    if (!mine && !older && !expired) return false;
+    Event ev;
+    ev.kind = p.kind;
+    ev.severity = p.severity;
+    ev.cycle = p.cycle;
+    ev.count = p.count;
+    ev.fault_ns = mine ? sample->end_ns : 0;
+    ev.detail = std::move(p.detail);
+    raise(s, std::move(ev));
+    return true;
+  });
 }
 
 void ComponentAggregator::on(const Entry& /*e*/, const RealTimeLoss& m) {
   // The cumulative counters of the samples are authoritative for counts (a loss report can be
-  // dropped by a full port); the report tells which cycle lost, and when it arrived.
+  // dropped by a full port); the report tells which cycle lost, and when it arrived, and makes
+  // an event: it waits for the sample of its cycle, which carries the cycle's end.
   if (current_ == nullptr) return;
-  current_->data.has_loss = true;
-  current_->data.last_loss = m;
-  current_->data.last_loss_at = drain_time_;
+  Slot& s = *current_;
+  s.data.has_loss = true;
+  s.data.last_loss = m;
+  s.data.last_loss_at = drain_time_;
+  const bool rt = s.data.has_info && s.data.info.policy != SchedPolicy::Other;
+  Slot::Pending p;
+  p.kind = EventKind::RealTimeLoss;
+  p.severity = rt ? EventSeverity::Error : EventSeverity::Warn;
+  p.cycle = m.cycle;
+  p.count = m.count;
+  p.detail = fmt::format("{} in one cycle{}", platform::to_string(m.cause),
+                         rt ? "" : " (not a real-time thread)");
+  s.pending.push_back(std::move(p));
+  // Its sample came first (it was kept and pushed again later): resolve it now.
+  if (s.data.has_sample && s.data.last.cycle() >= m.cycle) resolve_pending(s, &s.data.last);
 }
 
 void ComponentAggregator::on(const Entry& /*e*/, const ExceptionReport& m) {
@@ -159,13 +271,58 @@ void ComponentAggregator::on(const Entry& /*e*/, const ExceptionReport& m) {
   s.data.last_exception = m;
   s.data.last_exception_type = demangle(m.type.c_str());
   s.data.counters.exceptions = std::max(s.data.counters.exceptions, std::uint64_t{m.count});
+  const bool limit = std::string_view(m.type.c_str()) == "vigil::OverrunLimit";
+  Slot::Pending p;
+  p.kind = limit ? EventKind::OverrunLimit : EventKind::Exception;
+  p.severity = EventSeverity::Error;
+  // An exception thrown by on_update() is reported before its cycle's sample (m.cycle counts the
+  // cycles completed before it); the overrun limit after the sample of the cycle that reached it.
+  p.cycle = m.hook == Hook::Update && !limit ? m.cycle + 1 : m.cycle;
+  p.detail = limit ? std::string(m.message.c_str())
+                   : fmt::format("{} in {}: {}", s.data.last_exception_type, to_string(m.hook),
+                                 m.message.c_str());
+  if (m.hook != Hook::Update) {  // not a cycle's fault: no cycle time to wait for
+    Event ev;
+    ev.kind = p.kind;
+    ev.severity = p.severity;
+    ev.detail = std::move(p.detail);
+    raise(s, std::move(ev));
+    return;
+  }
+  s.pending.push_back(std::move(p));
+  if (s.data.has_sample && s.data.last.cycle() >= s.pending.back().cycle) {
+    resolve_pending(s, &s.data.last);
+  }
 }
 
 void ComponentAggregator::on(const Entry& /*e*/, const StateChange& m) {
   if (current_ == nullptr) return;
-  current_->data.has_state_change = true;
-  current_->data.last_change = m;
-  current_->data.state = m.to;
+  Slot& s = *current_;
+  auto& d = s.data;
+  d.has_state_change = true;
+  d.last_change = m;
+  d.state = m.to;
+  if (!m.refused && m.to == TaskState::Running) {
+    s.warm_armed = true;  // a (re)start warms up again
+    s.watched = false;    // watched from its first cycle
+    d.silent = false;
+  } else if (!m.refused && m.from == TaskState::Running) {
+    s.watched = false;
+    d.silent = false;
+  }
+  const bool fault = !m.refused && (m.to == TaskState::Exception || m.to == TaskState::FatalError);
+  if (!fault && !options_.state_events) return;
+  Event ev;
+  ev.kind = fault ? EventKind::FaultState : EventKind::StateChange;
+  ev.severity = fault       ? EventSeverity::Error
+                : m.refused ? EventSeverity::Warn
+                            : EventSeverity::Info;
+  ev.cycle = d.has_sample ? d.last.cycle() : 0;
+  ev.fault_ns = m.time_ns;
+  ev.detail = m.refused ? fmt::format("{} refused in {}", to_string(m.from), to_string(m.hook))
+                        : fmt::format("{} -> {}", to_string(m.from), to_string(m.to));
+  if (!m.reason.empty()) ev.detail += fmt::format(" ({})", m.reason.c_str());
+  raise(s, std::move(ev));
 }
 
 void ComponentAggregator::on(const Entry& e, const log::LogRecord& m) {
@@ -175,6 +332,10 @@ void ComponentAggregator::on(const Entry& e, const log::LogRecord& m) {
 void ComponentAggregator::on_cycle(const SupervisorCycle& c) {
   if (auto* lc = log_consumer_.load()) lc->on_supervisor_cycle(c.time_ns + c.drain_ns);
   hint_ = 0;
+  if (options_.watchdog.enabled || options_.auto_clear_ns > 0) {
+    const Nanos now = options_.clock.now();
+    for (const auto& slot : slots_) watch(*slot, now);
+  }
   if (departed_ == 0) return;  // nothing to forget: no walk over thousands of records
   const Nanos now = options_.clock.now();
   const auto expired = [&](const auto& s) {
@@ -194,6 +355,156 @@ void ComponentAggregator::on_cycle(const SupervisorCycle& c) {
   }
   slots_.resize(out);
   ids_.resize(out);
+}
+
+void ComponentAggregator::watch(Slot& s, Nanos now) {
+  // Supervisor thread: the only writer of everything read here but the latch.
+  auto& d = s.data;
+  if (s.watched && !d.silent && d.alive && d.state == TaskState::Running && d.deadline_ns > 0 &&
+      now - d.last_sample_at > d.deadline_ns) {
+    std::lock_guard lock(s.mutex);
+    d.silent = true;
+    ++d.deadline_misses;
+    Event ev;
+    ev.kind = EventKind::Deadline;
+    ev.severity = EventSeverity::Error;
+    ev.cycle = d.last.cycle();
+    ev.fault_ns = d.last_sample_at + d.deadline_ns;
+    ev.detected_ns = now;
+    ev.detail = fmt::format("no cycle for {:.1f} ms (deadline {:.1f} ms; last cycle {})",
+                            static_cast<double>(now - d.last_sample_at) / 1e6,
+                            static_cast<double>(d.deadline_ns) / 1e6, d.last.cycle());
+    raise(s, std::move(ev));
+  }
+  if (options_.auto_clear_ns > 0) {
+    std::lock_guard lock(s.mutex);
+    if (d.latch.active && now - d.latch.last_ns >= options_.auto_clear_ns) {
+      (void)clear_slot(s, "auto-clear");
+    }
+  }
+}
+
+void ComponentAggregator::raise(Slot& s, Event e) {
+  auto& d = s.data;
+  e.component = d.name;
+  e.component_id = d.id;
+  if (e.detected_ns == 0) e.detected_ns = options_.clock.now();
+  ++d.events;
+  std::shared_ptr<FlightRecord> record;
+  if (e.severity == EventSeverity::Error) {
+    LatchedFault& l = d.latch;
+    if (!l.active) {
+      l.active = true;
+      l.first_kind = e.kind;
+      l.first_ns = e.detected_ns;
+      l.first_detail = e.detail;
+      l.count = 0;
+      ++l.raised;
+      e.latched = true;
+      const auto& r = options_.recorder;
+      if (!s.ring.empty() &&
+          (s.last_frozen == 0 || e.detected_ns - s.last_frozen >= r.min_interval_ns)) {
+        std::lock_guard lock(frozen_mutex_);
+        if (r.max_records == 0 || frozen_total_ < r.max_records) {
+          record = std::make_shared<FlightRecord>();
+          record->component = d.name;
+          record->component_id = d.id;
+          record->has_info = d.has_info;
+          record->info = d.info;
+          record->cycles = s.ring.ordered();
+          record->frozen_ns = e.detected_ns;
+          e.traced = true;
+          s.last_frozen = e.detected_ns;
+          ++frozen_total_;
+        }
+      }
+    }
+    ++l.count;
+    l.last_kind = e.kind;
+    l.last_ns = e.detected_ns;
+    l.last_detail = e.detail;
+  }
+  if (!record) {
+    events_.publish(std::move(e));
+    return;
+  }
+  // Stored under frozen_mutex_ with its sequence number before any subscriber can ask for it.
+  std::lock_guard lock(frozen_mutex_);
+  record->event = e;
+  record->event.seq = events_.publish(std::move(e));
+  frozen_.push_back(std::move(record));
+  while (frozen_.size() > kKeptRecords) frozen_.pop_front();
+}
+
+std::size_t ComponentAggregator::clear_slot(Slot& s, const char* why) {
+  LatchedFault& l = s.data.latch;
+  if (!l.active) return 0;
+  l.active = false;
+  ++l.cleared;
+  Event ev;
+  ev.kind = EventKind::Cleared;
+  ev.severity = EventSeverity::Info;
+  ev.detail = fmt::format("{}: {} error event{} since {} ({})", why, l.count,
+                          l.count == 1 ? "" : "s", to_string(l.first_kind), l.first_detail);
+  raise(s, std::move(ev));
+  return 1;
+}
+
+std::size_t ComponentAggregator::clear(std::string_view name) {
+  std::shared_lock lock(list_mutex_);
+  std::size_t n = 0;
+  for (const auto& s : slots_) {
+    if (s->data.name != name) continue;
+    std::lock_guard slot_lock(s->mutex);
+    n += clear_slot(*s, "cleared");
+  }
+  return n;
+}
+
+std::size_t ComponentAggregator::clear_all() {
+  std::shared_lock lock(list_mutex_);
+  std::size_t n = 0;
+  for (const auto& s : slots_) {
+    std::lock_guard slot_lock(s->mutex);
+    n += clear_slot(*s, "cleared");
+  }
+  return n;
+}
+
+std::shared_ptr<const FlightRecord> ComponentAggregator::frozen_record(std::uint64_t seq) const {
+  std::lock_guard lock(frozen_mutex_);
+  for (const auto& r : frozen_) {
+    if (r->event.seq == seq) return r;
+  }
+  return nullptr;
+}
+
+std::vector<std::shared_ptr<const FlightRecord>> ComponentAggregator::frozen_records() const {
+  std::lock_guard lock(frozen_mutex_);
+  return {frozen_.begin(), frozen_.end()};
+}
+
+std::optional<FlightRecord> ComponentAggregator::flight_record(std::string_view name) const {
+  std::shared_lock lock(list_mutex_);
+  for (const auto& s : slots_) {
+    if (s->data.name != name) continue;
+    std::lock_guard slot_lock(s->mutex);
+    FlightRecord r;
+    r.component = s->data.name;
+    r.component_id = s->data.id;
+    r.has_info = s->data.has_info;
+    r.info = s->data.info;
+    r.cycles = s->ring.ordered();
+    r.on_demand = true;
+    r.frozen_ns = options_.clock.now();
+    r.event.kind = EventKind::StateChange;
+    r.event.component = r.component;
+    r.event.component_id = r.component_id;
+    r.event.detail = "on demand";
+    r.event.detected_ns = r.frozen_ns;
+    return r;
+  }
+  return std::nullopt;
 }
 
 namespace {

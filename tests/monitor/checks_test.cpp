@@ -304,5 +304,5 @@ TEST_CASE("The built-in checks run in their documented order", "[monitor][checks
   checks::add_builtin_checks(list);
   CHECK(list.names() == std::vector<std::string>{"initialization", "exception", "starvation",
                                                  "overrun", "realtime", "not_realtime", "overhead",
-                                                 "drops"});
+                                                 "drops", "latched"});
 }

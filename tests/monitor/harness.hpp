@@ -86,7 +86,10 @@ struct Harness {
 
   FakeClock clock;
   Registry<Message> registry;
-  ComponentAggregator aggregator{AggregatorOptions{.clock = clock.clock()}};
+  // No warm-up: the tests count every cycle in the statistics; no watchdog: the starvation
+  // tests see the monitor's view alone (both have their own tests, tests/supervisor).
+  ComponentAggregator aggregator{
+      AggregatorOptions{.clock = clock.clock(), .warmup_ns = 0, .watchdog = {.enabled = false}}};
   TaskSupervisor supervisor{registry, aggregator, SupervisorOptions{.clock = clock.clock()}};
   Monitor monitor;
 };

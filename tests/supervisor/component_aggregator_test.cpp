@@ -27,7 +27,7 @@ TEST_CASE("The aggregator computes latency, period, user time and demangles exce
   p.script.throw_update_at = 101;
   fc.set(act.next_release() + 40);
   act.step();
-  ComponentAggregator agg;
+  ComponentAggregator agg({.warmup_ns = 0});  // every cycle in the statistics
   TaskSupervisor sup(reg, agg);
   sup.step();
   const auto s = agg.find("p");

@@ -39,6 +39,7 @@
 #include "vigil/expected.hpp"
 #include "vigil/export/http_server.hpp"
 #include "vigil/monitor/thresholds.hpp"
+#include "vigil/supervisor/component_aggregator.hpp"
 #include "vigil/supervisor/running_stats.hpp"
 
 namespace vigil::deploy {
@@ -76,6 +77,16 @@ struct SupervisionSpec {
   /// supervises them instead of this process (docs/guide/multi-process.md). Empty: in-process,
   /// unless the environment variable VIGIL_SUPERVISOR names a supervisor.
   std::string shared_memory;
+  /// `warmup`: the first cycles kept out of the statistics and windows (AggregatorOptions).
+  Nanos warmup_ns = 100 * kNanosPerMilli;
+  /// `watchdog: {enabled, periods, floor, aperiodic}`.
+  WatchdogOptions watchdog{};
+  /// `events: {queue, auto_clear, state_changes}`.
+  std::size_t event_queue = 1024;
+  Nanos auto_clear_ns = 0;
+  bool state_events = true;
+  /// `flight_recorder: {cycles, min_interval, max_records}`.
+  FlightRecorderOptions recorder{};
 };
 
 /// `outputs.http`: serve the reports over HTTP while the system runs (docs/guide/http.md).
@@ -83,6 +94,7 @@ struct HttpOutputSpec {
   exporter::ListenAddress listen;  ///< `listen: "[ADDR:]PORT"` (127.0.0.1 without ADDR)
   unsigned threads = 3;            ///< `threads: 1..16`
   bool dashboard = true;           ///< `dashboard: false` serves no web page
+  bool clear = false;              ///< `clear: true` enables POST /api/v1/clear
 };
 
 /// Where the results go.

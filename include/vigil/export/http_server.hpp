@@ -31,6 +31,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -40,6 +41,7 @@
 #include "vigil/export/metrics_snapshot.hpp"
 #include "vigil/monitor/report.hpp"
 #include "vigil/platform/clock.hpp"
+#include "vigil/supervisor/events.hpp"
 
 namespace vigil::exporter {
 
@@ -83,6 +85,20 @@ struct HttpOptions {
   Nanos stale_after_ns = 0;
   /// Name of the server's threads (at most 15 characters are kept).
   std::string thread_name = "vigil-http";
+  /// Events served at `GET /api/v1/events?after=SEQ&wait=SECONDS` (a long poll; null: the
+  /// endpoint answers 404). The hub must outlive the server.
+  EventHub* events = nullptr;
+  /// Longest wait of an events long poll (a request asking more gets this).
+  Nanos events_max_wait_ns = 25 * kNanosPerSecond;
+  /// `POST /api/v1/clear[?component=NAME]` clears latched faults through this function (the
+  /// name, or empty for all; returns how many were latched). The one write endpoint: off
+  /// (405, like any other POST) unless set. The request must carry the header
+  /// `X-Vigil-Clear: 1` (a browser cannot send it cross-origin without a preflight, which this
+  /// server never grants).
+  std::function<std::size_t(const std::string&)> clear;
+  /// `GET /api/v1/trace/<name>`: the component's flight recorder now, as trace-event JSON
+  /// (empty optional: unknown component, 404). Null: the endpoint answers 404.
+  std::function<std::optional<std::string>(const std::string&)> trace;
   /// Where start() writes what it did ("serving on ..." and, for a non-loopback address, a
   /// warning). Empty: standard error.
   std::function<void(const std::string&)> log;

@@ -51,6 +51,9 @@ struct ExportOptions {
   /// adds, matched by name (e.g. a deploy::System's CAN extension). Runs on the monitor's
   /// thread.
   std::function<void(ReportSet&, std::vector<CanHistograms>&)> augment_metrics;
+  /// Serve the aggregator's events (`/api/v1/events`) and on-demand traces
+  /// (`/api/v1/trace/<name>`) over HTTP, unless the HttpOptions name their own.
+  bool events = true;
 };
 
 class MonitorExporter {
@@ -101,8 +104,11 @@ class MonitorExporter {
     Monitor& monitor, const ComponentAggregator& aggregator, HttpOptions options = {}) {
   return MonitorExporter::start(
       monitor, &aggregator,
-      ExportOptions{
-          .http = std::move(options), .textfile = {}, .augment = {}, .augment_metrics = {}});
+      ExportOptions{.http = std::move(options),
+                    .textfile = {},
+                    .augment = {},
+                    .augment_metrics = {},
+                    .events = true});
 }
 
 }  // namespace vigil::exporter

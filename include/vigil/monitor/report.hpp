@@ -121,6 +121,14 @@ struct Report {
   std::size_t port_capacity = 0;
   std::size_t port_high_water = 0;  ///< highest port occupancy seen at a drain
 
+  // --- warm-up, events, latch (vigil/supervisor/events.hpp) ---
+  std::uint64_t warmup_cycles = 0;  ///< samples of the warm-up, kept out of the statistics
+  Counters warmup;                  ///< the counters when the warm-up ended (its overruns, ...)
+  LatchedFault latch;               ///< the latched fault, if `latch.active`
+  Nanos deadline_ns = 0;            ///< the watchdog's limit (0: not watched)
+  std::uint64_t deadline_misses = 0;
+  std::uint64_t events = 0;  ///< events raised for it
+
   // --- exceptions ---
   bool has_exception = false;
   ExceptionInfo exception;

@@ -13,6 +13,7 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -25,12 +26,30 @@
 #include "vigil/bus/registry.hpp"
 #include "vigil/log/consumer.hpp"
 #include "vigil/platform/clock.hpp"
+#include "vigil/supervisor/events.hpp"
+#include "vigil/supervisor/flight_recorder.hpp"
 #include "vigil/supervisor/running_stats.hpp"
 #include "vigil/supervisor/supervisor.hpp"
 #include "vigil/task/default_registry.hpp"
 #include "vigil/task/messages.hpp"
 
 namespace vigil {
+
+/// A component's latched fault: the first Error event since the latch was last cleared raised
+/// it; later Error events only count and move `last_*`. It stays until cleared
+/// (`ComponentAggregator::clear`, auto-clear, the HTTP clear endpoint).
+struct LatchedFault {
+  bool active = false;
+  EventKind first_kind = EventKind::Exception;
+  EventKind last_kind = EventKind::Exception;
+  Nanos first_ns = 0;       ///< detection time of the first event (supervisor clock)
+  Nanos last_ns = 0;        ///< detection time of the latest event
+  std::uint64_t count = 0;  ///< Error events since it was raised
+  std::string first_detail;
+  std::string last_detail;
+  std::uint64_t raised = 0;   ///< times it was raised since the component joined
+  std::uint64_t cleared = 0;  ///< times it was cleared
+};
 
 /// Everything known about one component at one moment. Plain data: copy it freely.
 struct ComponentSnapshot {
@@ -66,6 +85,19 @@ struct ComponentSnapshot {
   Nanos left_at = 0;
   std::size_t port_capacity = 0;
   std::size_t port_high_water = 0;
+  /// Warm-up: the first cycles after the component started running (AggregatorOptions::
+  /// warmup_ns) are counted in `counters` but kept out of every timing statistic above; the
+  /// monitor's windows start after them too.
+  bool warming_up = false;
+  std::uint64_t warmup_cycles = 0;  ///< samples kept out of the statistics
+  /// The counters when the latest warm-up ended (zeros before): overruns etc. of the warm-up.
+  Counters warmup_counters;
+  LatchedFault latch;
+  /// Watchdog: the silence after which a Deadline event is raised (0: not watched).
+  Nanos deadline_ns = 0;
+  bool silent = false;                ///< the deadline passed and no cycle arrived since
+  std::uint64_t deadline_misses = 0;  ///< Deadline events so far
+  std::uint64_t events = 0;           ///< events raised for it so far
 
   /// Overhead as a share of total time (mean overhead / mean total), 0 when unknown.
   [[nodiscard]] double overhead_share() const noexcept {
@@ -89,14 +121,43 @@ struct ComponentDistributions {
   StatsSummary total;  ///< total time's exact count, min, max, mean, EWMA
 };
 
+/// Options of the watchdog (part of `AggregatorOptions`).
+struct WatchdogOptions {
+  bool enabled = true;
+  /// A periodic component is silent when no cycle arrived for max(periods x period, floor).
+  double periods = 10;
+  Nanos floor_ns = 30 * kNanosPerMilli;
+  /// Limit for components without a period (0: they are not watched).
+  Nanos aperiodic_ns = 0;
+  /// The limit for a component of period `period_ns` (0: not watched).
+  [[nodiscard]] Nanos limit(Nanos period_ns) const noexcept {
+    if (!enabled) return 0;
+    if (period_ns <= 0) return aperiodic_ns;
+    const auto by_periods = static_cast<Nanos>(periods * static_cast<double>(period_ns));
+    return by_periods > floor_ns ? by_periods : floor_ns;
+  }
+};
+
 /// Options of the aggregator.
 struct AggregatorOptions {
   /// Weight of the newest sample in the EWMAs (0 < w <= 1).
   double ewma_weight = kDefaultEwmaWeight;
   /// How long a component that left stays in snapshots.
   Nanos retain_left_ns = 60 * kNanosPerSecond;
-  /// Supervisor-side clock used to stamp arrivals (for staleness checks).
+  /// Supervisor-side clock used to stamp arrivals (for staleness checks) and events.
   Clock clock = Clock::system();
+  /// The first cycles after a component starts running, measured on the component's clock from
+  /// its first cycle, are kept out of the timing statistics and the monitor's windows (still
+  /// counted). 0: no warm-up.
+  Nanos warmup_ns = 100 * kNanosPerMilli;
+  WatchdogOptions watchdog{};
+  FlightRecorderOptions recorder{};
+  EventHubOptions events{};
+  /// A latched fault with no new Error event for this long is cleared (0: never).
+  Nanos auto_clear_ns = 0;
+  /// Raise an Info event for every lifecycle transition (Exception/FatalError are always
+  /// raised, as Error).
+  bool state_events = true;
 };
 
 /// The supervisor handler for `Message`. Not RT-safe (supervisor thread and readers only).
@@ -142,10 +203,32 @@ class ComponentAggregator {
   /// supervisor's cycles (set null before destroying it).
   void set_log_consumer(log::RecordConsumer* c) noexcept { log_consumer_.store(c); }
 
+  // --- events, latches, flight recorder (any thread) ---
+  /// The events raised by this aggregator: subscribe there (thread-safe, hence usable through
+  /// a const aggregator).
+  [[nodiscard]] EventHub& events() const noexcept { return events_; }
+  /// Clears the latched fault of every component named `name`; raises a Cleared event each.
+  /// Returns how many were latched. Any thread.
+  std::size_t clear(std::string_view name);
+  /// Clears every latched fault. Returns how many were latched. Any thread.
+  std::size_t clear_all();
+  /// The flight record frozen with event `seq` (`Event::traced`), if still kept (the latest
+  /// `recorder.max_records` are). Any thread.
+  [[nodiscard]] std::shared_ptr<const FlightRecord> frozen_record(std::uint64_t seq) const;
+  /// Every frozen record still kept, oldest first. Any thread.
+  [[nodiscard]] std::vector<std::shared_ptr<const FlightRecord>> frozen_records() const;
+  /// The flight recorder of component `name` now (on demand), if it exists. Any thread.
+  [[nodiscard]] std::optional<FlightRecord> flight_record(std::string_view name) const;
+  [[nodiscard]] const AggregatorOptions& options() const noexcept { return options_; }
+
   struct Slot;
 
  private:
   Slot* slot_for(const Entry& e);
+  void raise(Slot& s, Event e);  // the slot is locked by the caller
+  void resolve_pending(Slot& s, const CycleSample* sample);
+  void watch(Slot& s, Nanos now);
+  std::size_t clear_slot(Slot& s, const char* why);
   AggregatorOptions options_;
   std::atomic<double> ewma_weight_;
   mutable std::shared_mutex list_mutex_;
@@ -156,6 +239,10 @@ class ComponentAggregator {
   Slot* current_ = nullptr;                   // the slot between begin() and end()
   Nanos drain_time_ = 0;                      // supervisor clock at begin()
   std::atomic<log::RecordConsumer*> log_consumer_{nullptr};
+  mutable std::mutex frozen_mutex_;  // frozen_: taken before the hub's lock, never after
+  std::deque<std::shared_ptr<const FlightRecord>> frozen_;
+  std::size_t frozen_total_ = 0;
+  mutable EventHub events_;  // last: destroyed first, its dispatchers may still read the above
 };
 
 static_assert(SupervisorHandler<ComponentAggregator, Message>);

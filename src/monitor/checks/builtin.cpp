@@ -11,6 +11,7 @@ void add_builtin_checks(CheckList& list) {
   list.add<NotRealtimeCheck>();
   list.add<OverheadCheck>();
   list.add<DropsCheck>();
+  list.add<LatchedCheck>();
 }
 
 }  // namespace vigil::checks

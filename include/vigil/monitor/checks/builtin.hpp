@@ -6,6 +6,7 @@
 #include "vigil/monitor/checks/drops.hpp"
 #include "vigil/monitor/checks/exception.hpp"
 #include "vigil/monitor/checks/initialization.hpp"
+#include "vigil/monitor/checks/latched.hpp"
 #include "vigil/monitor/checks/not_realtime.hpp"
 #include "vigil/monitor/checks/overhead.hpp"
 #include "vigil/monitor/checks/overrun.hpp"
@@ -15,7 +16,7 @@
 namespace vigil::checks {
 
 /// Appends the built-in checks in their reporting order: initialization, exception,
-/// starvation, overrun, realtime, not_realtime, overhead, drops. Not RT-safe.
+/// starvation, overrun, realtime, not_realtime, overhead, drops, latched. Not RT-safe.
 void add_builtin_checks(CheckList& list);
 
 }  // namespace vigil::checks

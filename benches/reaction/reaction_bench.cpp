@@ -1,0 +1,195 @@
+// Reaction: how long after a fault the supervisor raises its event (issue 16), per fault kind,
+// for a 1 kHz component under the default periods (supervisor 10 ms, watchdog max(10 periods,
+// 30 ms), monitor 1 s).
+//
+// Each trial starts a fresh component on its own 1 kHz periodic thread (SCHED_FIFO 50 when
+// allowed), lets it run past its warm-up, waits a random 0-10 ms (so the fault falls at a random
+// phase of the supervisor's cycle), injects one fault, and waits for its event on an in-process
+// subscriber. Latency = event.detected_ns - event.fault_ns: from the faulting cycle's end for an
+// exception, an overrun burst (3 cycles of 1.5 ms) and an allocation (a real-time loss); for a
+// hang (on_update blocks 150 ms) from the moment its deadline passed, as the issue defines it.
+// Next to it, `monitor_*`: when the 1 s monitor cycle would have reported the same fault (the
+// monitor's first cycle after it, on a 1 s grid started with the system; computed from the same
+// fault times, no monitor runs). Values in ms. Trials: VIGIL_REACTION_TRIALS (default 40).
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdlib>
+#include <mutex>
+#include <optional>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "vigil/exec/periodic_activity.hpp"
+#include "vigil/supervisor/component_aggregator.hpp"
+#include "vigil/task/task.hpp"
+
+namespace vigil::bench {
+namespace {
+
+enum class Fault { Exception, Hang, OverrunBurst, Allocation };
+
+void burn(Nanos ns) noexcept {
+  const Nanos end = platform::now_ns() + ns;
+  while (platform::now_ns() < end) {
+  }
+}
+
+class Injected : public Task<Injected> {
+ public:
+  Injected(std::string name, Registry<Message>& reg)
+      : Task(std::move(name), {.detectors = Detectors::Allocation}, reg) {}
+  std::atomic<bool> armed{false};
+  Fault fault = Fault::Exception;
+  void on_update() {
+    if (burst_ > 0) {
+      --burst_;
+      burn(1500 * kNanosPerMicro);
+      return;
+    }
+    if (!armed.exchange(false, std::memory_order_acq_rel)) {
+      burn(20 * kNanosPerMicro);
+      return;
+    }
+    switch (fault) {
+      case Fault::Exception:
+        throw std::runtime_error("injected");
+      case Fault::Hang:
+        std::this_thread::sleep_for(std::chrono::milliseconds(150));
+        break;
+      case Fault::OverrunBurst:
+        burst_ = 2;
+        burn(1500 * kNanosPerMicro);
+        break;
+      case Fault::Allocation: {
+        auto* p = new int(1);
+        asm volatile("" : : "g"(p) : "memory");
+        delete p;
+        break;
+      }
+    }
+  }
+
+ private:
+  int burst_ = 0;
+};
+
+EventKind kind_of(Fault f) {
+  switch (f) {
+    case Fault::Exception:
+      return EventKind::Exception;
+    case Fault::Hang:
+      return EventKind::Deadline;
+    case Fault::OverrunBurst:
+      return EventKind::Overrun;
+    case Fault::Allocation:
+      return EventKind::RealTimeLoss;
+  }
+  return EventKind::Exception;
+}
+
+struct Shared {
+  Registry<Message> reg;
+  ComponentAggregator agg;
+  TaskSupervisor sup{reg, agg};
+  Nanos t0 = platform::now_ns();  // the monitor's 1 s grid starts here
+  std::mutex m;
+  std::condition_variable cv;
+  std::optional<Event> got;
+  std::string want;
+  EventKind want_kind = EventKind::Exception;
+  Shared() {
+    agg.events().subscribe([this](const Event& e) {
+      std::lock_guard lock(m);
+      if (!got && e.component == want && e.kind == want_kind) {
+        got = e;
+        cv.notify_all();
+      }
+    });
+    (void)sup.start();
+  }
+};
+
+Shared& shared() {
+  static Shared s;
+  return s;
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const auto i = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5);
+  return v[std::min(i, v.size() - 1)];
+}
+
+void BM_Reaction(benchmark::State& state, Fault fault) {
+  Shared& s = shared();
+  const char* env = std::getenv("VIGIL_REACTION_TRIALS");
+  const int trials = env != nullptr ? std::max(1, std::atoi(env)) : 40;
+  std::mt19937 rng(42);
+  std::vector<double> lat, mon;
+  int missed = 0;
+  for (auto _ : state) {
+    for (int i = 0; i < trials; ++i) {
+      const std::string name =
+          "r" + std::to_string(static_cast<int>(fault)) + "_" + std::to_string(i);
+      Injected task(name, s.reg);
+      task.fault = fault;
+      PeriodicActivity act(task, {.name = name,
+                                  .period_ns = kNanosPerMilli,
+                                  .policy = SchedPolicy::Fifo,
+                                  .priority = 50,
+                                  .share_thread = false});
+      if (!task.configure() || !act.start()) {
+        state.SkipWithError("cannot start the component");
+        return;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(150 + rng() % 10));
+      {
+        std::lock_guard lock(s.m);
+        s.got.reset();
+        s.want = name;
+        s.want_kind = kind_of(fault);
+      }
+      task.armed.store(true, std::memory_order_release);
+      {
+        std::unique_lock lock(s.m);
+        s.cv.wait_for(lock, std::chrono::seconds(2), [&] { return s.got.has_value(); });
+        if (s.got) {
+          lat.push_back(static_cast<double>(s.got->latency_ns()) / 1e6);
+          // The monitor's next cycle after the fault, on a 1 s grid from t0.
+          const Nanos since = s.got->fault_ns - s.t0;
+          const Nanos next = (since / kNanosPerSecond + 1) * kNanosPerSecond;
+          mon.push_back(static_cast<double>(next - since) / 1e6);
+        } else {
+          ++missed;
+        }
+      }
+      act.stop();
+    }
+  }
+  state.counters["trials"] = static_cast<double>(lat.size());
+  state.counters["missed"] = missed;
+  state.counters["p50_ms"] = percentile(lat, 0.5);
+  state.counters["p99_ms"] = percentile(lat, 0.99);
+  state.counters["max_ms"] = lat.empty() ? 0 : *std::max_element(lat.begin(), lat.end());
+  state.counters["monitor_p50_ms"] = percentile(mon, 0.5);
+  state.counters["monitor_p99_ms"] = percentile(mon, 0.99);
+  state.counters["goal_p99_ms"] = 20;
+}
+
+BENCHMARK_CAPTURE(BM_Reaction, exception, Fault::Exception)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Reaction, hang, Fault::Hang)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Reaction, overrun_burst, Fault::OverrunBurst)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Reaction, allocation_loss, Fault::Allocation)->Iterations(1)->UseRealTime();
+
+}  // namespace
+}  // namespace vigil::bench
+
+BENCHMARK_MAIN();

@@ -1,0 +1,184 @@
+#pragma once
+/// @file
+/// Events: discrete faults detected at the supervisor's pace (10 ms by default), not the
+/// monitor's (1 s). The aggregator raises them while it drains the ports (an exception, a task
+/// entering Exception or FatalError, the overrun limit, overruns, a real-time loss, a state
+/// change) and its watchdog raises them at each supervisor cycle (a component silent past its
+/// deadline, and its recovery). `EventHub` hands them to subscribers (the robot's state
+/// machine, a JSON-lines file, the HTTP stream) without ever delaying the supervisor.
+///
+/// Design: `publish()` (the supervisor thread, or a thread clearing a latch) copies the event
+/// into a bounded ring per subscriber under a mutex held only for that copy, and wakes the
+/// subscriber's own dispatcher thread, which calls the callback outside any lock. When a ring is
+/// full the event is dropped for that subscriber and counted (`SubscriberStats::lost`): a slow
+/// subscriber loses events, never delays detection. The hub also keeps the latest events, in
+/// order, for readers that poll (`since()`, `wait()`: the HTTP `/events` endpoint).
+///
+/// Nothing here is RT-safe: the real-time side never sees events.
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "vigil/platform/clock.hpp"
+
+namespace vigil {
+
+/// What happened.
+enum class EventKind : std::uint8_t {
+  Exception,     ///< a hook threw (ExceptionReport)
+  OverrunLimit,  ///< the activity's overrun limit was reached (the task goes to Exception)
+  FaultState,    ///< the task entered Exception or FatalError
+  StateChange,   ///< any other lifecycle transition (or a refused one)
+  Overrun,       ///< cycles ended after their next release (coalesced per supervisor drain)
+  RealTimeLoss,  ///< a real-time loss (allocation, blocking call, page fault, mode switch)
+  Deadline,      ///< the watchdog: no cycle arrived before the component's deadline
+  Recovered,     ///< cycles arrive again after a Deadline event
+  Cleared,       ///< a latched fault was cleared (API, auto-clear, HTTP)
+};
+/// Lower-case name of a kind ("exception", "overrun_limit", ...), as written in JSON.
+[[nodiscard]] const char* to_string(EventKind k) noexcept;
+
+/// How bad it is. An Error event latches the component's fault (see `LatchedFault`).
+enum class EventSeverity : std::uint8_t { Info, Warn, Error };
+/// "info", "warn" or "error".
+[[nodiscard]] const char* to_string(EventSeverity s) noexcept;
+
+/// One event. Plain data.
+struct Event {
+  std::uint64_t seq = 0;  ///< 1-based, in publication order, per hub
+  EventKind kind = EventKind::StateChange;
+  EventSeverity severity = EventSeverity::Info;
+  std::uint32_t component_id = 0;  ///< registry id (0 for the hub's own events)
+  std::string component;
+  /// The component's cycle number of the fault (the faulting cycle; for Deadline the latest
+  /// cycle received; 0 when not known).
+  std::uint64_t cycle = 0;
+  /// Monotonic time of the fault: the faulting cycle's end, the transition's time, or for
+  /// Deadline the deadline that passed. Nanoseconds, the same clock as `detected_ns`.
+  Nanos fault_ns = 0;
+  /// Monotonic time the supervisor detected it (supervisor clock).
+  Nanos detected_ns = 0;
+  /// How many faults this event stands for (overruns coalesced in one drain, losses in one
+  /// cycle); 1 for the others.
+  std::uint64_t count = 1;
+  bool latched = false;  ///< this event raised the component's latch (first Error since clear)
+  bool traced = false;   ///< a flight record was frozen for it (`FlightRecord`)
+  std::string detail;    ///< human-readable: the exception's type and message, the cause, ...
+  /// Detection latency (detected - fault), 0 when the fault time is unknown.
+  [[nodiscard]] Nanos latency_ns() const noexcept {
+    return fault_ns > 0 && detected_ns >= fault_ns ? detected_ns - fault_ns : 0;
+  }
+};
+
+/// One line of text for an event: "ERROR encoder: exception: std::runtime_error: ... (cycle
+/// 4001, detected 3.2 ms after the fault)". Not RT-safe (allocates).
+[[nodiscard]] std::string format_event(const Event& e);
+
+/// The event as one JSON object on one line (no newline): seq, kind, severity, component,
+/// component_id, cycle, fault_ns, detected_ns, latency_ns, count, latched, traced, detail.
+[[nodiscard]] std::string event_json(const Event& e);
+
+/// A subscriber's callback, called on its own dispatcher thread, one event at a time, in order.
+/// It may block or be slow: only its own events are lost then. Exceptions it throws are
+/// swallowed.
+using EventCallback = std::function<void(const Event&)>;
+
+/// Delivery statistics of one subscriber.
+struct SubscriberStats {
+  std::uint64_t delivered = 0;  ///< callbacks completed
+  std::uint64_t lost = 0;       ///< events dropped because its queue was full
+  std::size_t capacity = 0;
+};
+
+/// Options of a hub.
+struct EventHubOptions {
+  /// Events queued per subscriber before new ones are dropped and counted.
+  std::size_t queue_capacity = 1024;
+  /// Latest events kept for `since()` / `wait()`.
+  std::size_t recent = 512;
+};
+
+/// Distributes events to subscribers. Every member is thread-safe; nothing is RT-safe.
+class EventHub {
+ public:
+  explicit EventHub(EventHubOptions options = {});
+  /// Stops every dispatcher thread (events still queued are not delivered).
+  ~EventHub();
+  EventHub(const EventHub&) = delete;
+  EventHub& operator=(const EventHub&) = delete;
+
+  /// Adds a subscriber with its own dispatcher thread and a queue of `capacity` events
+  /// (0: the hub's default). Returns its id (never 0). Throws std::system_error if the thread
+  /// cannot be created.
+  std::uint64_t subscribe(EventCallback callback, std::size_t capacity = 0);
+  /// Removes a subscriber: waits for the callback under way, joins its thread; events still
+  /// queued are dropped. Unknown ids are ignored. Must not be called from that callback.
+  void unsubscribe(std::uint64_t id);
+  /// Waits (at most `timeout_ns`) until every subscriber's queue is empty and its callback
+  /// returned. True when they all drained.
+  bool flush(Nanos timeout_ns = kNanosPerSecond);
+  /// Delivery statistics of subscriber `id` (zeros for an unknown id).
+  [[nodiscard]] SubscriberStats stats(std::uint64_t id) const;
+
+  /// Publishes `e` (its `seq` is assigned here): never blocks for longer than copying it into
+  /// each subscriber's queue. Returns the sequence number given.
+  std::uint64_t publish(Event e);
+
+  /// Events with seq > `after`, oldest first, at most `max` (the latest `recent` are kept:
+  /// older ones are gone, see `first_seq`).
+  [[nodiscard]] std::vector<Event> since(std::uint64_t after, std::size_t max = SIZE_MAX) const;
+  /// Waits until an event with seq > `after` exists or `timeout_ns` passed, or `cancel()` was
+  /// called; true when there is one. For long polls.
+  bool wait(std::uint64_t after, Nanos timeout_ns) const;
+  /// Wakes every `wait()` (a server stopping).
+  void cancel_waits();
+  /// Sequence number of the latest event published (0: none yet).
+  [[nodiscard]] std::uint64_t last_seq() const;
+  /// Events published since the hub was made.
+  [[nodiscard]] std::uint64_t published() const { return last_seq(); }
+  /// Events lost by every subscriber together.
+  [[nodiscard]] std::uint64_t lost() const;
+
+ private:
+  struct Subscriber;
+  EventHubOptions options_;
+  mutable std::mutex mutex_;  // subscribers_, recent_, seq_
+  mutable std::condition_variable published_cv_;
+  std::vector<std::shared_ptr<Subscriber>> subscribers_;
+  std::deque<Event> recent_;
+  std::uint64_t seq_ = 0;
+  std::uint64_t next_id_ = 1;
+  std::uint64_t lost_gone_ = 0;  // lost by subscribers that left
+  std::uint64_t cancel_gen_ = 0;
+};
+
+/// Turns events into text lines, at most one per component per `interval_ns` (default 1 s):
+/// the events in between are counted and the next line says how many were folded into it.
+/// Never loses a count: `folded()` is exact. For the log and the text view. Thread-safe.
+class EventLineLimiter {
+ public:
+  explicit EventLineLimiter(Nanos interval_ns = kNanosPerSecond) : interval_ns_(interval_ns) {}
+  /// The line to print for `e` (at its detection time), or an empty string when it is folded.
+  std::string line(const Event& e);
+  /// Events folded into later lines so far (all components).
+  [[nodiscard]] std::uint64_t folded() const;
+
+ private:
+  struct PerComponent {
+    Nanos last_line = 0;
+    std::uint64_t pending = 0;  // folded since that line
+  };
+  Nanos interval_ns_;
+  mutable std::mutex mutex_;
+  std::vector<std::pair<std::string, PerComponent>> components_;
+  std::uint64_t folded_ = 0;
+};
+
+}  // namespace vigil

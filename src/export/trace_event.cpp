@@ -1,0 +1,326 @@
+#include "vigil/export/trace_event.hpp"
+
+#include <fmt/format.h>
+
+#include <cerrno>
+#include <cstring>
+#include <system_error>
+
+#include "vigil/export/json_writer.hpp"
+
+namespace vigil::exporter {
+
+namespace {
+
+double us(Nanos ns) { return static_cast<double>(ns) / 1e3; }
+
+// Component names become file names: keep letters, digits, '-', '_' and '.'.
+std::string file_stem(std::string_view name) {
+  std::string out;
+  for (const char c : name) {
+    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                    c == '-' || c == '_' || c == '.';
+    out += ok ? c : '_';
+  }
+  if (out.empty() || out[0] == '.') out.insert(out.begin(), '_');
+  return out;
+}
+
+void meta(JsonWriter& w, const char* what, int pid, int tid, const std::string& name) {
+  w.begin_object()
+      .field("name", what)
+      .field("ph", "M")
+      .field("pid", pid)
+      .field("tid", tid)
+      .key("args")
+      .begin_object()
+      .field("name", name)
+      .end_object()
+      .end_object();
+}
+
+}  // namespace
+
+std::string trace_event_json(const FlightRecord& r) {
+  const int pid = static_cast<int>(r.component_id) + 1;
+  const int tid = r.has_info && r.info.tid != 0 ? r.info.tid : pid;
+  JsonWriter w;
+  w.begin_object();
+  w.field("displayTimeUnit", "ms");
+  w.key("traceEvents").begin_array();
+  meta(w, "process_name", pid, tid, "vigil: " + r.component);
+  std::string thread = r.component;
+  if (r.has_info) {
+    thread += fmt::format(
+        " ({}, {} {}, period {} us)", r.info.activity.empty() ? "-" : r.info.activity.view(),
+        platform::to_string(r.info.policy), r.info.priority, r.info.period_ns / kNanosPerMicro);
+  }
+  meta(w, "thread_name", pid, tid, thread);
+
+  const CycleRecord* prev = nullptr;
+  for (const CycleRecord& c : r.cycles) {
+    const bool overrun = (c.flags & CycleRecord::kOverrun) != 0;
+    if (prev != nullptr && c.cycle != prev->cycle + 1) {
+      w.begin_object()
+          .field("name", fmt::format("{} cycles missing (dropped)", c.cycle - prev->cycle - 1))
+          .field("ph", "i")
+          .field("s", "t")
+          .field("ts", us(c.start_ns))
+          .field("pid", pid)
+          .field("tid", tid)
+          .end_object();
+    }
+    w.begin_object();
+    w.field("name", overrun ? "cycle (overrun)" : "cycle");
+    w.field("cat", overrun ? "cycle,overrun" : "cycle");
+    w.field("ph", "X");
+    w.field("ts", us(c.start_ns));
+    w.field("dur", us(c.end_ns - c.start_ns));
+    w.field("pid", pid).field("tid", tid);
+    w.key("args").begin_object();
+    w.field("cycle", c.cycle);
+    w.field("release_us", us(c.release_ns));
+    w.field("latency_us", us(c.latency_ns()));
+    w.field("user_us", us(c.user_ns()));
+    w.field("overhead_us", us(c.overhead_ns));
+    w.field("overrun", overrun);
+    w.field("missed_before", c.missed_before);
+    w.field("warmup", (c.flags & CycleRecord::kWarmup) != 0);
+    w.field("state", to_string(c.state));
+    w.end_object();
+    w.end_object();
+    w.begin_object()
+        .field("name", "latency_us")
+        .field("ph", "C")
+        .field("ts", us(c.start_ns))
+        .field("pid", pid)
+        .key("args")
+        .begin_object()
+        .field("latency_us", us(c.latency_ns()))
+        .end_object()
+        .end_object();
+    w.begin_object()
+        .field("name", "user_us")
+        .field("ph", "C")
+        .field("ts", us(c.start_ns))
+        .field("pid", pid)
+        .key("args")
+        .begin_object()
+        .field("user_us", us(c.user_ns()))
+        .end_object()
+        .end_object();
+    prev = &c;
+  }
+
+  const Event& e = r.event;
+  if (!r.on_demand) {
+    Nanos at = e.fault_ns;
+    if (at == 0 && !r.cycles.empty()) at = r.cycles.back().end_ns;
+    if (e.kind == EventKind::Deadline && !r.cycles.empty()) {
+      // The silence: from the last cycle's end to the detection.
+      const Nanos from = r.cycles.back().end_ns;
+      w.begin_object()
+          .field("name", "no cycle (silent)")
+          .field("cat", "fault")
+          .field("ph", "X")
+          .field("ts", us(from))
+          .field("dur", us(std::max<Nanos>(e.detected_ns - from, 0)))
+          .field("pid", pid)
+          .field("tid", tid)
+          .end_object();
+    }
+    w.begin_object();
+    w.field("name", fmt::format("{}: {}", to_string(e.kind), e.detail));
+    w.field("cat", "fault");
+    w.field("ph", "i");
+    w.field("s", "p");
+    w.field("ts", us(at));
+    w.field("pid", pid).field("tid", tid);
+    w.key("args").begin_object();
+    w.field("cycle", e.cycle);
+    w.field("severity", to_string(e.severity));
+    w.field("detected_us", us(e.detected_ns));
+    w.field("latency_us", us(e.latency_ns()));
+    w.end_object();
+    w.end_object();
+    w.begin_object()
+        .field("name", "detected")
+        .field("cat", "fault")
+        .field("ph", "i")
+        .field("s", "t")
+        .field("ts", us(e.detected_ns))
+        .field("pid", pid)
+        .field("tid", tid)
+        .end_object();
+  }
+  w.end_array();
+
+  w.key("otherData").begin_object();
+  w.field("component", r.component);
+  w.field("reason", r.on_demand ? std::string("on demand")
+                                : fmt::format("{}: {}", to_string(e.kind), e.detail));
+  w.field("event_seq", e.seq);
+  w.field("fault_cycle", e.cycle);
+  w.field("fault_ns", e.fault_ns);
+  w.field("detected_ns", e.detected_ns);
+  w.field("frozen_ns", r.frozen_ns);
+  w.field("cycles", static_cast<std::uint64_t>(r.cycles.size()));
+  w.end_object();
+  w.end_object();
+  return w.take();
+}
+
+expected<void, Error> write_file_atomically(const std::filesystem::path& path,
+                                            const std::string& text) {
+  const std::filesystem::path tmp = path.string() + ".tmp";
+  errno = 0;
+  std::FILE* f = std::fopen(tmp.c_str(), "wb");
+  if (f == nullptr) {
+    return vigil::unexpected(Error(errno, fmt::format("cannot write {}: {}", tmp.string(),
+                                                      std::strerror(errno != 0 ? errno : EIO))));
+  }
+  bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size() && std::fflush(f) == 0;
+  int err = ok ? 0 : errno;
+  if (std::fclose(f) != 0 && ok) {
+    ok = false;
+    err = errno;
+  }
+  if (!ok) {
+    std::filesystem::remove(tmp);
+    return vigil::unexpected(Error(err, fmt::format("cannot write {}: {}", tmp.string(),
+                                                    std::strerror(err != 0 ? err : EIO))));
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    return vigil::unexpected(Error(
+        ec.value(),
+        fmt::format("cannot rename {} to {}: {}", tmp.string(), path.string(), ec.message())));
+  }
+  return {};
+}
+
+// --- TraceWriter ---
+
+TraceWriter::TraceWriter(ComponentAggregator& aggregator, TraceWriterOptions options)
+    : aggregator_(aggregator), options_(std::move(options)) {}
+
+expected<std::unique_ptr<TraceWriter>, Error> TraceWriter::start(ComponentAggregator& aggregator,
+                                                                 TraceWriterOptions options) {
+  std::error_code ec;
+  std::filesystem::create_directories(options.directory, ec);
+  if (ec || !std::filesystem::is_directory(options.directory)) {
+    return vigil::unexpected(
+        Error(ec.value(), fmt::format("trace directory {}: {}", options.directory.string(),
+                                      ec ? ec.message() : std::string("not a directory"))));
+  }
+  std::unique_ptr<TraceWriter> w(new TraceWriter(aggregator, std::move(options)));
+  w->subscription_ =
+      aggregator.events().subscribe([raw = w.get()](const Event& e) { raw->on_event(e); });
+  return w;
+}
+
+TraceWriter::~TraceWriter() { aggregator_.events().unsubscribe(subscription_); }
+
+void TraceWriter::on_event(const Event& e) {
+  if (!e.traced) return;
+  const auto record = aggregator_.frozen_record(e.seq);
+  if (!record) {
+    std::lock_guard lock(mutex_);
+    error_ =
+        fmt::format("the flight record of event {} ({}) is no longer kept", e.seq, e.component);
+    return;
+  }
+  (void)write(*record, fmt::format("{}-{}", file_stem(e.component), e.seq));
+}
+
+expected<std::filesystem::path, Error> TraceWriter::write(const FlightRecord& r,
+                                                          const std::string& stem) {
+  const std::filesystem::path path = options_.directory / (stem + ".trace.json");
+  auto ok = write_file_atomically(path, trace_event_json(r) + "\n");
+  std::lock_guard lock(mutex_);
+  if (!ok) {
+    error_ = ok.error().message;
+    if (options_.log) options_.log("trace: " + error_);
+    return vigil::unexpected(ok.error());
+  }
+  written_.push_back(path);
+  if (options_.log) {
+    options_.log(fmt::format("trace of {} ({} cycles, {}) written to {}", r.component,
+                             r.cycles.size(), r.on_demand ? "on demand" : to_string(r.event.kind),
+                             path.string()));
+  }
+  return path;
+}
+
+expected<std::filesystem::path, Error> TraceWriter::write_now(std::string_view name) {
+  auto r = aggregator_.flight_record(name);
+  if (!r) return vigil::unexpected(Error(fmt::format("no component named '{}'", name)));
+  std::uint64_t n = 0;
+  {
+    std::lock_guard lock(mutex_);
+    n = ++demands_;
+  }
+  return write(*r, fmt::format("{}-demand-{}", file_stem(name), n));
+}
+
+bool TraceWriter::flush(Nanos timeout_ns) { return aggregator_.events().flush(timeout_ns); }
+
+std::vector<std::filesystem::path> TraceWriter::written() const {
+  std::lock_guard lock(mutex_);
+  return written_;
+}
+
+std::string TraceWriter::error() const {
+  std::lock_guard lock(mutex_);
+  return error_;
+}
+
+// --- EventLogWriter ---
+
+EventLogWriter::EventLogWriter(EventHub& hub, std::FILE* file, std::filesystem::path path)
+    : hub_(hub), file_(file), path_(std::move(path)) {}
+
+expected<std::unique_ptr<EventLogWriter>, Error> EventLogWriter::start(
+    EventHub& hub, const std::filesystem::path& path) {
+  errno = 0;
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  if (f == nullptr) {
+    const int err = errno != 0 ? errno : EIO;
+    return vigil::unexpected(Error(
+        err, fmt::format("cannot write events to {}: {}", path.string(), std::strerror(err))));
+  }
+  std::unique_ptr<EventLogWriter> w(new EventLogWriter(hub, f, path));
+  w->subscription_ = hub.subscribe([raw = w.get()](const Event& e) {
+    const std::string line = event_json(e) + "\n";
+    std::lock_guard lock(raw->mutex_);
+    const bool ok = std::fwrite(line.data(), 1, line.size(), raw->file_) == line.size() &&
+                    std::fflush(raw->file_) == 0;
+    if (ok) {
+      ++raw->written_;
+    } else if (raw->error_.empty()) {
+      raw->error_ = fmt::format("cannot write events to {}: {}", raw->path_.string(),
+                                std::strerror(errno != 0 ? errno : EIO));
+    }
+  });
+  return w;
+}
+
+EventLogWriter::~EventLogWriter() {
+  hub_.unsubscribe(subscription_);
+  std::fclose(file_);
+}
+
+std::uint64_t EventLogWriter::written() const {
+  std::lock_guard lock(mutex_);
+  return written_;
+}
+
+std::uint64_t EventLogWriter::lost() const { return hub_.stats(subscription_).lost; }
+
+std::string EventLogWriter::error() const {
+  std::lock_guard lock(mutex_);
+  return error_;
+}
+
+}  // namespace vigil::exporter
