@@ -242,18 +242,17 @@ TEST_CASE("NotRealtime: asked for FIFO, runs OTHER", "[monitor][checks]") {
 TEST_CASE("Overhead: supervision share at and just above warn_share", "[monitor][checks]") {
   ComponentSnapshot s = periodic();
   CHECK(run<checks::OverheadCheck>(s).status.ok());  // never measured
-  // 20 us cycles with 1 us of overhead: above both floors (1 us, 1 % of the 1 ms period).
+  // 400 us cycles with 20 us of overhead: above both floors (1 us, 1 % of the 1 ms period).
   s.total_ns.count = 100;
-  s.total_ns.mean = 40'000.0;
+  s.total_ns.mean = 400'000.0;
   s.overhead_ns.count = 10;
-  s.overhead_ns.mean = 2'000.0;  // 5 %: at the limit
+  s.overhead_ns.mean = 20'000.0;  // 5 %: at the limit
   CHECK(run<checks::OverheadCheck>(s).status.ok());
-  s.overhead_ns.mean = 2'000.001;
-  s.total_ns.mean = 40'000.0;
+  s.overhead_ns.mean = 20'000.01;
   Report r = run<checks::OverheadCheck>(s);
   CHECK(r.status.level() == StatusLevel::Warn);
   CHECK(r.status.summary() == "supervision overhead 5.0% of cycle time (limit 5.0%)");
-  s.overhead_ns.mean = 20'000.0;  // 50 %: the share is shown as it is
+  s.overhead_ns.mean = 200'000.0;  // 50 %: the share is shown as it is
   CHECK(run<checks::OverheadCheck>(s).status.summary() ==
         "supervision overhead 50% of cycle time (limit 5.0%)");
 }

@@ -153,9 +153,9 @@ TEST_CASE("Threshold errors name file, line, column and field", "[monitor][thres
           "t.yaml:2:31: components.arm.starvation.periods: must be between 1 and 1e+06, got "
           "'0'");
     CHECK_THAT(error_of("defaults:\n  overhead: {min_overhead: 2s}\n"),
-               Catch::StartsWith("t.yaml:2:29: defaults.overhead.min_overhead: must be between"));
+               Catch::StartsWith("t.yaml:2:28: defaults.overhead.min_overhead: must be between"));
     CHECK(error_of("defaults:\n  overhead: {min_period_share: 2}\n") ==
-          "t.yaml:2:33: defaults.overhead.min_period_share: must be between 0 and 1, got '2'");
+          "t.yaml:2:32: defaults.overhead.min_period_share: must be between 0 and 1, got '2'");
     CHECK_THAT(error_of("components:\n  motor:\n    drops: {warn_drops: -1}\n"),
                Catch::StartsWith("t.yaml:3:25: components.motor.drops.warn_drops: expected an "
                                  "integer between 0 and"));

@@ -251,7 +251,7 @@ class ShmReader {
       return unexpected<ShmError>(f.error());
     ShmSegmentHeader copy;
     struct Ctx {
-      const void* src;
+      void* src;
       ShmSegmentHeader* dst;
     } ctx{mem->data(), &copy};
     if (mem->size() < sizeof(ShmSegmentHeader)) {
@@ -263,7 +263,7 @@ class ShmReader {
               auto& c = *static_cast<Ctx*>(p);
               // The writer stores `state` last, with release: read it first, with acquire, so
               // that a header seen Open is seen whole (a young one is retried, not rejected).
-              auto* h = static_cast<ShmSegmentHeader*>(const_cast<void*>(c.src));
+              auto* h = static_cast<ShmSegmentHeader*>(c.src);
               const std::uint32_t state =
                   detail::shm_atomic(h->state).load(std::memory_order_acquire);
               std::memcpy(c.dst, c.src, sizeof(ShmSegmentHeader));
