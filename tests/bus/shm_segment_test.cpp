@@ -358,7 +358,7 @@ TEST_CASE("The reader pops what the producer pushed, in order, across the ring's
   }
 }
 
-TEST_CASE("A full ring refuses the push; a drop is counted and kept in the mailbox",
+TEST_CASE("A full ring refuses the push, and a drop is counted and kept in the mailbox",
           "[shm][segment]") {
   RealSegment s;
   for (int i = 0; i < 8; ++i) REQUIRE(s.producer.push(Small{static_cast<std::uint64_t>(i)}));
