@@ -241,14 +241,15 @@ struct Children {
   (void)!::write(ready_fd, &c, 1);
   std::uint64_t cycle = 0;
   Nanos next = platform::now_ns();
-  std::uint64_t dropped = 0;
+  std::vector<std::uint64_t> dropped(ports.size(), 0);  // each port counts its own drops
   for (;;) {
     next += 10 * kNanosPerMilli;
     platform::sleep_until(next);
     const Nanos now = platform::now_ns();
     for (int k = 0; k < 10; ++k) {
       ++cycle;
-      for (auto& p : ports) {
+      for (std::size_t i = 0; i < ports.size(); ++i) {
+        auto& p = ports[i];
         CycleSample s;
         s.counters.cycles = cycle;
         s.release_ns = now - (10 - k) * kNanosPerMilli;
@@ -257,7 +258,7 @@ struct Children {
         s.overhead_ns = cycle % 64 == 1 ? 150 : 0;
         s.state = TaskState::Running;
         const Message m{s};
-        if (!p->producer().push(m)) p->producer().drop(m, ++dropped);
+        if (!p->producer().push(m)) p->producer().drop(m, ++dropped[i]);
       }
     }
   }
@@ -296,7 +297,14 @@ void daemon_cpu(benchmark::State& state) {
   o.name = name;
   o.monitor.read_thread_stats = false;
   auto d = deploy::ProcessSupervisor::create(o);
-  if (!d || !(*d)->start()) std::abort();
+  if (!d) std::abort();
+  int shown = 0;
+  (*d)->subscribe([&](const deploy::ProcessEvent& e) {
+    if (e.kind == deploy::ProcessEvent::Kind::Rejected && shown++ < 3) {
+      std::fprintf(stderr, "daemon_cpu: %s\n", e.message.c_str());
+    }
+  });
+  if (!(*d)->start()) std::abort();
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // discovery, first monitor cycle
   std::vector<double> shares;
   for (auto _ : state) {
