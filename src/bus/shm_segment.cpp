@@ -70,6 +70,13 @@ std::string shm_segment_name(std::string_view supervisor, std::int32_t pid, std:
 expected<ShmSegmentInfo, ShmError> validate_shm_header(const ShmSegmentHeader& h,
                                                        std::uint64_t size,
                                                        const ShmExpectation& e) {
+  // First: a segment whose writer has not finished its header (state is written last, with
+  // release) is young, not corrupt, whatever its other fields hold (all zero just after
+  // ftruncate). The daemon retries it for a while; rejecting it here lost processes that a
+  // scan found between their shm_open and the header's last store.
+  if (h.state == static_cast<std::uint32_t>(ShmState::Creating)) {
+    return unexpected<ShmError>(err("state", "still being created"));
+  }
   if (h.magic != kShmMagic) {
     return unexpected<ShmError>(err(
         "magic", fmt::format("{:#018x} is not a vigil segment's ({:#018x})", h.magic, kShmMagic)));
@@ -165,9 +172,6 @@ expected<ShmSegmentInfo, ShmError> validate_shm_header(const ShmSegmentHeader& h
   auto cmd = text(h.command_line, "command_line");
   if (!cmd) return unexpected<ShmError>(cmd.error());
   info.command_line = std::move(*cmd);
-  if (h.state == static_cast<std::uint32_t>(ShmState::Creating)) {
-    return unexpected<ShmError>(err("state", "still being created"));
-  }
   if (h.state > static_cast<std::uint32_t>(ShmState::Closed)) {
     return unexpected<ShmError>(err("state", fmt::format("{} is not 0, 1 or 2", h.state)));
   }

@@ -109,6 +109,7 @@ struct ProcessSupervisor::Impl {
         monitor(aggregator, options.monitor) {
     expectation.schema = kShmMessageSchema;
     expectation.supervisor_name = options.name;
+    segment_prefix = bus::shm_segment_prefix(options.name);
     uid = platform::effective_uid();
     self_pid = platform::self_identity().pid;
     buffer.resize(kShmMaxBatch);
@@ -131,11 +132,18 @@ struct ProcessSupervisor::Impl {
   std::map<std::string, std::string> rejected;  // segment name -> why (while it exists)
   std::map<std::string, Nanos> pending;         // segments being created: first seen
   static constexpr Nanos kCreationGrace = 2 * kNanosPerSecond;
+  std::string segment_prefix;  // "vigil.<name>.": our segments' file names
+  // step()'s scratch vectors, kept between cycles.
+  std::vector<int> step_fds;
+  std::vector<Process*> step_owners;
+  std::vector<char> step_ready;
+  std::vector<Segment*> step_segments;
   std::unordered_map<std::uint32_t, Placement> placements;  // by aggregator id
   std::map<std::string, std::uint32_t> incarnations;        // by component name
   std::map<std::string, std::uint32_t> process_runs;        // by command line
   std::optional<platform::ShmDirectoryWatch> dir_watch;
   bool scanned = false;
+  bool dir_changed = false;  // the drain thread saw our segments' names change while it slept
   Nanos next_scan = 0;
   std::uint32_t next_id = 1;
   std::vector<Message> buffer;
@@ -253,8 +261,7 @@ struct ProcessSupervisor::Impl {
   // -----------------------------------------------------------------------------------
 
   void scan() {
-    const std::string prefix = bus::shm_segment_prefix(options.name);
-    const std::vector<std::string> names = platform::list_shared_memory(prefix);
+    const std::vector<std::string> names = platform::list_shared_memory(segment_prefix);
     // Forget rejections of files that are gone.
     for (auto it = rejected.begin(); it != rejected.end();) {
       it = std::binary_search(names.begin(), names.end(), it->first) ? std::next(it)
@@ -509,8 +516,10 @@ struct ProcessSupervisor::Impl {
     const Nanos t0 = now();
     const std::uint64_t m0 = messages;
     // (1) Deaths: one poll over every pidfd, /proc for processes without one.
-    std::vector<int> fds;
-    std::vector<Process*> owners;
+    std::vector<int>& fds = step_fds;
+    std::vector<Process*>& owners = step_owners;
+    fds.clear();
+    owners.clear();
     for (auto& [key, p] : processes) {
       if (!p->info.alive) continue;
       if (p->watch.fd() >= 0) {
@@ -521,7 +530,8 @@ struct ProcessSupervisor::Impl {
       }
     }
     if (!fds.empty()) {
-      std::vector<char> ready(fds.size());
+      std::vector<char>& ready = step_ready;
+      ready.assign(fds.size(), 0);
       auto* flags = reinterpret_cast<bool*>(ready.data());
       if (platform::wait_readable(fds.data(), fds.size(), 0, flags) > 0) {
         for (std::size_t i = 0; i < fds.size(); ++i) {
@@ -533,7 +543,10 @@ struct ProcessSupervisor::Impl {
     if (!dir_watch) {
       if (auto w = platform::ShmDirectoryWatch::open()) dir_watch.emplace(std::move(*w));
     }
-    const bool changed = dir_watch && dir_watch->consume();
+    // Only our segments' names count: other programs' files in /dev/shm (other daemons', test
+    // runs', tracers') must not make us list the directory every cycle.
+    const bool changed =
+        std::exchange(dir_changed, false) || (dir_watch && dir_watch->consume(segment_prefix));
     if (!scanned || changed || t0 >= next_scan) {
       scan();
       scanned = true;
@@ -544,8 +557,8 @@ struct ProcessSupervisor::Impl {
       for (const auto& name : retry) open_segment(name);
     }
     // (3) Drain; (4) segments whose component left.
-    std::vector<Segment*> all;
-    all.reserve(segments.size());
+    std::vector<Segment*>& all = step_segments;  // reused: no allocation per cycle
+    all.clear();
     for (auto& [name, s] : segments) all.push_back(s.get());
     for (Segment* s : all) {
       if (!s->process->info.alive) continue;
@@ -684,14 +697,31 @@ struct ProcessSupervisor::Impl {
         step();
       }
       dispatch();
-      next += options.period_ns;
       const Nanos t = platform::now_ns();
-      if (next < t) next = t;
-      // Sleep until the next cycle, but wake at once when a process ends or a segment appears.
+      // A regular cycle schedules the next one; an early one (a death, a new segment) leaves the
+      // regular cycle where it was. (Advancing `next` on every wake-up had let a busy /dev/shm
+      // push the deadline seconds ahead: thousands of early cycles per second while another
+      // program churned files there, then none at all once it stopped.)
+      if (t >= next) {
+        next += options.period_ns;
+        if (next < t) next = t;
+      }
+      sleep_until_next(next, fds, ready);
+    }
+  }
+
+  // Sleeps until `next`, waking early only for a death (a pidfd) or a change among our own
+  // segments' names: other programs' files in /dev/shm do not wake a cycle.
+  void sleep_until_next(Nanos next, std::vector<int>& fds, std::vector<char>& ready) {
+    while (!quit.load(std::memory_order_acquire)) {
       fds.clear();
+      bool has_dir = false;
       {
         std::lock_guard lock(mutex);
-        if (dir_watch) fds.push_back(dir_watch->fd());
+        if (dir_watch) {
+          fds.push_back(dir_watch->fd());
+          has_dir = true;
+        }
         for (const auto& [key, p] : processes) {
           if (p->info.alive && p->watch.fd() >= 0) fds.push_back(p->watch.fd());
         }
@@ -699,6 +729,21 @@ struct ProcessSupervisor::Impl {
       ready.assign(fds.size(), 0);
       (void)platform::wait_readable(fds.data(), fds.size(), next,
                                     reinterpret_cast<bool*>(ready.data()));
+      if (platform::now_ns() >= next) return;
+      bool wake = false;
+      std::size_t i = 0;
+      if (has_dir) {
+        if (ready[0] != 0) {
+          std::lock_guard lock(mutex);
+          if (dir_watch && dir_watch->consume(segment_prefix)) {
+            dir_changed = true;
+            wake = true;
+          }
+        }
+        i = 1;
+      }
+      for (; i < fds.size(); ++i) wake = wake || ready[i] != 0;
+      if (wake) return;
     }
   }
 };

@@ -89,10 +89,14 @@ Thresholds read_thresholds(const config::Node& n, const Thresholds& base) {
   }
   {
     const config::Node s = n["overhead"];
-    s.reject_unknown_keys({"enabled", "warn_share"});
+    s.reject_unknown_keys({"enabled", "warn_share", "min_overhead", "min_period_share"});
+    const auto unit = config::in_range(0.0, 1.0);
     t.overhead.enabled = enabled(s, base.overhead.enabled);
-    t.overhead.warn_share =
-        s.optional<double>("warn_share", base.overhead.warn_share, config::in_range(0.0, 1.0));
+    t.overhead.warn_share = s.optional<double>("warn_share", base.overhead.warn_share, unit);
+    t.overhead.min_overhead_ns = s.optional_duration("min_overhead", base.overhead.min_overhead_ns,
+                                                     config::duration_in_range(0, kNanosPerSecond));
+    t.overhead.min_period_share =
+        s.optional<double>("min_period_share", base.overhead.min_period_share, unit);
   }
   {
     const config::Node s = n["drops"];

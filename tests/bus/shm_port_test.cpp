@@ -182,7 +182,7 @@ TEST_CASE("A component that leaves is drained, reported as left, and its segment
   CHECK(events[1].kind == deploy::ProcessEvent::Kind::Left);
 }
 
-TEST_CASE("VIGIL_SUPERVISOR selects shared memory; a bad name is refused with a message",
+TEST_CASE("VIGIL_SUPERVISOR selects shared memory, and a bad name is refused with a message",
           "[shm][port]") {
   const std::string name = test::unique_supervisor_name();
   test::ShmCleanup cleanup(name);

@@ -157,6 +157,31 @@ TEST_CASE("Every header field, corrupted, is rejected naming the field", "[shm][
   }
 }
 
+TEST_CASE("A header still being created is young, whatever its other fields hold",
+          "[shm][segment]") {
+  // Right after ftruncate every byte is zero; the writer stores `state` last. A daemon that
+  // reads the segment then must retry it (error on `state`), not reject it for its magic.
+  Image img = make_image(kSchema, 16);
+  std::memset(img.base, 0, sizeof(ShmSegmentHeader));
+  auto r = validate_shm_image(img.base, img.size, expect());
+  REQUIRE_FALSE(r.has_value());
+  CHECK(r.error().field == "state");
+  CHECK(r.error().message == "still being created");
+  // Half written: magic and version there, the rest not yet.
+  Image half = make_image(kSchema, 16);
+  half.header().state = 0;
+  half.header().schema_id = 0;
+  half.header().pid = 0;
+  auto h = validate_shm_image(half.base, half.size, expect());
+  REQUIRE_FALSE(h.has_value());
+  CHECK(h.error().field == "state");
+  // Once Open, the same zero fields are corruption.
+  half.header().state = static_cast<std::uint32_t>(ShmState::Open);
+  auto o = validate_shm_image(half.base, half.size, expect());
+  REQUIRE_FALSE(o.has_value());
+  CHECK(o.error().field == "schema_id");
+}
+
 TEST_CASE("Errors say what is wrong in words", "[shm][segment]") {
   Image img = make_image(kSchema, 16);
   img.header().abi_version = 9;
@@ -289,6 +314,30 @@ TEST_CASE("Segments are created owner-only and found by their prefix", "[shm][se
   CHECK(mem->info().uid == platform::effective_uid());
 }
 
+TEST_CASE("The directory watch reports only the files of the prefix it is given",
+          "[shm][segment]") {
+  auto w = platform::ShmDirectoryWatch::open();
+  REQUIRE(w.has_value());
+  const std::string ours = vigil::test::unique_supervisor_name();
+  const std::string other = vigil::test::unique_supervisor_name();
+  vigil::test::ShmCleanup c1(ours);
+  vigil::test::ShmCleanup c2(other);
+  (void)w->consume();
+  {
+    auto s = ShmSession::open(ShmOptions{other, "", 0, {}}, kSchema);
+    REQUIRE(s.has_value());
+    REQUIRE((*s)->create("comp", 8).has_value());
+  }
+  CHECK_FALSE(w->consume(shm_segment_prefix(ours)));  // another daemon's segment
+  {
+    auto s = ShmSession::open(ShmOptions{ours, "", 0, {}}, kSchema);
+    REQUIRE(s.has_value());
+    REQUIRE((*s)->create("comp", 8).has_value());
+  }
+  CHECK(w->consume(shm_segment_prefix(ours)));
+  CHECK_FALSE(w->consume(shm_segment_prefix(ours)));  // consumed
+}
+
 TEST_CASE("The reader pops what the producer pushed, in order, across the ring's end",
           "[shm][segment]") {
   RealSegment s;
@@ -309,7 +358,7 @@ TEST_CASE("The reader pops what the producer pushed, in order, across the ring's
   }
 }
 
-TEST_CASE("A full ring refuses the push; a drop is counted and kept in the mailbox",
+TEST_CASE("A full ring refuses the push, and a drop is counted and kept in the mailbox",
           "[shm][segment]") {
   RealSegment s;
   for (int i = 0; i < 8; ++i) REQUIRE(s.producer.push(Small{static_cast<std::uint64_t>(i)}));

@@ -231,7 +231,7 @@ TEST_CASE("DroneCAN: an ESC that stops is ERROR within its learned deadline",
 
 // --- J1939 ---------------------------------------------------------------------------------
 
-TEST_CASE("J1939: an engine that stops is ERROR within its learned deadline; the others OK",
+TEST_CASE("J1939: an engine that stops is ERROR within its learned deadline, the others OK",
           "[can][shapes][j1939]") {
   const auto entries = test::j1939_capture({.stop = test::NodeStop{0x00, 120 * kSec}});
   const Nanos last = test::last_frame_of(entries, 0x00, test::j1939_from);

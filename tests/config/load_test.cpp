@@ -121,7 +121,7 @@ TEST_CASE("Duplicate keys are found in flow mappings and inside sequences", "[co
                                       "duplicate key (first defined at line 2, column 6)"}});
 }
 
-TEST_CASE("Aliases load; a recursive one is refused where it is written", "[config][load]") {
+TEST_CASE("Aliases load, and a recursive one is refused where it is written", "[config][load]") {
   const auto shared = load_string("base: &b {x: 1}\nother: *b\n", "a.yaml");
   REQUIRE(shared.has_value());
   CHECK((*shared)["other"].required<int>("x") == 1);

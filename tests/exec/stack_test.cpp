@@ -57,7 +57,7 @@ TEST_CASE("A periodic activity's thread has the configured stack", "[exec][perio
   CHECK(sys.wait_bytes() >= system);
 }
 
-TEST_CASE("Activities sharing a thread share its stack; asking for more fails start()",
+TEST_CASE("Activities sharing a thread share its stack, and asking for more fails start()",
           "[exec][periodic][memory]") {
   Registry<Message> reg;
   Probe first("first", {}, reg), smaller("smaller", {}, reg), larger("larger", {}, reg);

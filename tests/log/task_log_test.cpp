@@ -43,7 +43,7 @@ class Joint : public Task<Joint> {
 
 }  // namespace
 
-TEST_CASE("A Task logs from on_update(); lines carry its cycle and the cycle's start time",
+TEST_CASE("A Task logs from on_update(), and lines carry its cycle and the cycle's start time",
           "[log][task]") {
   Registry<Message> reg;
   ComponentAggregator agg;

@@ -248,15 +248,59 @@ TEST_CASE("NotRealtime: asked for FIFO, runs OTHER", "[monitor][checks]") {
 TEST_CASE("Overhead: supervision share at and just above warn_share", "[monitor][checks]") {
   ComponentSnapshot s = periodic();
   CHECK(run<checks::OverheadCheck>(s).status.ok());  // never measured
+  // 400 us cycles with 20 us of overhead: above both floors (1 us, 1 % of the 1 ms period).
   s.total_ns.count = 100;
-  s.total_ns.mean = 1000.0;
+  s.total_ns.mean = 400'000.0;
   s.overhead_ns.count = 10;
-  s.overhead_ns.mean = 50.0;  // 5 %: at the limit
+  s.overhead_ns.mean = 20'000.0;  // 5 %: at the limit
   CHECK(run<checks::OverheadCheck>(s).status.ok());
-  s.overhead_ns.mean = 50.001;
+  s.overhead_ns.mean = 20'000.01;
   Report r = run<checks::OverheadCheck>(s);
   CHECK(r.status.level() == StatusLevel::Warn);
   CHECK(r.status.summary() == "supervision overhead 5.0% of cycle time (limit 5.0%)");
+  s.overhead_ns.mean = 200'000.0;  // 50 %: the share is shown as it is
+  CHECK(run<checks::OverheadCheck>(s).status.summary() ==
+        "supervision overhead 50% of cycle time (limit 5.0%)");
+}
+
+TEST_CASE("Overhead: a large share of a tiny cycle is no warning (the floors)",
+          "[monitor][checks]") {
+  // The false alarm of examples/multi_process: on_update() takes 100 ns, supervision ~400 ns
+  // per measured cycle, period 1 ms: an 80 % share of a cycle that costs nothing.
+  ComponentSnapshot s = periodic();
+  s.total_ns.count = 5000;
+  s.total_ns.mean = 500.0;
+  s.overhead_ns.count = 80;
+  s.overhead_ns.mean = 400.0;
+  CHECK(run<checks::OverheadCheck>(s).status.ok());
+
+  // Above the absolute floor (1 us) but below 1 % of the period (10 us): still fine.
+  s.total_ns.mean = 6'000.0;
+  s.overhead_ns.mean = 5'000.0;
+  CHECK(run<checks::OverheadCheck>(s).status.ok());
+  // The same overhead on a 100 us period is 5 % of it: it warns.
+  s.info.period_ns = 100'000;
+  CHECK(run<checks::OverheadCheck>(s).status.level() == StatusLevel::Warn);
+
+  // Non-periodic: only the absolute floor applies.
+  s.info.period_ns = 0;
+  CHECK(run<checks::OverheadCheck>(s).status.level() == StatusLevel::Warn);
+  s.total_ns.mean = 1'000.0;
+  s.overhead_ns.mean = 1'000.0;  // at the floor: passes (comparisons are strict)
+  CHECK(run<checks::OverheadCheck>(s).status.ok());
+
+  // The floors are thresholds: 0 restores the share alone.
+  Thresholds t;
+  t.overhead.min_overhead_ns = 0;
+  t.overhead.min_period_share = 0;
+  s.info.period_ns = kPeriod;
+  s.total_ns.mean = 500.0;
+  s.overhead_ns.mean = 400.0;
+  Report r = run<checks::OverheadCheck>(s, t);
+  CHECK(r.status.level() == StatusLevel::Warn);
+  CHECK(r.status.summary() == "supervision overhead 80% of cycle time (limit 5.0%)");
+  t.overhead.min_overhead_ns = 400;  // at the floor again
+  CHECK(run<checks::OverheadCheck>(s, t).status.ok());
 }
 
 TEST_CASE("Drops: port drops in the window, with the count", "[monitor][checks]") {

@@ -84,6 +84,8 @@ TEST_CASE("An empty document gives the built-in defaults", "[monitor][thresholds
   CHECK(d.realtime.warn_losses == 0);
   CHECK(d.realtime.fifo_only);
   CHECK(d.overhead.warn_share == 0.05);
+  CHECK(d.overhead.min_overhead_ns == 1'000);
+  CHECK(d.overhead.min_period_share == 0.01);
   CHECK(d.drops.warn_drops == 0);
   CHECK(d.exception.sticky);
   CHECK(r->components.empty());
@@ -108,6 +110,8 @@ TEST_CASE("A thresholds file: defaults, then per-component overrides key by key"
   CHECK(d.realtime.warn_losses == 2);
   CHECK_FALSE(d.realtime.fifo_only);
   CHECK(d.overhead.warn_share == 0.1);
+  CHECK(d.overhead.min_overhead_ns == 2'000);
+  CHECK(d.overhead.min_period_share == 0.02);
   CHECK(d.drops.warn_drops == 10);
   CHECK(d.custom_value("max_temperature", 0) == 80.0);
   CHECK(d.custom_value("unknown", 7) == 7.0);
@@ -148,6 +152,10 @@ TEST_CASE("Threshold errors name file, line, column and field", "[monitor][thres
     CHECK(error_of("components:\n  arm: {starvation: {periods: 0}}\n") ==
           "t.yaml:2:31: components.arm.starvation.periods: must be between 1 and 1e+06, got "
           "'0'");
+    CHECK_THAT(error_of("defaults:\n  overhead: {min_overhead: 2s}\n"),
+               Catch::StartsWith("t.yaml:2:28: defaults.overhead.min_overhead: must be between"));
+    CHECK(error_of("defaults:\n  overhead: {min_period_share: 2}\n") ==
+          "t.yaml:2:32: defaults.overhead.min_period_share: must be between 0 and 1, got '2'");
     CHECK_THAT(error_of("components:\n  motor:\n    drops: {warn_drops: -1}\n"),
                Catch::StartsWith("t.yaml:3:25: components.motor.drops.warn_drops: expected an "
                                  "integer between 0 and"));

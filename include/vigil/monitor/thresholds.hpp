@@ -81,11 +81,20 @@ struct NotRealtimeThresholds {
   bool enabled = true;
 };
 
-/// Overhead check: supervision's share of the component's cycle time.
+/// Overhead check: supervision's share of the component's cycle time, judged only when the
+/// overhead itself matters. A component whose on_update() takes 100 ns has a supervision share
+/// near 50 % although supervision costs it nothing next to a 1 ms period: the two floors below
+/// keep such a healthy component from warning.
 struct OverheadThresholds {
   bool enabled = true;
   /// Warn when mean overhead / mean total time is above this share. Range [0, 1].
   double warn_share = 0.05;
+  /// ... and the mean overhead is above this many ns (a few hundred ns is what supervision costs
+  /// per measured cycle, cold caches included: docs/performance.md). Range [0, 1 s].
+  Nanos min_overhead_ns = 1'000;
+  /// ... and, for periodic components, above this fraction of the period (overhead that is not
+  /// a tangible part of the cycle budget is not worth a warning). Range [0, 1]; 0 disables it.
+  double min_period_share = 0.01;
 };
 
 /// Drops check: messages the component's port dropped (its supervisor did not keep up).

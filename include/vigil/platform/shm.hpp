@@ -114,9 +114,11 @@ class ShmDirectoryWatch {
   /// A descriptor that becomes readable when something changed (for wait_readable()).
   [[nodiscard]] int fd() const noexcept { return fd_; }
 
-  /// Consumes the pending notifications; true when any segment was created, renamed or removed
-  /// (or the queue overflowed: list again).
-  bool consume() noexcept;
+  /// Consumes the pending notifications; true when any file whose name starts with `prefix`
+  /// (every file when empty) was created, renamed or removed, or the queue overflowed (list
+  /// again). A daemon passes its segments' prefix, so that other programs' files in the
+  /// directory (other daemons', tracers') do not make it list the directory each cycle.
+  bool consume(std::string_view prefix = {}) noexcept;
 
  private:
   int fd_ = -1;

@@ -233,14 +233,27 @@ expected<ShmDirectoryWatch, Error> ShmDirectoryWatch::open() {
   return w;
 }
 
-bool ShmDirectoryWatch::consume() noexcept {
+bool ShmDirectoryWatch::consume(std::string_view prefix) noexcept {
   if (fd_ < 0) return false;
   bool any = false;
   alignas(inotify_event) char buf[4096];
   for (;;) {
     const ssize_t n = ::read(fd_, buf, sizeof buf);
     if (n <= 0) break;
-    any = true;
+    for (ssize_t off = 0; off + static_cast<ssize_t>(sizeof(inotify_event)) <= n;) {
+      inotify_event e{};
+      std::memcpy(&e, buf + off, sizeof e);
+      const std::size_t room = static_cast<std::size_t>(n - off) - sizeof e;
+      const std::size_t len = std::min<std::size_t>(e.len, room);
+      // The name is NUL-padded to `len` bytes.
+      const char* name = buf + off + sizeof e;
+      const std::string_view file(name, ::strnlen(name, len));
+      if ((e.mask & IN_Q_OVERFLOW) != 0 || prefix.empty() ||
+          file.substr(0, prefix.size()) == prefix) {
+        any = true;
+      }
+      off += static_cast<ssize_t>(sizeof e + e.len);
+    }
   }
   return any;
 }
