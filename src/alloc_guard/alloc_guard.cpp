@@ -14,6 +14,8 @@
 #include <cerrno>
 #include <cstddef>
 
+// glibc's own allocator entry points, which the interposer forwards to.
+// NOLINTBEGIN(bugprone-reserved-identifier)
 extern "C" {
 void* __libc_malloc(std::size_t);
 void* __libc_calloc(std::size_t, std::size_t);
@@ -83,3 +85,4 @@ void* pvalloc(std::size_t size) {
 }  // extern "C"
 
 #endif
+// NOLINTEND(bugprone-reserved-identifier)

@@ -260,10 +260,10 @@ bool Node::has(std::string_view key) const {
   return false;
 }
 
-bool Node::is_null() const noexcept { return defined() && yaml_.IsNull(); }
-bool Node::is_scalar() const noexcept { return defined() && yaml_.IsScalar(); }
-bool Node::is_mapping() const noexcept { return defined() && yaml_.IsMap(); }
-bool Node::is_sequence() const noexcept { return defined() && yaml_.IsSequence(); }
+bool Node::is_null() const { return defined() && yaml_.IsNull(); }
+bool Node::is_scalar() const { return defined() && yaml_.IsScalar(); }
+bool Node::is_mapping() const { return defined() && yaml_.IsMap(); }
+bool Node::is_sequence() const { return defined() && yaml_.IsSequence(); }
 const std::string& Node::path() const noexcept { return path_; }
 const std::string& Node::file() const noexcept { return doc_->file; }
 

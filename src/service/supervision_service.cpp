@@ -117,7 +117,9 @@ SupervisionService::SupervisionService(SupervisionServiceOptions options)
         monitor_, aggregator_,
         exporter::ExportOptions{.http = options_.http,
                                 .textfile = options_.prom_textfile,
-                                .augment = [this](ReportSet& r) { r = contribute(r); }},
+                                .augment = [this](ReportSet& r) { r = contribute(r); },
+                                .augment_metrics = {},
+                                .events = true},
         exporter_));
   }
   monitor_subscription_ = monitor_.subscribe([this](const ReportSet& r) { publish(r); });

@@ -20,8 +20,11 @@ struct FixedString {
   char data_[N] = {};
 
   constexpr FixedString() noexcept = default;
-  FixedString(std::string_view s) noexcept { assign(s); }  // NOLINT: implicit by design
-  FixedString(const char* s) noexcept { assign(s ? std::string_view(s) : std::string_view()); }
+  // Implicit by design: a message field is assigned from a string like a std::string.
+  FixedString(std::string_view s) noexcept { assign(s); }  // NOLINT(google-explicit-constructor)
+  FixedString(const char* s) noexcept {  // NOLINT(google-explicit-constructor)
+    assign(s ? std::string_view(s) : std::string_view());
+  }
 
   /// Copies at most N-1 characters of `s`. RT-safe.
   void assign(std::string_view s) noexcept {

@@ -166,9 +166,10 @@ bool place_from_environment(Registry& registry, const ShmSchema& schema, std::ui
                  opts.error().message.c_str());
     return false;
   }
-  if (!*opts) return true;
-  (*opts)->sticky_types = sticky;
-  auto session = ShmSession::open(std::move(**opts), schema);
+  std::optional<ShmOptions>& chosen = *opts;
+  if (!chosen.has_value()) return true;
+  chosen->sticky_types = sticky;
+  auto session = ShmSession::open(std::move(*chosen), schema);
   if (!session) {
     std::fprintf(stderr, "vigil: %s; components are supervised in-process\n",
                  session.error().message.c_str());

@@ -266,13 +266,13 @@ class Node {
   /// True when this is a mapping that has `key`.
   [[nodiscard]] bool has(std::string_view key) const;
   /// True for a present empty value (`key:`, `key: ~`, `key: null`).
-  [[nodiscard]] bool is_null() const noexcept;
+  [[nodiscard]] bool is_null() const;
   /// True for a present scalar (number, string, bool...).
-  [[nodiscard]] bool is_scalar() const noexcept;
+  [[nodiscard]] bool is_scalar() const;
   /// True for a present mapping.
-  [[nodiscard]] bool is_mapping() const noexcept;
+  [[nodiscard]] bool is_mapping() const;
   /// True for a present sequence.
-  [[nodiscard]] bool is_sequence() const noexcept;
+  [[nodiscard]] bool is_sequence() const;
   /// Dotted path from the document root (`monitor.components.motor`, `filters[2].id`); empty for
   /// the root.
   [[nodiscard]] const std::string& path() const noexcept;
