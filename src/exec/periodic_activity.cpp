@@ -24,7 +24,7 @@ class PeriodicThread {
   static constexpr std::size_t kMaxTasks = 256;
   enum Request : std::uint32_t { kNone = 0, kStart = 1, kStop = 2 };
 
-  PeriodicThread(const PeriodicConfig& c)
+  explicit PeriodicThread(const PeriodicConfig& c)
       : config_(c), schedule_(c.period_ns, c.overrun_policy, c.overrun_limit) {}
 
   ~PeriodicThread() {

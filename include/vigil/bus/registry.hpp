@@ -98,10 +98,10 @@ class Registry {
   /// Creates a port of capacity N for component `name` and registers it. Names need not be
   /// unique (ids are). Not RT-safe.
   template <std::size_t N>
-  Membership<Variant, N> join(std::string name) {
+  Membership<Variant, N> join(const std::string& name) {
     auto port = std::make_shared<Port<Variant, N>>();
     auto entry = std::make_shared<Entry>();
-    entry->name = std::move(name);
+    entry->name = name;
     entry->port = port;
     Membership<Variant, N> m;
     m.registry_ = this;

@@ -108,7 +108,7 @@ expected<Loaded<F>, ConfigErrors> run_loader(const Node& root, F& loader) {
     own.push_back(loader_exception_error(root, std::current_exception()));
   }
   ConfigErrors all = merge_errors(root, std::move(own), !value.has_value());
-  if (!all.empty()) return vigil::unexpected<ConfigErrors>(std::move(all));
+  if (!all.empty() || !value.has_value()) return vigil::unexpected<ConfigErrors>(std::move(all));
   return std::move(*value);
 }
 }  // namespace detail

@@ -473,7 +473,7 @@ class Node {
   friend struct detail::NodeAccess;
   enum class State : std::uint8_t { Present, Missing, Unreachable };
 
-  Node(std::shared_ptr<detail::Document> doc, YAML::Node yaml, std::string path, int line,
+  Node(std::shared_ptr<detail::Document> doc, const YAML::Node& yaml, std::string path, int line,
        int column, State state);
 
   // Present: true. Missing: reports "required key is missing", false. Unreachable: false.
