@@ -152,8 +152,8 @@ std::optional<Integer> parse_integer(std::string_view text) {
 
 Node::Node() : doc_(std::make_shared<detail::Document>()), yaml_(YAML::NodeType::Null) {}
 
-Node::Node(std::shared_ptr<detail::Document> doc, const YAML::Node& yaml, std::string path, int line,
-           int column, State state)
+Node::Node(std::shared_ptr<detail::Document> doc, const YAML::Node& yaml, std::string path,
+           int line, int column, State state)
     : doc_(std::move(doc)),
       yaml_(yaml),
       path_(std::move(path)),

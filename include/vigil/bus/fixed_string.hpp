@@ -22,7 +22,7 @@ struct FixedString {
   constexpr FixedString() noexcept = default;
   // Implicit by design: a message field is assigned from a string like a std::string.
   FixedString(std::string_view s) noexcept { assign(s); }  // NOLINT(google-explicit-constructor)
-  FixedString(const char* s) noexcept {  // NOLINT(google-explicit-constructor)
+  FixedString(const char* s) noexcept {                    // NOLINT(google-explicit-constructor)
     assign(s ? std::string_view(s) : std::string_view());
   }
 

@@ -102,13 +102,12 @@ class MonitorExporter {
 /// One call: serves `monitor`'s reports over HTTP with `options` (127.0.0.1:9479 by default).
 [[nodiscard]] inline expected<std::unique_ptr<MonitorExporter>, Error> serve_http(
     Monitor& monitor, const ComponentAggregator& aggregator, HttpOptions options = {}) {
-  return MonitorExporter::start(
-      monitor, &aggregator,
-      ExportOptions{.http = std::move(options),
-                    .textfile = {},
-                    .augment = {},
-                    .augment_metrics = {},
-                    .events = true});
+  return MonitorExporter::start(monitor, &aggregator,
+                                ExportOptions{.http = std::move(options),
+                                              .textfile = {},
+                                              .augment = {},
+                                              .augment_metrics = {},
+                                              .events = true});
 }
 
 }  // namespace vigil::exporter
