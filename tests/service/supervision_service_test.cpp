@@ -173,7 +173,7 @@ TEST_CASE("The monitor runs on its own thread by default and the destructor stop
   CHECK(finals > 0);
 }
 
-TEST_CASE("start() twice is refused while running; the service starts again after stop()",
+TEST_CASE("start() twice is refused while running, the service starts again after stop()",
           "[service]") {
   ComponentRegistry reg;
   SupervisionService service({.registry = &reg, .monitor_thread = false, .summary_file = nullptr});

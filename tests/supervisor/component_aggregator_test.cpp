@@ -115,7 +115,7 @@ TEST_CASE("Stress: many components push while the supervisor drains and readers 
   CHECK(snapshots > 0);
 }
 
-TEST_CASE("The aggregator keeps the latest real-time loss report; counts come from the samples",
+TEST_CASE("The aggregator keeps the latest real-time loss report, counts come from the samples",
           "[supervisor][aggregator]") {
   Registry<Message> reg;
   ComponentAggregator agg;

@@ -153,7 +153,7 @@ TEST_CASE("The watchdog reports a hang one supervisor step after its deadline, t
   CHECK(s->latch.first_kind == EventKind::Deadline);
 }
 
-TEST_CASE("A stopped component is not watched; the watchdog can be turned off",
+TEST_CASE("A stopped component is not watched, and the watchdog can be turned off",
           "[supervisor][events][watchdog]") {
   SECTION("stopped") {
     Rig r;
