@@ -52,6 +52,7 @@ int run_can_stats_command(const CanStatsArgs& args);
 struct SuperviseOptions {
   std::string name = "vigil";
   std::string json;
+  std::string http;       ///< [ADDR:]PORT: serve the reports over HTTP (docs/reference/http.md)
   double duration_s = 0;  ///< 0: until Ctrl-C
   double period_ms = 10;
   std::string group;

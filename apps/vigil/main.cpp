@@ -86,6 +86,9 @@ int main(int argc, char** argv) {
       "view, processes that die, final reports");
   sup_cmd->add_option("-n,--name", sup.name, "Supervisor name the processes use (default: vigil)");
   sup_cmd->add_option("-j,--json", sup.json, "Write the final reports to FILE (JSON schema 1)");
+  sup_cmd->add_option("--http", sup.http,
+                      "Serve the reports, /metrics and the dashboard on [ADDR:]PORT (default "
+                      "address 127.0.0.1)");
   sup_cmd
       ->add_option("-d,--duration", sup.duration_s,
                    "Seconds to run; 0 runs until Ctrl-C (default: 0)")

@@ -8,11 +8,13 @@
 #include <cstdio>
 #include <deque>
 #include <fstream>
+#include <memory>
 #include <mutex>
 #include <thread>
 
 #include "commands.hpp"
 #include "vigil/deploy/process_supervisor.hpp"
+#include "vigil/export/http_service.hpp"
 #include "vigil/export/json_report.hpp"
 #include "vigil/export/text_report.hpp"
 #include "vigil/platform/process.hpp"
@@ -78,6 +80,29 @@ int run_supervise(const SuperviseOptions& o) {
     std::fprintf(stderr, "vigil supervise: cannot start: %s\n", r.error().message.c_str());
     return 1;
   }
+  // --http: the exporter serves every monitor cycle with the processes' reports added.
+  std::unique_ptr<exporter::MonitorExporter> http;
+  if (!o.http.empty()) {
+    auto listen = exporter::parse_listen(o.http);
+    if (!listen) {
+      std::fprintf(stderr, "vigil supervise: --http %s\n", listen.error().c_str());
+      daemon.stop();
+      return 2;
+    }
+    exporter::ExportOptions e;
+    e.http.emplace();
+    e.http->listen = *listen;
+    e.http->log = [](const std::string& line) { std::printf("%s\n", line.c_str()); };
+    e.augment = [&daemon](ReportSet& r) { r = daemon.compose(r); };
+    auto started = exporter::MonitorExporter::start(daemon.monitor(), &daemon.aggregator(),
+                                                    std::move(e));
+    if (!started) {
+      std::fprintf(stderr, "vigil supervise: %s\n", started.error().message.c_str());
+      daemon.stop();
+      return 1;
+    }
+    http = std::move(*started);
+  }
   const bool tty = platform::is_terminal(stdout);
   const bool color = use_color(mode_of(o.color), stdout);
   const Nanos start = daemon.options().monitor.clock.now();
@@ -130,6 +155,7 @@ int run_supervise(const SuperviseOptions& o) {
     std::fflush(stdout);
   }
   const bool interrupted = platform::stop_requested();
+  http.reset();  // unsubscribes from the monitor, stops the server
   daemon.stop();
   daemon.step();
   const ReportSet final_reports = daemon.step_monitor();

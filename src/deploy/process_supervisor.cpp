@@ -821,6 +821,8 @@ void ProcessSupervisor::detach() {
 
 ReportSet ProcessSupervisor::reports() const { return impl_->compose(impl_->monitor.latest()); }
 
+ReportSet ProcessSupervisor::compose(const ReportSet& base) const { return impl_->compose(base); }
+
 ReportSet ProcessSupervisor::step_monitor() { return impl_->compose(impl_->monitor.step()); }
 
 std::vector<ProcessInfo> ProcessSupervisor::processes() const {

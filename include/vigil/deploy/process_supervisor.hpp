@@ -137,6 +137,10 @@ class ProcessSupervisor {
   /// The latest monitor cycle's reports with the processes' information, the dead processes'
   /// components and the daemon's own report.
   [[nodiscard]] ReportSet reports() const;
+  /// `base` (a monitor cycle's reports, e.g. what a monitor subscriber receives) with the
+  /// processes' information, the dead processes' components and the daemon's own report, as
+  /// reports() does for the latest cycle. Any thread.
+  [[nodiscard]] ReportSet compose(const ReportSet& base) const;
   /// Runs a monitor cycle now and returns reports() as of then.
   ReportSet step_monitor();
   /// The processes: alive ones, then those whose end is still reported.
