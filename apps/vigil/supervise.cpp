@@ -94,8 +94,8 @@ int run_supervise(const SuperviseOptions& o) {
     e.http->listen = *listen;
     e.http->log = [](const std::string& line) { std::printf("%s\n", line.c_str()); };
     e.augment = [&daemon](ReportSet& r) { r = daemon.compose(r); };
-    auto started = exporter::MonitorExporter::start(daemon.monitor(), &daemon.aggregator(),
-                                                    std::move(e));
+    auto started =
+        exporter::MonitorExporter::start(daemon.monitor(), &daemon.aggregator(), std::move(e));
     if (!started) {
       std::fprintf(stderr, "vigil supervise: %s\n", started.error().message.c_str());
       daemon.stop();
