@@ -7,4 +7,6 @@ preset="${1:-dev}"
 scripts/setup.sh
 cmake --preset "$preset" >/dev/null
 cmake --build --preset "$preset" -j "$(nproc)"
-ctest --preset "$preset" -j "$(nproc)"
+# VIGIL_CTEST_ARGS: more ctest arguments (.ci/run: one retry of a failed test on a loaded machine).
+# shellcheck disable=SC2086
+ctest --preset "$preset" -j "$(nproc)" ${VIGIL_CTEST_ARGS:-}

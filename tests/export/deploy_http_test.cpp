@@ -153,7 +153,15 @@ TEST_CASE("A System serves its deployment's outputs.http and textfile", "[export
     if (health != 200) std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   CHECK(health == 200);
+  // The first cycles may come before the supervisor drained the component's first messages:
+  // wait (bounded) for a cycle that has it.
   auto metrics = client.Get("/metrics");
+  for (int i = 0; i < 100 && metrics &&
+                  metrics->body.find("vigil_component_status{component=\"c\"") == std::string::npos;
+       ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    metrics = client.Get("/metrics");
+  }
   REQUIRE(metrics);
   CHECK(metrics->status == 200);
   CHECK(metrics->body.find("vigil_component_status{component=\"c\"") != std::string::npos);
