@@ -154,7 +154,7 @@ expected<void, Error> advance(Source& s, LogReplay::Impl& m) {
   expected<std::optional<LogEntry>, Error> e =
       std::visit([](auto& r) { return r.next(); }, s.reader);
   if (!e) return unexpected(e.error());
-  s.next = std::move(*e);
+  s.next = *e;
   if (!s.next) return {};
   Frame& f = s.next->frame;
   // Map the reader's bus index to the replay's.

@@ -568,6 +568,7 @@ class Node {
         std::remove_cv_t<std::ranges::range_value_t<const R>>>::Enum;
     if (!present_or_report_()) return E{};
     std::vector<std::string_view> spelled;
+    spelled.reserve(static_cast<std::size_t>(std::ranges::distance(names)));
     for (const auto& n : names) spelled.push_back(n.name);
     const std::optional<std::size_t> index = match_name_(spelled);
     if (!index) return E{};

@@ -108,7 +108,14 @@ class Supervisor {
   }
   Supervisor(const Supervisor&) = delete;
   Supervisor& operator=(const Supervisor&) = delete;
-  ~Supervisor() { stop(); }
+  ~Supervisor() {
+    // The final drain may allocate (a component that joined at the last moment); out of
+    // memory there loses that drain's messages rather than terminating the process.
+    try {
+      stop();
+    } catch (...) {  // NOLINT(bugprone-empty-catch): nothing left to report them to
+    }
+  }
 
   /// Runs one cycle in the calling thread; returns the number of messages visited.
   /// Not RT-safe (may allocate when components join). Not thread-safe against itself: call it
