@@ -377,10 +377,19 @@ void read_box(void* p) noexcept {
   for (int attempt = 0; attempt < 8; ++attempt) {
     const std::uint64_t v1 = at(*v).load(std::memory_order_acquire);
     if ((v1 & 1U) != 0) continue;  // being written
+#if defined(__SANITIZE_THREAD__)
+    // ThreadSanitizer does not model fences (GCC refuses them): each word's load is an acquire
+    // instead, which keeps the version's re-read after it just as the fence does.
+    constexpr auto word_order = std::memory_order_acquire;
+#else
+    constexpr auto word_order = std::memory_order_relaxed;
+#endif
     for (std::size_t i = 0; i < c.words; ++i) {
-      c.out[i] = at(v[1 + i]).load(std::memory_order_relaxed);
+      c.out[i] = at(v[1 + i]).load(word_order);
     }
+#if !defined(__SANITIZE_THREAD__)
     std::atomic_thread_fence(std::memory_order_acquire);
+#endif
     if (at(*v).load(std::memory_order_relaxed) == v1) {
       c.ok = v1 != 0;
       return;

@@ -173,10 +173,17 @@ class ShmProducer {
     auto* box = reinterpret_cast<std::uint64_t*>(mailboxes_ + m.index() * mailbox_stride_);
     const std::uint64_t v = detail::shm_atomic(box[0]).load(std::memory_order_relaxed);
     detail::shm_atomic(box[0]).store(v + 1, std::memory_order_relaxed);
+#if defined(__SANITIZE_THREAD__)
+    // ThreadSanitizer does not model fences (GCC refuses them): each word's store is a release
+    // instead, which orders it after the odd version just as the fence does.
+    constexpr auto word_order = std::memory_order_release;
+#else
     std::atomic_thread_fence(std::memory_order_release);
+    constexpr auto word_order = std::memory_order_relaxed;
+#endif
     const std::size_t n = std::min<std::size_t>(kRecordWords, record_size_ / 8);
     for (std::size_t i = 0; i < n; ++i) {
-      detail::shm_atomic(box[1 + i]).store(words[i], std::memory_order_relaxed);
+      detail::shm_atomic(box[1 + i]).store(words[i], word_order);
     }
     detail::shm_atomic(box[0]).store(v + 2, std::memory_order_release);
   }
