@@ -15,8 +15,10 @@ struct Unit {
   std::string_view name;
   std::uint64_t bytes;
 };
-constexpr std::array<Unit, 4> kUnits{
-    {{"B", 1}, {"KiB", 1024}, {"MiB", 1024 * 1024}, {"GiB", std::uint64_t{1024} * 1024 * 1024}}};
+constexpr std::array<Unit, 4> kUnits{{{"B", 1},
+                                      {"KiB", 1024},
+                                      {"MiB", std::uint64_t{1024} * 1024},
+                                      {"GiB", std::uint64_t{1024} * 1024 * 1024}}};
 
 /// The binary unit a decimal-looking one was probably meant as, or "".
 std::string_view hint_for(std::string_view unit) {

@@ -33,6 +33,7 @@ std::vector<std::string> registered_extensions() {
   auto& r = registry();
   std::lock_guard lock(r.mutex);
   std::vector<std::string> names;
+  names.reserve(r.makers.size());
   for (const auto& [name, maker] : r.makers) names.push_back(name);
   return names;
 }

@@ -24,6 +24,7 @@ const ComponentFactory::Type* ComponentFactory::find(std::string_view name) cons
 std::vector<ComponentFactory::Type> ComponentFactory::types() const {
   std::lock_guard lock(mutex_);
   std::vector<Type> out;
+  out.reserve(types_.size());
   for (const auto& [name, t] : types_) out.push_back(t);
   return out;
 }

@@ -126,7 +126,12 @@ SupervisionService::SupervisionService(SupervisionServiceOptions options)
 }
 
 SupervisionService::~SupervisionService() {
-  stop();
+  // stop() writes the final outputs (files, allocation): a failure there must not terminate
+  // the process from a destructor; it was reported by the output itself.
+  try {
+    stop();
+  } catch (...) {  // NOLINT(bugprone-empty-catch)
+  }
   monitor_.unsubscribe(monitor_subscription_);
 }
 
