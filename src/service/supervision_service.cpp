@@ -130,9 +130,9 @@ SupervisionService::~SupervisionService() {
   // the process from a destructor; it was reported by the output itself.
   try {
     stop();
+    monitor_.unsubscribe(monitor_subscription_);
   } catch (...) {  // NOLINT(bugprone-empty-catch)
   }
-  monitor_.unsubscribe(monitor_subscription_);
 }
 
 expected<void, Error> SupervisionService::start() {
