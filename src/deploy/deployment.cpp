@@ -69,6 +69,7 @@ ComponentSpec parse_component(const config::Node& n, const ComponentFactory& fac
   if (const config::Node t = n["type"]; t.defined() && !c.type.empty() && !factory.find(c.type)) {
     const auto types = factory.types();
     std::vector<std::string_view> names;
+    names.reserve(types.size());
     for (const auto& type : types) names.push_back(type.name);
     std::string msg = fmt::format("unknown component type '{}'", c.type);
     if (const auto near = config::closest_match(c.type, std::span<const std::string_view>(names))) {

@@ -553,6 +553,7 @@ struct ProcessSupervisor::Impl {
       next_scan = t0 + options.rescan_ns;
     } else if (!pending.empty()) {
       std::vector<std::string> retry;
+      retry.reserve(pending.size());
       for (const auto& [name, since] : pending) retry.push_back(name);
       for (const auto& name : retry) open_segment(name);
     }
