@@ -9,4 +9,7 @@ cmake --preset "$preset" >/dev/null
 cmake --build --preset "$preset" -j "$(nproc)"
 # VIGIL_CTEST_ARGS: more ctest arguments (.ci/run: one retry of a failed test on a loaded machine).
 # shellcheck disable=SC2086
-ctest --preset "$preset" -j "$(nproc)" ${VIGIL_CTEST_ARGS:-}
+# VIGIL_CTEST_EXCLUDE: a regex of tests not to run (.ci/run: the TSan quarantine).
+exclude=()
+[[ -n "${VIGIL_CTEST_EXCLUDE:-}" ]] && exclude=(-E "$VIGIL_CTEST_EXCLUDE")
+ctest --preset "$preset" -j "$(nproc)" ${VIGIL_CTEST_ARGS:-} "${exclude[@]}"

@@ -20,12 +20,16 @@ CanExtension::CanExtension(can::CanConfig config) : config_(std::move(config)) {
 
 expected<void, Error> CanExtension::start() {
   stopped_at_.store(0, std::memory_order_relaxed);
+  const std::lock_guard lock(step_mutex_);
   return supervisor_->start();
 }
 
 void CanExtension::stopping() { stopped_at_.store(platform::now_ns(), std::memory_order_relaxed); }
 
-void CanExtension::stop() { supervisor_->stop(); }
+void CanExtension::stop() {
+  const std::lock_guard lock(step_mutex_);
+  supervisor_->stop();
+}
 
 void CanExtension::contribute(ReportSet& reports) { add_reports(reports, nullptr); }
 
@@ -36,7 +40,10 @@ void CanExtension::contribute_metrics(ReportSet& reports,
 
 void CanExtension::add_reports(ReportSet& reports,
                                std::vector<exporter::CanHistograms>* histograms) {
-  if (!supervisor_->running()) supervisor_->step();
+  {
+    const std::lock_guard lock(step_mutex_);
+    if (!supervisor_->running()) supervisor_->step();
+  }
   // After a stop, nodes are judged as of the moment the system began to stop: the bus went quiet
   // because the system stopped, not because a node failed.
   const Nanos stopped = stopped_at_.load(std::memory_order_relaxed);

@@ -22,6 +22,7 @@
 
 #include <atomic>
 #include <memory>
+#include <mutex>
 #include <string_view>
 #include <vector>
 
@@ -66,6 +67,9 @@ class CanExtension : public Extension {
   can::CanRegistry registry_;
   std::unique_ptr<can::CanAggregator> statistics_;
   std::unique_ptr<can::CanSupervisor> supervisor_;
+  // Held while the supervisor's thread starts or stops and while a report steps it by hand (the
+  // monitor's thread, when the supervisor's own thread does not run): never two steps at once.
+  std::mutex step_mutex_;
   std::unique_ptr<can::CanMonitor> monitor_;
   void add_reports(ReportSet& reports, std::vector<exporter::CanHistograms>* histograms);
 
