@@ -133,7 +133,11 @@ struct WatchdogOptions {
   [[nodiscard]] Nanos limit(Nanos period_ns) const noexcept {
     if (!enabled) return 0;
     if (period_ns <= 0) return aperiodic_ns;
-    const auto by_periods = static_cast<Nanos>(periods * static_cast<double>(period_ns));
+    // A period read from a hostile shared-memory segment can be huge: saturate, never overflow
+    // (found by fuzzing, tests/fuzz/regressions/shm_segment/watchdog_period_overflow.bin).
+    const double by = periods * static_cast<double>(period_ns);
+    const Nanos by_periods =
+        by < 9.0e18 ? static_cast<Nanos>(by) : Nanos{9'000'000'000'000'000'000};
     return by_periods > floor_ns ? by_periods : floor_ns;
   }
 };
