@@ -26,6 +26,7 @@
 #include "vigil/export/json_report.hpp"
 #include "vigil/export/json_writer.hpp"
 #include "vigil/export/prometheus.hpp"
+#include "vigil/export/trace_event.hpp"
 #include "vigil/platform/thread.hpp"
 #include "vigil/version.hpp"
 

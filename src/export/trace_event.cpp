@@ -41,6 +41,20 @@ void meta(JsonWriter& w, const char* what, int pid, int tid, const std::string& 
 
 }  // namespace
 
+std::string event_json(const Event& e) {
+  std::string out = fmt::format(R"({{"seq":{},"kind":"{}","severity":"{}","component":)", e.seq,
+                                to_string(e.kind), to_string(e.severity));
+  append_json_string(out, e.component);
+  out +=
+      fmt::format(R"(,"component_id":{},"cycle":{},"fault_ns":{},"detected_ns":{},"latency_ns":{},)"
+                  R"("count":{},"latched":{},"traced":{},"detail":)",
+                  e.component_id, e.cycle, e.fault_ns, e.detected_ns, e.latency_ns(), e.count,
+                  e.latched, e.traced);
+  append_json_string(out, e.detail);
+  out += '}';
+  return out;
+}
+
 std::string trace_event_json(const FlightRecord& r) {
   const int pid = static_cast<int>(r.component_id) + 1;
   const int tid = r.has_info && r.info.tid != 0 ? r.info.tid : pid;

@@ -68,53 +68,6 @@ std::string format_event(const Event& e) {
   return s;
 }
 
-namespace {
-void append_escaped(std::string& out, std::string_view s) {
-  out += '"';
-  for (const char ch : s) {
-    const auto c = static_cast<unsigned char>(ch);
-    switch (c) {
-      case '"':
-        out += "\\\"";
-        break;
-      case '\\':
-        out += "\\\\";
-        break;
-      case '\n':
-        out += "\\n";
-        break;
-      case '\r':
-        out += "\\r";
-        break;
-      case '\t':
-        out += "\\t";
-        break;
-      default:
-        if (c < 0x20) {
-          out += fmt::format("\\u{:04x}", c);
-        } else {
-          out += ch;
-        }
-    }
-  }
-  out += '"';
-}
-}  // namespace
-
-std::string event_json(const Event& e) {
-  std::string out = fmt::format(R"({{"seq":{},"kind":"{}","severity":"{}","component":)", e.seq,
-                                to_string(e.kind), to_string(e.severity));
-  append_escaped(out, e.component);
-  out +=
-      fmt::format(R"(,"component_id":{},"cycle":{},"fault_ns":{},"detected_ns":{},"latency_ns":{},)"
-                  R"("count":{},"latched":{},"traced":{},"detail":)",
-                  e.component_id, e.cycle, e.fault_ns, e.detected_ns, e.latency_ns(), e.count,
-                  e.latched, e.traced);
-  append_escaped(out, e.detail);
-  out += '}';
-  return out;
-}
-
 // --- EventHub ---
 
 struct EventHub::Subscriber {

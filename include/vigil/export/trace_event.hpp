@@ -33,6 +33,11 @@ namespace vigil::exporter {
 /// `otherData`. Timestamps are the monotonic clock in microseconds.
 [[nodiscard]] std::string trace_event_json(const FlightRecord& record);
 
+/// An event as one JSON object on one line (no newline): seq, kind, severity, component,
+/// component_id, cycle, fault_ns, detected_ns, latency_ns, count, latched, traced, detail
+/// (strings escaped and UTF-8-repaired by `append_json_string`). Not RT-safe (allocates).
+[[nodiscard]] std::string event_json(const Event& e);
+
 /// Options of a `TraceWriter`.
 struct TraceWriterOptions {
   std::filesystem::path directory;  ///< created if missing

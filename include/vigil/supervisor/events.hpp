@@ -81,10 +81,6 @@ struct Event {
 /// 4001, detected 3.2 ms after the fault)". Not RT-safe (allocates).
 [[nodiscard]] std::string format_event(const Event& e);
 
-/// The event as one JSON object on one line (no newline): seq, kind, severity, component,
-/// component_id, cycle, fault_ns, detected_ns, latency_ns, count, latched, traced, detail.
-[[nodiscard]] std::string event_json(const Event& e);
-
 /// A subscriber's callback, called on its own dispatcher thread, one event at a time, in order.
 /// It may block or be slow: only its own events are lost then. Exceptions it throws are
 /// swallowed.
