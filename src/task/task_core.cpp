@@ -86,15 +86,9 @@ bool TaskCore::update() noexcept {
   return update(own_context_);
 }
 
-bool TaskCore::update(CycleContext& context) noexcept {
-  if (state() != TaskState::Running) return false;
-  context_ = &context;
-  run_hook(Hook::Update, [&] {
-    update_hook();
-    return true;
-  });
-  context_ = &own_context_;
-  return state() == TaskState::Running;
+void TaskCore::update_threw() noexcept {
+  // Called from update()'s catch (...): rethrowing the current exception classifies it.
+  run_hook(Hook::Update, []() -> bool { throw; });
 }
 
 bool TaskCore::stop() {

@@ -58,7 +58,7 @@ class Port final : public PortReader<Variant> {
  public:
   /// Pushes `m`, or drops it and counts the drop when the port is full.
   /// RT-safe: wait-free, no allocation, no system call. Producer thread only.
-  [[nodiscard]] bool try_push(const Variant& m) noexcept {
+  [[nodiscard]] [[gnu::always_inline]] bool try_push(const Variant& m) noexcept {
 #ifndef NDEBUG
     ProducerGuard guard(producers_);
 #endif

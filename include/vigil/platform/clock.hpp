@@ -34,7 +34,10 @@ int sleep_until(Nanos deadline_ns) noexcept;
 /// A clock that can be replaced, for tests that control time and for log replay.
 ///
 /// It is a plain function pointer with a context, not a virtual interface: one indirect call,
-/// no allocation. The default reads `platform::now_ns()`.
+/// no allocation. The default (`system()`) reads the process's supervision clock:
+/// `platform::now_ns()`, or the calibrated TSC when the process selected it
+/// (`platform::select_clock`, vigil/platform/tsc.hpp); supervision recognises it and reads it
+/// without the indirect call.
 struct Clock {
   using Fn = Nanos (*)(const void* ctx) noexcept;
   Fn fn = &system_now;
@@ -43,8 +46,9 @@ struct Clock {
   /// RT-safe: yes when `fn` is (the default is).
   [[nodiscard]] Nanos now() const noexcept { return fn(ctx); }
 
-  static Nanos system_now(const void* /*ctx*/) noexcept { return platform::now_ns(); }
-  /// The default monotonic clock.
+  /// The process's supervision clock (see above). RT-safe. Defined in the platform module.
+  static Nanos system_now(const void* ctx) noexcept;
+  /// The process's supervision clock: monotonic, or the TSC when selected.
   static constexpr Clock system() noexcept { return Clock{}; }
 };
 

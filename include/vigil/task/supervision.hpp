@@ -14,6 +14,7 @@
 #include "vigil/log/source.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/platform/rt_loss.hpp"
+#include "vigil/platform/tsc.hpp"
 #include "vigil/task/default_registry.hpp"
 #include "vigil/task/messages.hpp"
 #include "vigil/task/task_core.hpp"
@@ -75,8 +76,12 @@ class CycleRecorder {
   void set_options(SupervisionOptions options) noexcept {
     options_ = options;
     const std::uint32_t every = options.overhead_sample_every;
-    sample_mask_ = every == 0 ? ~std::uint64_t{0} : std::uint64_t{every} - 1;
-    sample_never_ = every == 0;
+    // 0 (never): a count-down that does not reach 0 in the life of the universe.
+    measure_every_ = every == 0 ? ~std::uint64_t{0} : every;
+    // Cycles measured: those begun after a multiple of `every` cycles (the first one, then one
+    // in `every`); pre() counts down to the next one.
+    const std::uint64_t done = counters().cycles;
+    measure_countdown_ = every == 0 ? ~std::uint64_t{0} : (every - done % every) % every + 1;
   }
   [[nodiscard]] const SupervisionOptions& options() const noexcept { return options_; }
   [[nodiscard]] const std::string& name() const noexcept { return name_; }
@@ -123,16 +128,16 @@ class CycleRecorder {
     state_ = refused ? from : to;
     pending_ |= kChange;
     // Leaving Running: send the totals again, in case the latest samples were dropped.
-    if (!refused && from == TaskState::Running && counters_.cycles > 0) pending_ |= kTotals;
+    if (!refused && from == TaskState::Running && counters().cycles > 0) pending_ |= kTotals;
     flush();
   }
 
   /// Reports an exception caught at a hook boundary. RT-safe.
   void on_exception(Hook hook, std::string_view type, std::string_view what) noexcept {
-    ++counters_.exceptions;
-    exception_.cycle = counters_.cycles;
+    ++counters().exceptions;
+    exception_.cycle = counters().cycles;
     exception_.hook = hook;
-    exception_.count = static_cast<std::uint32_t>(counters_.exceptions);
+    exception_.count = static_cast<std::uint32_t>(counters().exceptions);
     exception_.type.assign(type);
     exception_.message.assign(what);
     pending_ |= kException;
@@ -140,54 +145,63 @@ class CycleRecorder {
   }
 
   /// Before on_update(). RT-safe.
-  void pre(CycleContext& c) noexcept {
-    clock_ = c.clock != nullptr ? c.clock : &system_clock_;
-    // The system clock is read directly, not through the Clock's function pointer.
-    direct_clock_ = clock_->fn == &Clock::system_now;
-    measure_ = !sample_never_ && (counters_.cycles & sample_mask_) == 0;
-    if (measure_) pre_begin_ = now();
+  [[gnu::always_inline]] void pre(CycleContext& c) noexcept {
+    // The process's clock is read directly (monotonic, or the TSC when selected), not through
+    // the Clock's function pointer; a replaced clock (tests, replay) through it.
+    if (const Clock* clock = c.clock; clock != clock_) [[unlikely]] {  // set once per activity
+      clock_ = clock;
+      direct_ = clock == nullptr || clock->fn == &Clock::system_now;
+    }
+    tsc_ = platform::detail::g_clock_source.load(std::memory_order_relaxed) ==
+           static_cast<std::uint8_t>(platform::ClockSource::Tsc);
+    measure_ = --measure_countdown_ == 0;
+    if (measure_) [[unlikely]] {
+      measure_countdown_ = measure_every_;
+      pre_begin_ = now();
+    }
     if (options_.detectors != Detectors::None) arm();
-    c.start_ns = now();
-    log_.enter(counters_.cycles + 1, c.start_ns);
+    const Nanos start = now();
+    c.start_ns = start;
+    log_.enter(counters().cycles + 1, start);
   }
 
   /// After on_update(). `state` is what the sample reports. RT-safe.
-  void post(CycleContext& c, TaskState state) noexcept {
+  [[gnu::always_inline]] void post(CycleContext& c, TaskState state) noexcept {
     log_.leave();
     const Nanos end = now();
     c.end_ns = end;
     if (options_.detectors != Detectors::None) collect();
-    ++counters_.cycles;
-    const Nanos release = c.release_ns != 0 ? c.release_ns : c.start_ns;
+    // The sample is built in place inside a Message, and it holds the counters themselves: the
+    // push is the cycle's only copy.
+    CycleSample& s = sample();
+    const Nanos start = c.start_ns;
+    const Nanos release = c.release_ns != 0 ? c.release_ns : start;
     const bool overrun = c.period_ns > 0 && end > release + c.period_ns;
-    counters_.overruns += overrun ? 1 : 0;
-    counters_.missed_cycles += c.missed_before;
-    if (pending_ != 0) flush();
+    const std::uint64_t cycles = ++counters().cycles;
+    counters().overruns += overrun ? 1 : 0;
+    counters().missed_cycles += c.missed_before;
+    if (pending_ != 0) [[unlikely]] flush();
     auto* port = membership_.port();
-    // The sample is built in place inside a Message: the push is its only copy.
-    CycleSample& s = *std::get_if<CycleSample>(&sample_);
     s.release_ns = release;
-    s.start_ns = c.start_ns;
+    s.start_ns = start;
     s.end_ns = end;
-    s.overhead_ns = overhead_;
     s.missed_before = c.missed_before;
     s.overrun = overrun;
     s.state = state;
-    s.counters = counters_;
-    s.counters.dropped = port->dropped();
+    counters().dropped = port->dropped();
     (void)port->try_push(sample_);
-    published_cycles_.store(counters_.cycles, std::memory_order_relaxed);
-    overhead_ = 0;
-    if (measure_) overhead_ = (c.start_ns - pre_begin_) + (now() - end);
+    published_cycles_.store(cycles, std::memory_order_relaxed);
+    s.overhead_ns = 0;
+    if (measure_) [[unlikely]] s.overhead_ns = (start - pre_begin_) + (now() - end);
   }
 
   /// Cycles run so far. Any thread (relaxed atomic).
   [[nodiscard]] std::uint64_t cycles() const noexcept {
     return published_cycles_.load(std::memory_order_relaxed);
   }
-  [[nodiscard]] std::uint64_t overruns() const noexcept { return counters_.overruns; }
-  [[nodiscard]] std::uint64_t exceptions() const noexcept { return counters_.exceptions; }
-  [[nodiscard]] std::uint64_t losses(LossCause c) const noexcept { return counters_.loss(c); }
+  [[nodiscard]] std::uint64_t overruns() const noexcept { return counters().overruns; }
+  [[nodiscard]] std::uint64_t exceptions() const noexcept { return counters().exceptions; }
+  [[nodiscard]] std::uint64_t losses(LossCause c) const noexcept { return counters().loss(c); }
 
  private:
   static constexpr std::uint8_t kInfo = 1;
@@ -195,15 +209,32 @@ class CycleRecorder {
   static constexpr std::uint8_t kException = 4;
   static constexpr std::uint8_t kTotals = 8;
 
-  [[nodiscard]] Nanos now() const noexcept {
-    return direct_clock_ ? platform::now_ns() : clock_->now();
+  [[nodiscard]] [[gnu::always_inline]] Nanos now() const noexcept {
+    if (direct_) [[likely]] {
+      return tsc_ ? platform::tsc_now_ns() : platform::now_ns();
+    }
+    return clock_->now();
   }
+
+  // sample_ always holds a CycleSample: saying so spares the variant's index check.
+  [[nodiscard]] CycleSample& sample() noexcept {
+    CycleSample* s = std::get_if<CycleSample>(&sample_);
+    if (s == nullptr) __builtin_unreachable();
+    return *s;
+  }
+  [[nodiscard]] const CycleSample& sample() const noexcept {
+    const CycleSample* s = std::get_if<CycleSample>(&sample_);
+    if (s == nullptr) __builtin_unreachable();
+    return *s;
+  }
+  // The component's counters live in the sample: building a sample copies none of them.
+  [[nodiscard]] Counters& counters() noexcept { return sample().counters; }
+  [[nodiscard]] const Counters& counters() const noexcept { return sample().counters; }
 
   [[nodiscard]] CycleSample totals() const noexcept {
     CycleSample t = *std::get_if<CycleSample>(&sample_);
     t.totals_only = true;
     t.state = state_;
-    t.counters = counters_;
     t.counters.dropped = membership_.port() != nullptr ? membership_.port()->dropped() : 0;
     return t;
   }
@@ -263,8 +294,8 @@ class CycleRecorder {
   }
 
   void record_loss(LossCause cause, std::uint64_t n) noexcept {
-    counters_.losses[static_cast<std::size_t>(cause)] += n;
-    const RealTimeLoss loss{counters_.cycles + 1, cause, static_cast<std::uint32_t>(n)};
+    counters().losses[static_cast<std::size_t>(cause)] += n;
+    const RealTimeLoss loss{counters().cycles + 1, cause, static_cast<std::uint32_t>(n)};
     (void)membership_.port()->try_push(Message{loss});
   }
 
@@ -272,15 +303,15 @@ class CycleRecorder {
   SupervisionOptions options_;
   Membership<Message, N> membership_;
   log::PortSource<Message, N> log_{name_, membership_.port()};
-  Clock system_clock_ = Clock::system();
-  const Clock* clock_ = &system_clock_;
-  bool direct_clock_ = true;
-  std::uint64_t sample_mask_ = 63;
-  bool sample_never_ = false;
+  // The clock of the latest cycle (null: the process's). An activity passes the same Clock
+  // object every cycle; only a new one is looked at.
+  const Clock* clock_ = nullptr;
+  bool direct_ = true;            // read the process's clock without the function pointer
+  bool tsc_ = false;              // ... and it is the TSC
   bool measure_ = false;
+  std::uint64_t measure_every_ = 64;
+  std::uint64_t measure_countdown_ = 1;
   Nanos pre_begin_ = 0;
-  Nanos overhead_ = 0;
-  Counters counters_;  // `dropped` is the port's, read when a sample is built
   std::atomic<std::uint64_t> published_cycles_{0};  // single writer: a plain store on x86
   std::uint64_t alloc0_ = 0;
   std::uint64_t modesw0_ = 0;
@@ -288,7 +319,9 @@ class CycleRecorder {
   TaskState state_ = TaskState::PreOperational;
   std::uint8_t pending_ = 0;
   TaskInfo info_;
-  Message sample_{std::in_place_type<CycleSample>};  // the latest sample, pushed by copy
+  // The latest sample, pushed by copy; its counters are the component's (`dropped` is the
+  // port's, read when a sample is built).
+  Message sample_{std::in_place_type<CycleSample>};
   ExceptionReport exception_;
   StateChange change_;
 };

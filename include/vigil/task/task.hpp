@@ -156,7 +156,7 @@ class Task : public TaskCore {
                      std::string_view reason) noexcept final {
     const Clock* clock = cycle().clock;
     recorder_.on_transition(from, to, hook, refused, reason,
-                            clock != nullptr ? clock->now() : platform::now_ns());
+                            clock != nullptr ? clock->now() : Clock::system().now());
   }
   void on_exception(Hook hook, std::string_view type, std::string_view what) noexcept final {
     recorder_.on_exception(hook, type, what);

@@ -63,8 +63,20 @@ class TaskCore {
   /// Runs one cycle when Running; returns false (doing nothing) in any other state, and when
   /// the cycle moved the task to Exception. RT-safe when the hooks are.
   bool update() noexcept;
-  /// The same with the activity's timing (activities call this one).
-  bool update(CycleContext& context) noexcept;
+  /// The same with the activity's timing (activities call this one). Inline: the per-cycle
+  /// path is one state check and one virtual call, whose exception frame costs nothing unless a
+  /// hook throws (then update_threw(), out of line, reports it).
+  bool update(CycleContext& context) noexcept {
+    if (state() != TaskState::Running) [[unlikely]] return false;
+    context_ = &context;
+    try {
+      update_hook();
+    } catch (...) {
+      update_threw();
+    }
+    context_ = &own_context_;
+    return state() == TaskState::Running;
+  }
   /// Running -> Stopped (or Running when refused).
   bool stop();
   /// Stopped -> PreOperational (or Stopped when refused).
@@ -111,6 +123,8 @@ class TaskCore {
  private:
   template <class F>
   bool run_hook(Hook hook, F&& f) noexcept;
+  /// The current exception escaped update_hook(): reports it and moves to Exception.
+  void update_threw() noexcept;
 
   std::atomic<TaskState> state_{TaskState::PreOperational};
   std::string name_;
