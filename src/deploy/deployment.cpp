@@ -23,6 +23,8 @@ constexpr EnumName<SchedPolicy> kPolicies[] = {{"FIFO", SchedPolicy::Fifo},
 constexpr EnumName<OverrunPolicy> kOverrunPolicies[] = {{"skip", OverrunPolicy::Skip},
                                                         {"catch_up", OverrunPolicy::CatchUp},
                                                         {"reanchor", OverrunPolicy::Reanchor}};
+constexpr EnumName<platform::ClockSource> kClocks[] = {
+    {"monotonic", platform::ClockSource::Monotonic}, {"tsc", platform::ClockSource::Tsc}};
 constexpr EnumName<Detectors> kDetectors[] = {{"allocation", Detectors::Allocation},
                                               {"blocking", Detectors::Blocking},
                                               {"page_faults", Detectors::PageFaults},
@@ -170,7 +172,7 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
   if (const config::Node s = root["supervision"]; s.defined()) {
     s.reject_unknown_keys({"supervisor_period", "monitor_period", "ewma_weight", "thresholds",
                            "lock_memory", "supervisor_stack", "monitor_stack", "shared_memory",
-                           "warmup", "watchdog", "events", "flight_recorder"});
+                           "warmup", "watchdog", "events", "flight_recorder", "clock"});
     auto& sp = d.supervision;
     sp.supervisor_period_ns =
         s.optional_period("supervisor_period", sp.supervisor_period_ns,
@@ -180,6 +182,7 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
                           config::duration_in_range(kNanosPerMilli, 3600 * kNanosPerSecond));
     sp.ewma_weight = s.optional("ewma_weight", sp.ewma_weight, config::in_range(1e-6, 1.0));
     sp.lock_memory = s.optional("lock_memory", true);
+    sp.clock = s.optional_enum("clock", sp.clock, kClocks);
     sp.supervisor_stack_bytes =
         detail::optional_stack(s, "supervisor_stack", sp.supervisor_stack_bytes);
     sp.monitor_stack_bytes = detail::optional_stack(s, "monitor_stack", sp.monitor_stack_bytes);

@@ -119,3 +119,20 @@ TEST_CASE("A deployment needs components, and activities for them", "[deploy][de
              Catch::Contains("activities: required key is missing"));
   CHECK_THAT(errors_of("- 1\n- 2\n"), Catch::Contains("a deployment is a mapping"));
 }
+
+TEST_CASE("supervision.clock selects the process's clock; an unknown one is an error",
+          "[deploy][deployment][tsc]") {
+  const char* base = R"(activities: [{name: a, period: 1ms}]
+components: [{name: x, type: test.dummy, activity: a}]
+)";
+  auto d = load_deployment_string(std::string(base), "d.yaml", test_factory());
+  REQUIRE(d.has_value());
+  CHECK(d->supervision.clock == platform::ClockSource::Monotonic);
+  auto t = load_deployment_string(std::string(base) + "supervision: {clock: tsc}\n", "d.yaml",
+                                  test_factory());
+  REQUIRE(t.has_value());
+  CHECK(t->supervision.clock == platform::ClockSource::Tsc);
+  const std::string e = errors_of(std::string(base) + "supervision: {clock: rdtsc}\n");
+  CHECK_THAT(e, Catch::Contains("d.yaml:3:22: supervision.clock"));
+  CHECK_THAT(e, Catch::Contains("rdtsc"));
+}

@@ -39,6 +39,7 @@
 #include "vigil/expected.hpp"
 #include "vigil/export/http_server.hpp"
 #include "vigil/monitor/thresholds.hpp"
+#include "vigil/platform/tsc.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 #include "vigil/supervisor/running_stats.hpp"
 
@@ -70,6 +71,10 @@ struct SupervisionSpec {
   std::optional<std::filesystem::path> thresholds_file;
   /// mlockall + prefault at start.
   bool lock_memory = true;
+  /// `clock: monotonic | tsc`: the clock supervision reads in this process
+  /// (platform::select_clock, vigil/platform/tsc.hpp); `tsc` falls back to `monotonic` with a
+  /// line in the start log where the TSC cannot be used.
+  platform::ClockSource clock = platform::ClockSource::Monotonic;
   /// Stacks of the supervisor's and the monitor's threads, in bytes (0: the system default).
   std::size_t supervisor_stack_bytes = platform::kDefaultStackBytes;
   std::size_t monitor_stack_bytes = platform::kDefaultStackBytes;

@@ -129,7 +129,7 @@ extern std::atomic<std::uint8_t> g_clock_source;
 
 /// The TSC, converted with the published calibration. RT-safe: wait-free (retries only across a
 /// re-calibration being published, once a second), no system call.
-[[nodiscard]] inline Nanos tsc_now_ns() noexcept {
+[[nodiscard]] [[gnu::always_inline]] inline Nanos tsc_now_ns() noexcept {
   const std::uint64_t ticks = read_tsc();
   for (;;) {
     const std::uint32_t s0 = detail::g_tsc.seq.load(std::memory_order_acquire);

@@ -76,12 +76,10 @@ class CycleRecorder {
   void set_options(SupervisionOptions options) noexcept {
     options_ = options;
     const std::uint32_t every = options.overhead_sample_every;
-    // 0 (never): a count-down that does not reach 0 in the life of the universe.
-    measure_every_ = every == 0 ? ~std::uint64_t{0} : every;
     // Cycles measured: those begun after a multiple of `every` cycles (the first one, then one
-    // in `every`); pre() counts down to the next one.
-    const std::uint64_t done = counters().cycles;
-    measure_countdown_ = every == 0 ? ~std::uint64_t{0} : (every - done % every) % every + 1;
+    // in `every`): (cycles & mask) == phase. Never: a phase the masked count cannot reach.
+    measure_mask_ = every == 0 ? 0 : std::uint64_t{every} - 1;
+    measure_phase_ = every == 0 ? 1 : 0;
   }
   [[nodiscard]] const SupervisionOptions& options() const noexcept { return options_; }
   [[nodiscard]] const std::string& name() const noexcept { return name_; }
@@ -126,6 +124,7 @@ class CycleRecorder {
     change_ = StateChange{now, from, to, hook, refused, {}};
     change_.reason.assign(reason);
     state_ = refused ? from : to;
+    if (state_ == TaskState::Running) clock_known_ = false;  // (re)started: look at the clock again
     pending_ |= kChange;
     // Leaving Running: send the totals again, in case the latest samples were dropped.
     if (!refused && from == TaskState::Running && counters().cycles > 0) pending_ |= kTotals;
@@ -148,17 +147,15 @@ class CycleRecorder {
   [[gnu::always_inline]] void pre(CycleContext& c) noexcept {
     // The process's clock is read directly (monotonic, or the TSC when selected), not through
     // the Clock's function pointer; a replaced clock (tests, replay) through it.
-    if (const Clock* clock = c.clock; clock != clock_) [[unlikely]] {  // set once per activity
+    // Looked at once per start (an activity passes the same Clock every cycle): a running task
+    // keeps the process's clock it started with (select_clock() is called before tasks run).
+    if (const Clock* clock = c.clock; clock != clock_ || !clock_known_) [[unlikely]] {
       clock_ = clock;
+      clock_known_ = true;
       direct_ = clock == nullptr || clock->fn == &Clock::system_now;
+      tsc_ = platform::active_clock() == platform::ClockSource::Tsc;
     }
-    tsc_ = platform::detail::g_clock_source.load(std::memory_order_relaxed) ==
-           static_cast<std::uint8_t>(platform::ClockSource::Tsc);
-    measure_ = --measure_countdown_ == 0;
-    if (measure_) [[unlikely]] {
-      measure_countdown_ = measure_every_;
-      pre_begin_ = now();
-    }
+    if ((counters().cycles & measure_mask_) == measure_phase_) [[unlikely]] pre_begin_ = now();
     if (options_.detectors != Detectors::None) arm();
     const Nanos start = now();
     c.start_ns = start;
@@ -178,21 +175,28 @@ class CycleRecorder {
     const Nanos release = c.release_ns != 0 ? c.release_ns : start;
     const bool overrun = c.period_ns > 0 && end > release + c.period_ns;
     const std::uint64_t cycles = ++counters().cycles;
-    counters().overruns += overrun ? 1 : 0;
-    counters().missed_cycles += c.missed_before;
+    const bool measured = ((cycles - 1) & measure_mask_) == measure_phase_;
+    // What rarely changes is stored only when it does: fewer stores per cycle, which is what
+    // the cycle waits on while the ring's cache lines come back from the supervisor's core.
+    if (overrun) [[unlikely]] ++counters().overruns;
+    if (s.overrun != overrun) [[unlikely]] s.overrun = overrun;
+    const std::uint32_t missed = c.missed_before;
+    if (missed != 0) [[unlikely]] counters().missed_cycles += missed;
+    if (s.missed_before != missed) [[unlikely]] s.missed_before = missed;
+    if (s.state != state) [[unlikely]] s.state = state;
     if (pending_ != 0) [[unlikely]] flush();
     auto* port = membership_.port();
     s.release_ns = release;
     s.start_ns = start;
     s.end_ns = end;
-    s.missed_before = c.missed_before;
-    s.overrun = overrun;
-    s.state = state;
-    counters().dropped = port->dropped();
+    if (const std::uint64_t d = port->dropped(); d != counters().dropped) [[unlikely]] {
+      counters().dropped = d;
+    }
     (void)port->try_push(sample_);
     published_cycles_.store(cycles, std::memory_order_relaxed);
-    s.overhead_ns = 0;
-    if (measure_) [[unlikely]] s.overhead_ns = (start - pre_begin_) + (now() - end);
+    // A measured overhead travels with the next cycle's sample, once.
+    if (s.overhead_ns != 0) [[unlikely]] s.overhead_ns = 0;
+    if (measured) [[unlikely]] s.overhead_ns = (start - pre_begin_) + (now() - end);
   }
 
   /// Cycles run so far. Any thread (relaxed atomic).
@@ -306,11 +310,11 @@ class CycleRecorder {
   // The clock of the latest cycle (null: the process's). An activity passes the same Clock
   // object every cycle; only a new one is looked at.
   const Clock* clock_ = nullptr;
+  bool clock_known_ = false;
   bool direct_ = true;            // read the process's clock without the function pointer
   bool tsc_ = false;              // ... and it is the TSC
-  bool measure_ = false;
-  std::uint64_t measure_every_ = 64;
-  std::uint64_t measure_countdown_ = 1;
+  std::uint64_t measure_mask_ = 63;
+  std::uint64_t measure_phase_ = 0;
   Nanos pre_begin_ = 0;
   std::atomic<std::uint64_t> published_cycles_{0};  // single writer: a plain store on x86
   std::uint64_t alloc0_ = 0;
