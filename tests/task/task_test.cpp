@@ -154,3 +154,33 @@ TEST_CASE("A full port drops samples but keeps identity, exceptions and exact co
   REQUIRE(ex.size() == 1);
   CHECK(ex[0].count == 1);
 }
+
+namespace {
+// A clock that moves 10 ns at every read: supervision's own reads show as overhead.
+Nanos ticking_now(const void* ctx) noexcept {
+  auto* t = static_cast<Nanos*>(const_cast<void*>(ctx));
+  return *t += 10;
+}
+}  // namespace
+
+TEST_CASE("Supervision's overhead is measured on one cycle in N and sent with the next sample",
+          "[task][task]") {
+  for (const std::uint32_t every : {0U, 1U, 4U}) {
+    Registry<Message> reg;
+    Nanos t = 1'000;
+    Probe p("motor", {.overhead_sample_every = every}, reg);
+    ManualActivity act(p, {.name = "m", .clock = Clock{&ticking_now, &t}});
+    REQUIRE(p.configure());
+    REQUIRE(act.start());
+    for (int i = 0; i < 12; ++i) REQUIRE(act.step());
+    const auto samples = vigil::test::cycles_of(drain(*p.port()));
+    REQUIRE(samples.size() == 12);
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      INFO("every " << every << ", sample of cycle " << samples[i].cycle());
+      // Cycle k (0-based) is measured when k % every == 0; its sample k + 1 carries it: two
+      // reads before on_update and one after, 10 ns apart.
+      const bool carries = every != 0 && i >= 1 && (i - 1) % every == 0;
+      CHECK(samples[i].overhead_ns == (carries ? 20 : 0));
+    }
+  }
+}
