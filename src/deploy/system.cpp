@@ -155,10 +155,11 @@ expected<void, Error> System::start() {
   if (spec_.supervision.clock != platform::ClockSource::Monotonic ||
       platform::active_clock() != platform::ClockSource::Monotonic) {
     const platform::ClockSelection c = platform::select_clock(spec_.supervision.clock);
-    log_.push_back(c.reason.empty()
-                       ? fmt::format("supervision clock: {} ({:.3f} GHz, re-calibrated every second)",
-                                     platform::to_string(c.active), c.tsc_ghz)
-                       : fmt::format("supervision clock: {}", c.reason));
+    log_.push_back(
+        c.reason.empty()
+            ? fmt::format("supervision clock: {} ({:.3f} GHz, re-calibrated every second)",
+                          platform::to_string(c.active), c.tsc_ghz)
+            : fmt::format("supervision clock: {}", c.reason));
   }
   if (auto r = supervisor_->start(); !r) {
     stop_outputs();

@@ -24,7 +24,8 @@ struct MonotonicAfter {
 
 class Empty : public Task<Empty> {
  public:
-  explicit Empty(Registry<Message>& r) : Task("tsc_empty", {.detectors = Detectors::Allocation}, r) {}
+  explicit Empty(Registry<Message>& r)
+      : Task("tsc_empty", {.detectors = Detectors::Allocation}, r) {}
   void on_update() { ++updates; }
   int updates = 0;
 };
@@ -76,7 +77,8 @@ TEST_CASE("The TSC clock, when usable, agrees with the monotonic clock", "[task]
       const Nanos a = pf::now_ns();
       const Nanos t = pf::tsc_now_ns();
       const Nanos b = pf::now_ns();
-      if (b - a < 2 * kNanosPerMicro) best = std::min<Nanos>(best, std::llabs(t - (a + (b - a) / 2)));
+      if (b - a < 2 * kNanosPerMicro)
+        best = std::min<Nanos>(best, std::llabs(t - (a + (b - a) / 2)));
     }
     INFO("round " << round << ": |tsc - monotonic| = " << best << " ns");
     CHECK(best < kBound);

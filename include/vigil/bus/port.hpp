@@ -62,8 +62,10 @@ class Port final : public PortReader<Variant> {
 #ifndef NDEBUG
     ProducerGuard guard(producers_);
 #endif
-    if (shm_ != nullptr) [[unlikely]] return push_shm(m);
-    if (queue_.push(m)) [[likely]] return true;
+    if (shm_ != nullptr) [[unlikely]]
+      return push_shm(m);
+    if (queue_.push(m)) [[likely]]
+      return true;
     this->dropped_.store(this->dropped_.load(std::memory_order_relaxed) + 1,
                          std::memory_order_relaxed);
     return false;

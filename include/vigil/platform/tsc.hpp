@@ -97,8 +97,8 @@ struct TscCalibration {
   const auto p = (static_cast<Wide>(d) * static_cast<Wide>(c.mult)) >> 32;
   return c.base_ns + static_cast<Nanos>(p);
 #else
-  return c.base_ns + static_cast<Nanos>(static_cast<double>(d) * static_cast<double>(c.mult) /
-                                        4294967296.0);
+  return c.base_ns +
+         static_cast<Nanos>(static_cast<double>(d) * static_cast<double>(c.mult) / 4294967296.0);
 #endif
 }
 

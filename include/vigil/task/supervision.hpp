@@ -155,11 +155,12 @@ class CycleRecorder {
     if (const Clock* clock = c.clock; clock != clock_) [[unlikely]] {
       clock_ = clock;
       const bool direct = clock == nullptr || clock->fn == &Clock::system_now;
-      clock_mode_ = !direct                                                      ? kReplacedClock
+      clock_mode_ = !direct                                                  ? kReplacedClock
                     : platform::active_clock() == platform::ClockSource::Tsc ? kTscClock
                                                                              : kMonotonicClock;
     }
-    if ((counters().cycles & measure_mask_) == measure_phase_) [[unlikely]] pre_begin_ = now();
+    if ((counters().cycles & measure_mask_) == measure_phase_) [[unlikely]]
+      pre_begin_ = now();
     if (const Detectors d = options_.detectors; d != Detectors::None) [[unlikely]] {
       // The common detector inline (one thread-local load); the others out of line.
       if (d == Detectors::Allocation) {
@@ -196,9 +197,11 @@ class CycleRecorder {
     const std::uint64_t cycles = counters().cycles + 1;
     const bool measured = ((cycles - 1) & measure_mask_) == measure_phase_;
     // What rarely changes is stored only when it does.
-    if (overrun) [[unlikely]] ++counters().overruns;
+    if (overrun) [[unlikely]]
+      ++counters().overruns;
     const std::uint32_t missed = c.missed_before;
-    if (missed != 0) [[unlikely]] counters().missed_cycles += missed;
+    if (missed != 0) [[unlikely]]
+      counters().missed_cycles += missed;
     auto* port = membership_.port();
     if (const std::uint64_t d = port->dropped(); d != counters().dropped) [[unlikely]] {
       counters().dropped = d;
@@ -220,7 +223,8 @@ class CycleRecorder {
     }
     store_pair(bytes + offsetof(CycleSample, missed_before), static_cast<std::int64_t>(flags),
                static_cast<std::int64_t>(cycles));
-    if (pending_ != 0) [[unlikely]] flush();
+    if (pending_ != 0) [[unlikely]]
+      flush();
     (void)port->try_push(sample_);
     published_cycles_.store(cycles, std::memory_order_relaxed);
     // A measured overhead travels with the next cycle's sample, once.
@@ -242,7 +246,8 @@ class CycleRecorder {
   static constexpr std::uint8_t kTotals = 8;
 
   [[nodiscard]] [[gnu::always_inline]] Nanos now() const noexcept {
-    if (clock_mode_ == kMonotonicClock) [[likely]] return platform::now_ns();
+    if (clock_mode_ == kMonotonicClock) [[likely]]
+      return platform::now_ns();
     if (clock_mode_ == kTscClock) return platform::tsc_now_ns();
     return clock_->now();
   }
@@ -257,8 +262,9 @@ class CycleRecorder {
     std::uint8_t padding;
     std::uint64_t cycles;
   };
-  static_assert(sizeof(Head) == 16 && offsetof(CycleSample, counters) + offsetof(Counters, cycles) ==
-                                          offsetof(CycleSample, missed_before) + 8);
+  static_assert(sizeof(Head) == 16 &&
+                offsetof(CycleSample, counters) + offsetof(Counters, cycles) ==
+                    offsetof(CycleSample, missed_before) + 8);
   static_assert(offsetof(CycleSample, overrun) == offsetof(CycleSample, missed_before) + 4 &&
                 offsetof(CycleSample, totals_only) == offsetof(CycleSample, missed_before) + 5 &&
                 offsetof(CycleSample, state) == offsetof(CycleSample, missed_before) + 6 &&

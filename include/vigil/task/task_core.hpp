@@ -67,7 +67,8 @@ class TaskCore {
   /// path is one state check and one virtual call, whose exception frame costs nothing unless a
   /// hook throws (then update_threw(), out of line, reports it).
   bool update(CycleContext& context) noexcept {
-    if (state() != TaskState::Running) [[unlikely]] return false;
+    if (state() != TaskState::Running) [[unlikely]]
+      return false;
     context_ = &context;
     try {
       update_hook();

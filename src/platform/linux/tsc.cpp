@@ -177,8 +177,8 @@ void recalibrate_tsc() {
   const Pair p = read_pair();
   if (p.ticks <= k.anchor.ticks) return;
   // The frequency over the whole baseline (the pairs' read uncertainty shrinks with it).
-  const double ns_per_tick = static_cast<double>(p.ns - k.anchor.ns) /
-                             static_cast<double>(p.ticks - k.anchor.ticks);
+  const double ns_per_tick =
+      static_cast<double>(p.ns - k.anchor.ns) / static_cast<double>(p.ticks - k.anchor.ticks);
   const Nanos converted = tsc_to_ns(old, p.ticks);
   const Nanos error = converted - p.ns;
   TscCalibration next;
