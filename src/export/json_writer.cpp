@@ -5,7 +5,7 @@
 
 #include "vigil/assert.hpp"
 
-namespace vigil {
+namespace vigil::exporter {
 
 namespace {
 
@@ -240,4 +240,4 @@ std::string JsonWriter::take() {
   return s;
 }
 
-}  // namespace vigil
+}  // namespace vigil::exporter
