@@ -6,7 +6,7 @@ namespace vigil::exporter {
 
 namespace {
 
-using Histogram = RunningStats::Histogram;
+using Histogram = supervisor::RunningStats::Histogram;
 
 BucketCounts reduce(const Histogram& h, std::size_t first, std::size_t last, Nanos shift,
                     double sum_ns) noexcept {
@@ -34,7 +34,8 @@ BucketCounts reduce(const Histogram& h, std::size_t first, std::size_t last, Nan
 
 }  // namespace
 
-BucketCounts reduce_to_buckets(const RunningStats& stats, Nanos shift_ns, double sum_ns) noexcept {
+BucketCounts reduce_to_buckets(const supervisor::RunningStats& stats, Nanos shift_ns,
+                               double sum_ns) noexcept {
   if (stats.count() == 0) return BucketCounts{};
   const Nanos lo = std::max<Nanos>(stats.min(), 0);
   const Nanos hi = std::max<Nanos>(stats.max(), 0);

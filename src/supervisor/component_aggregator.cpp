@@ -9,7 +9,7 @@
 
 #include "vigil/task/shm_messages.hpp"
 
-namespace vigil {
+namespace vigil::supervisor {
 
 namespace {
 // Total time is user time plus the latest measured supervision overhead: its count, extremes,
@@ -151,14 +151,14 @@ void ComponentAggregator::end(const Entry& /*e*/, const PortDrain& d) {
   current_ = nullptr;
 }
 
-void ComponentAggregator::on(const Entry& /*e*/, const TaskInfo& m) {
+void ComponentAggregator::on(const Entry& /*e*/, const task::TaskInfo& m) {
   if (current_ == nullptr) return;
   current_->data.has_info = true;
   current_->data.info = m;
   current_->data.deadline_ns = options_.watchdog.limit(m.period_ns);
 }
 
-void ComponentAggregator::on(const Entry& /*e*/, const CycleSample& m) {
+void ComponentAggregator::on(const Entry& /*e*/, const task::CycleSample& m) {
   if (current_ == nullptr) return;
   Slot& s = *current_;
   auto& d = s.data;
@@ -221,7 +221,7 @@ void ComponentAggregator::on(const Entry& /*e*/, const CycleSample& m) {
   if (!s.pending.empty()) resolve_pending(s, &m);
 }
 
-void ComponentAggregator::resolve_pending(Slot& s, const CycleSample* sample) {
+void ComponentAggregator::resolve_pending(Slot& s, const task::CycleSample* sample) {
   // With a sample: the reports of its cycle get its end as their fault time; reports of older
   // cycles (whose sample was dropped) are raised without one. Without (end of a drain): reports
   // that waited one drain already are raised without a fault time.
@@ -242,7 +242,7 @@ void ComponentAggregator::resolve_pending(Slot& s, const CycleSample* sample) {
   });
 }
 
-void ComponentAggregator::on(const Entry& /*e*/, const RealTimeLoss& m) {
+void ComponentAggregator::on(const Entry& /*e*/, const task::RealTimeLoss& m) {
   // The cumulative counters of the samples are authoritative for counts (a loss report can be
   // dropped by a full port); the report tells which cycle lost, and when it arrived, and makes
   // an event: it waits for the sample of its cycle, which carries the cycle's end.
@@ -264,7 +264,7 @@ void ComponentAggregator::on(const Entry& /*e*/, const RealTimeLoss& m) {
   if (s.data.has_sample && s.data.last.cycle() >= m.cycle) resolve_pending(s, &s.data.last);
 }
 
-void ComponentAggregator::on(const Entry& /*e*/, const ExceptionReport& m) {
+void ComponentAggregator::on(const Entry& /*e*/, const task::ExceptionReport& m) {
   if (current_ == nullptr) return;
   Slot& s = *current_;
   s.data.has_exception = true;
@@ -295,7 +295,7 @@ void ComponentAggregator::on(const Entry& /*e*/, const ExceptionReport& m) {
   }
 }
 
-void ComponentAggregator::on(const Entry& /*e*/, const StateChange& m) {
+void ComponentAggregator::on(const Entry& /*e*/, const task::StateChange& m) {
   if (current_ == nullptr) return;
   Slot& s = *current_;
   auto& d = s.data;
@@ -575,4 +575,4 @@ void ComponentAggregator::set_ewma_weight(double w) {
   ewma_weight_.store(w, std::memory_order_relaxed);
 }
 
-}  // namespace vigil
+}  // namespace vigil::supervisor

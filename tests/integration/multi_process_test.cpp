@@ -36,7 +36,7 @@ namespace {
 
 class Ctl : public Task<Ctl> {
  public:
-  Ctl(std::string name, Registry<Message>& registry) : Task(std::move(name), {}, registry) {}
+  Ctl(std::string name, Registry<task::Message>& registry) : Task(std::move(name), {}, registry) {}
   void on_update() {}
 };
 
@@ -117,7 +117,7 @@ std::unique_ptr<Child> spawn(const std::function<void(const ChildLink&)>& body) 
 // once every component ran, then waits for "go" and does `then` (by default: runs until killed).
 void run_components(const ChildLink& link, const std::string& sup,
                     const std::vector<std::string>& names, const std::function<void()>& then = {}) {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   bus::ShmOptions o;
   o.name = sup;
   if (!place_in_shared_memory(reg, o)) ::_exit(90);
@@ -288,8 +288,8 @@ TEST_CASE("A process records its own end in its segments (for a daemon that come
   // No daemon ever drained it: a death by a signal keeps the segment, with the signal in it.
   const auto names = platform::list_shared_memory(bus::shm_segment_prefix(name));
   REQUIRE(names.size() == 1);
-  auto r = bus::ShmReader<Message>::open(names[0], {kShmMessageSchema, name},
-                                         platform::effective_uid(), false);
+  auto r = bus::ShmReader<task::Message>::open(names[0], {task::kShmMessageSchema, name},
+                                               platform::effective_uid(), false);
   REQUIRE(r.has_value());
   const auto live = r->live();
   REQUIRE(live.has_value());
@@ -343,7 +343,7 @@ TEST_CASE("Counters stay exact for a process started before the daemon and acros
   test::ShmCleanup cleanup(name);
   // The child steps its component by hand: exactly 500 cycles, then 2500 more, then stops it.
   auto c = spawn([&](const ChildLink& l) {
-    Registry<Message> reg;
+    Registry<task::Message> reg;
     bus::ShmOptions o;
     o.name = name;
     if (!place_in_shared_memory(reg, o)) ::_exit(90);

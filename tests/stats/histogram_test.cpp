@@ -11,8 +11,8 @@
 #include <type_traits>
 #include <vector>
 
-using vigil::HistogramRange;
-using vigil::LogLinearHistogram;
+using vigil::supervisor::HistogramRange;
+using vigil::supervisor::LogLinearHistogram;
 
 namespace Catch {
 template <>

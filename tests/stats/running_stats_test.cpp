@@ -15,8 +15,8 @@
 #include <vector>
 
 using vigil::Nanos;
-using vigil::RunningStats;
 using vigil::StatsSummary;
+using vigil::supervisor::RunningStats;
 
 // ---- A counting replacement of the global operator new/delete (not malloc), for the whole test
 // binary. It counts only while `g_counting` is set, so Catch2's own allocations do not matter.

@@ -10,10 +10,11 @@
 #include "vigil/task/instrumentation.hpp"
 
 using namespace vigil;
+using namespace vigil::supervisor;
 
 TEST_CASE("The aggregator computes latency, period, user time and demangles exceptions",
           "[supervisor][aggregator]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   vigil::test::FakeClock fc;
   vigil::test::Probe p("p", {.overhead_sample_every = 1}, reg);
   p.work = [&] { fc.advance(250); };
@@ -49,7 +50,7 @@ TEST_CASE("The aggregator computes latency, period, user time and demangles exce
 
 TEST_CASE("Records of components that left are kept for a while, then forgotten",
           "[supervisor][aggregator]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   vigil::test::FakeClock fc;
   ComponentAggregator agg({.retain_left_ns = 5 * kNanosPerSecond, .clock = fc.clock()});
   TaskSupervisor sup(reg, agg);
@@ -73,7 +74,7 @@ TEST_CASE("Stress: many components push while the supervisor drains and readers 
   // Run under TSan in CI: proves the pipeline has no data race.
   constexpr int kComponents = 8;
   constexpr int kCycles = 20000;
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   ComponentAggregator agg;
   TaskSupervisor sup(reg, agg, {.period_ns = 200 * kNanosPerMicro});
   REQUIRE(sup.start().has_value());
@@ -117,21 +118,23 @@ TEST_CASE("Stress: many components push while the supervisor drains and readers 
 
 TEST_CASE("The aggregator keeps the latest real-time loss report, counts come from the samples",
           "[supervisor][aggregator]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   ComponentAggregator agg;
   TaskSupervisor sup(reg, agg);
   auto m = reg.join<16>("lossy");
-  CycleSample s;
+  task::CycleSample s;
   s.counters.cycles = 7;
-  s.counters.losses[static_cast<std::size_t>(LossCause::Allocation)] = 3;
-  REQUIRE(m.port()->try_push(Message{RealTimeLoss{7, LossCause::Allocation, 2}}));
-  REQUIRE(m.port()->try_push(Message{s}));
+  s.counters.losses[static_cast<std::size_t>(platform::LossCause::Allocation)] = 3;
+  REQUIRE(
+      m.port()->try_push(task::Message{task::RealTimeLoss{7, platform::LossCause::Allocation, 2}}));
+  REQUIRE(m.port()->try_push(task::Message{s}));
   sup.step();
   const auto snap = agg.find("lossy");
   REQUIRE(snap.has_value());
   REQUIRE(snap->has_loss);
   CHECK(snap->last_loss.cycle == 7);
-  CHECK(snap->last_loss.cause == LossCause::Allocation);
+  CHECK(snap->last_loss.cause == platform::LossCause::Allocation);
   CHECK(snap->last_loss.count == 2);
-  CHECK(snap->counters.loss(LossCause::Allocation) == 3);  // the sample's total, not the report's
+  CHECK(snap->counters.loss(platform::LossCause::Allocation) ==
+        3);  // the sample's total, not the report's
 }

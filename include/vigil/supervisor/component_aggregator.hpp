@@ -33,7 +33,7 @@
 #include "vigil/task/default_registry.hpp"
 #include "vigil/task/messages.hpp"
 
-namespace vigil {
+namespace vigil::supervisor {
 
 /// A component's latched fault: the first Error event since the latch was last cleared raised
 /// it; later Error events only count and move `last_*`. It stays until cleared
@@ -57,13 +57,13 @@ struct ComponentSnapshot {
   std::string name;
   bool alive = true;      ///< false once the component left (kept for a while)
   bool has_info = false;  ///< a TaskInfo arrived (the component was configured)
-  TaskInfo info;
+  task::TaskInfo info;
   TaskState state = TaskState::PreOperational;
   bool has_sample = false;
-  CycleSample last;  ///< latest cycle sample received
+  task::CycleSample last;  ///< latest cycle sample received
   std::uint64_t samples = 0;
-  Counters counters;     ///< cumulative, exact even when samples were dropped
-  StatsSummary user_ns;  ///< on_update() alone
+  task::Counters counters;  ///< cumulative, exact even when samples were dropped
+  StatsSummary user_ns;     ///< on_update() alone
   /// user + the latest measured supervision overhead: count, min, max, mean and EWMA exact;
   /// percentiles are user_ns's plus that overhead (capped at max).
   StatsSummary total_ns;
@@ -71,15 +71,15 @@ struct ComponentSnapshot {
   StatsSummary period_ns;    ///< start-to-start of consecutive cycles
   StatsSummary overhead_ns;  ///< supervision's own time per cycle (sampled)
   bool has_exception = false;
-  ExceptionReport last_exception;
+  task::ExceptionReport last_exception;
   std::string last_exception_type;  ///< demangled
   /// The latest real-time loss reported (the cycle it happened in, its cause and count); the
   /// totals by cause are in `counters.losses`.
   bool has_loss = false;
-  RealTimeLoss last_loss;
+  task::RealTimeLoss last_loss;
   Nanos last_loss_at = 0;  ///< supervisor clock when it arrived
   bool has_state_change = false;
-  StateChange last_change;
+  task::StateChange last_change;
   Nanos joined_at = 0;       ///< supervisor clock
   Nanos last_sample_at = 0;  ///< supervisor clock when the latest sample was drained; 0 if none
   Nanos left_at = 0;
@@ -91,7 +91,7 @@ struct ComponentSnapshot {
   bool warming_up = false;
   std::uint64_t warmup_cycles = 0;  ///< samples kept out of the statistics
   /// The counters when the latest warm-up ended (zeros before): overruns etc. of the warm-up.
-  Counters warmup_counters;
+  task::Counters warmup_counters;
   LatchedFault latch;
   /// Watchdog: the silence after which a Deadline event is raised (0: not watched).
   Nanos deadline_ns = 0;
@@ -167,7 +167,7 @@ struct AggregatorOptions {
 /// The supervisor handler for `Message`. Not RT-safe (supervisor thread and readers only).
 class ComponentAggregator {
  public:
-  using Entry = RegistryEntry<Message>;
+  using Entry = bus::RegistryEntry<task::Message>;
 
   explicit ComponentAggregator(AggregatorOptions options = {});
   ~ComponentAggregator();
@@ -178,11 +178,11 @@ class ComponentAggregator {
   void on_join(const Entry& e);
   void on_leave(const Entry& e);
   void begin(const Entry& e);
-  void on(const Entry& e, const TaskInfo& m);
-  void on(const Entry& e, const CycleSample& m);
-  void on(const Entry& e, const RealTimeLoss& m);
-  void on(const Entry& e, const ExceptionReport& m);
-  void on(const Entry& e, const StateChange& m);
+  void on(const Entry& e, const task::TaskInfo& m);
+  void on(const Entry& e, const task::CycleSample& m);
+  void on(const Entry& e, const task::RealTimeLoss& m);
+  void on(const Entry& e, const task::ExceptionReport& m);
+  void on(const Entry& e, const task::StateChange& m);
   void on(const Entry& e, const log::LogRecord& m);  // forwarded to the log consumer, if any
   /// Any other message type (one added to `Message` later): ignored until a handler cares.
   template <class M>
@@ -230,7 +230,7 @@ class ComponentAggregator {
  private:
   Slot* slot_for(const Entry& e);
   void raise(Slot& s, Event e);  // the slot is locked by the caller
-  void resolve_pending(Slot& s, const CycleSample* sample);
+  void resolve_pending(Slot& s, const task::CycleSample* sample);
   void watch(Slot& s, Nanos now);
   std::size_t clear_slot(Slot& s, const char* why);
   AggregatorOptions options_;
@@ -249,11 +249,11 @@ class ComponentAggregator {
   mutable EventHub events_;  // last: destroyed first, its dispatchers may still read the above
 };
 
-static_assert(SupervisorHandler<ComponentAggregator, Message>);
+static_assert(SupervisorHandler<ComponentAggregator, task::Message>);
 
 /// The supervisor of tasks: one non-RT thread (or step()) that drains the port of every
 /// component of a registry into a ComponentAggregator. Each component's own side is its
 /// Task<Derived> or Instrumentation. (Was `ComponentSupervisorLoop`.)
-using TaskSupervisor = Supervisor<Message, ComponentAggregator>;
+using TaskSupervisor = Supervisor<task::Message, ComponentAggregator>;
 
-}  // namespace vigil
+}  // namespace vigil::supervisor

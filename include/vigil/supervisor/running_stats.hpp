@@ -16,7 +16,7 @@
 #include "vigil/platform/clock.hpp"
 #include "vigil/supervisor/histogram.hpp"
 
-namespace vigil {
+namespace vigil::supervisor {
 
 /**
  * A snapshot of `RunningStats`, trivially copyable and 80 bytes, for reports and exporters.
@@ -208,7 +208,7 @@ class RunningStats {
   /// The histogram type: 5 sub-bucket bits, values up to 2^40 - 1 ns.
   using Histogram = LogLinearHistogram<5, 40>;
   /// Default EWMA weight (vigil::kDefaultEwmaWeight).
-  static constexpr double kDefaultEwmaWeight = vigil::kDefaultEwmaWeight;
+  static constexpr double kDefaultEwmaWeight = vigil::supervisor::kDefaultEwmaWeight;
 
   /// Counts sample `value` (a duration in ns). O(1), allocation-free, RT-safe.
   constexpr void add(Nanos value) noexcept {
@@ -303,4 +303,9 @@ static_assert(std::is_trivially_copyable_v<RunningStats>);
 static_assert(sizeof(RunningStats) == 72 + sizeof(RunningStats::Histogram),
               "RunningStats should be 9312 bytes: 72 bytes of scalars and the histogram");
 
+}  // namespace vigil::supervisor
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using supervisor::StatsSummary;
 }  // namespace vigil

@@ -28,7 +28,7 @@
 #include "vigil/platform/thread.hpp"
 #include "vigil/supervisor/running_stats.hpp"
 
-namespace vigil {
+namespace vigil::supervisor {
 
 /// What the supervisor learnt about one port in one cycle.
 struct PortDrain {
@@ -64,8 +64,9 @@ struct handles_all<H, E, std::variant<T...>>
 /// A handler: told about joins and leaves, visited with every message (one `on(entry, m)` per
 /// alternative of the variant, or a template catch-all), told about cycles.
 template <class H, class Variant>
-concept SupervisorHandler = detail::handles_all<H, RegistryEntry<Variant>, Variant>::value &&
-    requires(H& h, const RegistryEntry<Variant>& e, const PortDrain& d, const SupervisorCycle& c) {
+concept SupervisorHandler = detail::handles_all<H, bus::RegistryEntry<Variant>, Variant>::value &&
+    requires(H& h, const bus::RegistryEntry<Variant>& e, const PortDrain& d,
+             const SupervisorCycle& c) {
   h.on_join(e);
   h.on_leave(e);
   h.begin(e);
@@ -100,7 +101,7 @@ template <class Variant, class Handler>
 requires SupervisorHandler<Handler, Variant>
 class Supervisor {
  public:
-  using Entry = RegistryEntry<Variant>;
+  using Entry = bus::RegistryEntry<Variant>;
 
   Supervisor(Registry<Variant>& registry, Handler& handler, SupervisorOptions options = {})
       : registry_(registry), handler_(handler), options_(std::move(options)) {
@@ -263,4 +264,4 @@ class Supervisor {
   RunningStats per_cycle_;
 };
 
-}  // namespace vigil
+}  // namespace vigil::supervisor

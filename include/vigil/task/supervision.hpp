@@ -22,7 +22,7 @@
 #include "vigil/task/messages.hpp"
 #include "vigil/task/task_core.hpp"
 
-namespace vigil {
+namespace vigil::task {
 
 /// Default capacity of a component's port: 256 messages of 128 bytes (32 KiB). At 1 kHz and a
 /// supervisor period of 10 ms a component queues about 10 messages, so this absorbs a supervisor
@@ -357,7 +357,7 @@ class CycleRecorder {
 
   std::string name_;
   SupervisionOptions options_;
-  Membership<Message, N> membership_;
+  bus::Membership<Message, N> membership_;
   log::PortSource<Message, N> log_{name_, membership_.port()};
   // The clock of the latest cycle (null: the process's). An activity passes the same Clock
   // object every cycle; only a new one is looked at.
@@ -386,4 +386,11 @@ class CycleRecorder {
 };
 
 }  // namespace detail
+}  // namespace vigil::task
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using task::DefaultTaskTraits;
+using task::kDefaultPortCapacity;
+using task::SupervisionOptions;
 }  // namespace vigil
