@@ -10,6 +10,7 @@
 #include "vigil/task/task.hpp"
 
 using namespace vigil;
+using namespace vigil::task;
 namespace pf = vigil::platform;
 
 namespace {
