@@ -25,6 +25,8 @@ packages=(
   clang-16 libfuzzer-16-dev libclang-rt-16-dev
   # the logging benchmark's peer only, never linked by vigil
   libspdlog-dev
+  # instruction counts of the per-cycle path (scripts/callgrind-cycle.sh, docs/performance.md)
+  valgrind
 )
 
 missing=()
