@@ -120,7 +120,7 @@ TEST_CASE("A deployment needs components, and activities for them", "[deploy][de
   CHECK_THAT(errors_of("- 1\n- 2\n"), Catch::Contains("a deployment is a mapping"));
 }
 
-TEST_CASE("supervision.clock selects the process's clock; an unknown one is an error",
+TEST_CASE("supervision.clock selects the process's clock, and an unknown one is an error",
           "[deploy][deployment][tsc]") {
   const char* base = R"(activities: [{name: a, period: 1ms}]
 components: [{name: x, type: test.dummy, activity: a}]
