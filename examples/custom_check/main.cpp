@@ -17,6 +17,7 @@
 #include "vigil/export/text_report.hpp"
 #include "vigil/monitor/monitor.hpp"
 #include "vigil/monitor/threshold_file.hpp"
+#include "vigil/service/supervision_service.hpp"
 #include "vigil/task/task.hpp"
 
 // The custom check. Any class with name() and run() satisfies vigil::Check.
@@ -61,10 +62,10 @@ int main(int argc, char** argv) {
     }
   }
 
-  vigil::supervisor::ComponentAggregator aggregator;
-  vigil::supervisor::TaskSupervisor supervisor(vigil::default_registry(), aggregator);
-  vigil::Monitor monitor(aggregator, {.period_ns = 500 * vigil::kNanosPerMilli});
-  monitor.set_supervisor(&supervisor);
+  // The pipeline: the summary (or JSON) is written below, from the final reports.
+  vigil::SupervisionService service(
+      {.monitor_period_ns = 500 * vigil::kNanosPerMilli, .summary_file = nullptr});
+  vigil::Monitor& monitor = service.monitor();
   monitor.add_check<LatencyCheck>();         // the registration line
   std::optional<vigil::ThresholdFile> file;  // watched: reloaded at each monitor cycle
   if (thresholds != nullptr) {
@@ -85,14 +86,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "cannot start: %s\n", ok.error().message.c_str());
     return 1;
   }
-  (void)supervisor.start();
-  (void)monitor.start();
+  (void)service.start();
   std::this_thread::sleep_for(2s);
-  monitor.stop();
   activity.stop();
-  supervisor.stop();
-
-  const vigil::ReportSet reports = monitor.step();
+  const vigil::ReportSet reports = service.stop();  // last drain, last cycle
   if (json) {
     std::fputs(vigil::to_json(reports, {.indent = 2}).c_str(), stdout);
     return 0;

@@ -42,17 +42,13 @@ class Gripper : public VendorLoopBase {
 };
 
 int main() {
-  vigil::supervisor::ComponentAggregator aggregator;
-  vigil::supervisor::TaskSupervisor supervisor(vigil::default_registry(), aggregator);
-  vigil::Monitor monitor(aggregator);
-  supervisor.start();
+  vigil::SupervisionService service;  // prints the summary at stop
+  (void)service.start();
 
   std::thread t([] { Gripper().run(500); });
   t.join();
-  supervisor.stop();
 
-  const vigil::ReportSet reports = monitor.step();
-  vigil::print_summary(stdout, reports);
+  const vigil::ReportSet reports = service.stop();  // last drain, last cycle
   const auto* r = reports.find("gripper");
   return r != nullptr && r->counters.cycles == 501 && r->counters.exceptions == 1 ? 0 : 1;
 }

@@ -9,24 +9,27 @@
 namespace vigil::deploy {
 
 System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
+  // The pipeline is a SupervisionService on the system's registry, without outputs of its own:
+  // the system publishes through its exporter (outputs.http/textfile, with the extensions'
+  // reports) and its owner reads the final reports with step_monitor().
   const SupervisionSpec& sv = spec_.supervision;
-  aggregator_ = std::make_unique<supervisor::ComponentAggregator>(
-      supervisor::AggregatorOptions{.ewma_weight = sv.ewma_weight,
-                                    .warmup_ns = sv.warmup_ns,
-                                    .watchdog = sv.watchdog,
-                                    .recorder = sv.recorder,
-                                    .events = {.queue_capacity = sv.event_queue},
-                                    .auto_clear_ns = sv.auto_clear_ns,
-                                    .state_events = sv.state_events});
-  supervisor_ = std::make_unique<supervisor::TaskSupervisor>(
-      registry_, *aggregator_,
-      supervisor::SupervisorOptions{.period_ns = spec_.supervision.supervisor_period_ns,
-                                    .stack_bytes = spec_.supervision.supervisor_stack_bytes});
-  monitor_ = std::make_unique<Monitor>(
-      *aggregator_, MonitorOptions{.period_ns = spec_.supervision.monitor_period_ns,
-                                   .stack_bytes = spec_.supervision.monitor_stack_bytes});
-  monitor_->set_supervisor(supervisor_.get());
-  monitor_->set_thresholds(spec_.supervision.thresholds);
+  service::SupervisionServiceOptions o;
+  o.registry = &registry_;
+  o.supervisor_period_ns = sv.supervisor_period_ns;
+  o.monitor_period_ns = sv.monitor_period_ns;
+  o.final_cycle = false;
+  o.ewma_weight = sv.ewma_weight;
+  o.summary_file = nullptr;
+  o.monitor.stack_bytes = sv.monitor_stack_bytes;
+  o.aggregator.warmup_ns = sv.warmup_ns;
+  o.aggregator.watchdog = sv.watchdog;
+  o.aggregator.recorder = sv.recorder;
+  o.aggregator.events = {.queue_capacity = sv.event_queue};
+  o.aggregator.auto_clear_ns = sv.auto_clear_ns;
+  o.aggregator.state_events = sv.state_events;
+  o.supervisor.stack_bytes = sv.supervisor_stack_bytes;
+  service_ = std::make_unique<service::SupervisionService>(std::move(o));
+  service_->monitor().set_thresholds(sv.thresholds);
 }
 
 System::~System() { stop(); }
@@ -54,7 +57,7 @@ expected<std::unique_ptr<System>, config::ConfigErrors> System::create(
     auto file = ThresholdFile::open(*sys->spec_.supervision.thresholds_file);
     if (!file) return vigil::unexpected(file.error());
     sys->thresholds_file_.emplace(std::move(*file));
-    sys->thresholds_file_->attach(*sys->monitor_);
+    sys->thresholds_file_->attach(sys->service_->monitor());
   }
 
   // Extensions first: components may use them (a CAN I/O component needs its sniffer).
@@ -108,7 +111,7 @@ expected<void, Error> System::start_outputs() {
     e.http->dashboard = o.http->dashboard;
     if (o.http->clear) {  // POST /api/v1/clear: off unless the deployment enables it
       e.http->clear = [this](const std::string& name) {
-        return name.empty() ? aggregator_->clear_all() : aggregator_->clear(name);
+        return name.empty() ? aggregator().clear_all() : aggregator().clear(name);
       };
     }
     // The server logs at start only (its URL; a warning for a non-loopback address).
@@ -119,7 +122,7 @@ expected<void, Error> System::start_outputs() {
   e.augment_metrics = [this](ReportSet& r, std::vector<exporter::CanHistograms>& h) {
     contribute(r, &h);
   };
-  auto started = exporter::MonitorExporter::start(*monitor_, aggregator_.get(), std::move(e));
+  auto started = exporter::MonitorExporter::start(monitor(), &aggregator(), std::move(e));
   if (!started) {
     return vigil::unexpected(
         Error{started.error().code, fmt::format("outputs.http: {}", started.error().message)});
@@ -162,12 +165,7 @@ expected<void, Error> System::start() {
                           platform::to_string(c.active), c.tsc_ghz)
             : fmt::format("supervision clock: {}", c.reason));
   }
-  if (auto r = supervisor_->start(); !r) {
-    stop_outputs();
-    return r;
-  }
-  if (auto r = monitor_->start(); !r) {
-    supervisor_->stop();
+  if (auto r = service_->start(); !r) {  // the supervisor's thread, then the monitor's
     stop_outputs();
     return r;
   }
@@ -219,14 +217,13 @@ void System::stop() {
     if (it->activity) it->activity->stop();
   }
   for (auto it = extensions_.rbegin(); it != extensions_.rend(); ++it) (*it)->stop();
-  supervisor_->stop();  // joins after a last full drain
-  monitor_->stop();
+  (void)service_->stop();  // the supervisor joins after a last full drain, then the monitor
   stop_outputs();
   running_ = false;
 }
 
 ReportSet System::reports() const {
-  ReportSet r = monitor_->latest();
+  ReportSet r = service_->monitor().latest();
   for (const auto& e : extensions_) e->contribute(r);
   return r;
 }
@@ -243,8 +240,7 @@ void System::contribute(ReportSet& reports,
 }
 
 ReportSet System::step_monitor() {
-  if (!supervisor_->running()) supervisor_->step();
-  ReportSet r = monitor_->step();
+  ReportSet r = service_->step();  // drains first when the supervisor's thread does not run
   for (const auto& e : extensions_) e->contribute(r);
   return r;
 }

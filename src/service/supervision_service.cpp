@@ -87,6 +87,19 @@ class ExporterOutput final : public ReportOutput {
   std::unique_ptr<exporter::MonitorExporter> exporter_;
 };
 
+supervisor::AggregatorOptions aggregator_options(const SupervisionServiceOptions& o) {
+  supervisor::AggregatorOptions a = o.aggregator;
+  a.ewma_weight = o.ewma_weight;
+  a.clock = o.clock;
+  return a;
+}
+
+supervisor::SupervisorOptions supervisor_options(const SupervisionServiceOptions& o) {
+  supervisor::SupervisorOptions s = o.supervisor;
+  s.period_ns = o.supervisor_period_ns;
+  return s;
+}
+
 MonitorOptions monitor_options(const SupervisionServiceOptions& o) {
   MonitorOptions m = o.monitor;
   m.period_ns = o.monitor_period_ns;
@@ -99,10 +112,8 @@ MonitorOptions monitor_options(const SupervisionServiceOptions& o) {
 SupervisionService::SupervisionService(SupervisionServiceOptions options)
     : options_(std::move(options)),
       registry_(options_.registry != nullptr ? *options_.registry : default_registry()),
-      aggregator_(supervisor::AggregatorOptions{.ewma_weight = options_.ewma_weight,
-                                                .clock = options_.clock}),
-      supervisor_(registry_, aggregator_,
-                  supervisor::SupervisorOptions{.period_ns = options_.supervisor_period_ns}),
+      aggregator_(aggregator_options(options_)),
+      supervisor_(registry_, aggregator_, supervisor_options(options_)),
       monitor_(aggregator_, monitor_options(options_)) {
   monitor_.set_supervisor(&supervisor_);
   if (options_.summary_file != nullptr) {

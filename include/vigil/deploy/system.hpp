@@ -1,6 +1,7 @@
 #pragma once
 /// @file
-/// `System`: a running deployment. It creates the registry, supervisor, monitor, activities and
+/// `System`: a running deployment. It creates the registry, the supervision pipeline (a
+/// `vigil::service::SupervisionService`: aggregator, supervisor, monitor), the activities and the
 /// components of a DeploymentSpec, configures and starts everything in the right order, and stops
 /// it in reverse; the user never orders anything by hand.
 ///
@@ -29,6 +30,7 @@
 #include "vigil/monitor/monitor.hpp"
 #include "vigil/monitor/threshold_file.hpp"
 #include "vigil/platform/memory.hpp"
+#include "vigil/service/supervision_service.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 
 namespace vigil::deploy {
@@ -71,9 +73,14 @@ class System {
 
   [[nodiscard]] const DeploymentSpec& spec() const noexcept { return spec_; }
   [[nodiscard]] Registry<task::Message>& registry() noexcept { return registry_; }
-  [[nodiscard]] supervisor::ComponentAggregator& aggregator() noexcept { return *aggregator_; }
-  [[nodiscard]] supervisor::TaskSupervisor& supervisor() noexcept { return *supervisor_; }
-  [[nodiscard]] Monitor& monitor() noexcept { return *monitor_; }
+  /// The supervision pipeline (aggregator, supervisor, monitor) the system owns, configured
+  /// from the deployment's `supervision:` section. Start and stop it through the system.
+  [[nodiscard]] service::SupervisionService& service() noexcept { return *service_; }
+  [[nodiscard]] supervisor::ComponentAggregator& aggregator() noexcept {
+    return service_->aggregator();
+  }
+  [[nodiscard]] supervisor::TaskSupervisor& supervisor() noexcept { return service_->supervisor(); }
+  [[nodiscard]] Monitor& monitor() noexcept { return service_->monitor(); }
   /// The exporter serving `outputs.http` / `outputs.textfile` while the system runs (e.g.
   /// `exporter()->http()->address()` for the port chosen for `listen: 0`); null when the
   /// deployment has neither or the system is stopped. Control thread.
@@ -111,13 +118,12 @@ class System {
 
   DeploymentSpec spec_;
   Registry<task::Message> registry_;
-  std::unique_ptr<supervisor::ComponentAggregator> aggregator_;
-  std::unique_ptr<supervisor::TaskSupervisor> supervisor_;
-  std::unique_ptr<Monitor> monitor_;
-  std::optional<ThresholdFile> thresholds_file_;  // after monitor_: detached before it dies
+  std::unique_ptr<service::SupervisionService> service_;  // after registry_: dies before it
+  std::optional<ThresholdFile>
+      thresholds_file_;  // after service_: detached before its monitor dies
   std::vector<std::unique_ptr<Extension>> extensions_;
   std::vector<Slot> slots_;
-  // After monitor_ and extensions_ (its publication uses both): destroyed before them.
+  // After service_ and extensions_ (its publication uses both): destroyed before them.
   std::unique_ptr<exporter::MonitorExporter> exporter_;
   std::string output_error_;
   std::vector<std::string> log_;

@@ -98,9 +98,15 @@ struct SupervisionServiceOptions {
   std::optional<exporter::HttpOptions> http{};
   /// Rewrite this node-exporter textfile (`.prom`) after every monitor cycle; empty: none.
   std::filesystem::path prom_textfile{};
-  /// The monitor's options apart from its period (checks, thread stats, names). Its clock must
-  /// be `clock` (the service sets both).
+  /// The monitor's options apart from its period (checks, thread stats, names, stack). Its clock
+  /// must be `clock` (the service sets both).
   MonitorOptions monitor{};
+  /// The aggregator's options apart from `ewma_weight` and `clock` (the service sets both from
+  /// the fields above): warm-up, watchdog, flight recorder, event queue, auto-clear, state events.
+  supervisor::AggregatorOptions aggregator{};
+  /// The supervisor's options apart from its period (`supervisor_period_ns`): batch, thread
+  /// name, stack size, its own clock.
+  supervisor::SupervisorOptions supervisor{};
   /// The clock that stamps arrivals and times the monitor's windows.
   Clock clock = Clock::system();
 };
