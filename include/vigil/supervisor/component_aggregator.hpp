@@ -111,10 +111,10 @@ struct ComponentSnapshot {
 struct ComponentDistributions {
   std::uint32_t id = 0;
   std::string_view name;
-  const RunningStats* user = nullptr;      ///< on_update() alone
-  const RunningStats* latency = nullptr;   ///< wake-up latency
-  const RunningStats* period = nullptr;    ///< start-to-start of consecutive cycles
-  const RunningStats* overhead = nullptr;  ///< supervision's own time per cycle (sampled)
+  const CompactRunningStats* user = nullptr;      ///< on_update() alone
+  const CompactRunningStats* latency = nullptr;   ///< wake-up latency
+  const CompactRunningStats* period = nullptr;    ///< start-to-start of consecutive cycles
+  const CompactRunningStats* overhead = nullptr;  ///< supervision's own time per cycle (sampled)
   /// Total time has no histogram of its own: it is user time plus this (the latest measured
   /// overhead), as for `ComponentSnapshot::total_ns`' percentiles.
   Nanos total_shift_ns = 0;
@@ -187,6 +187,9 @@ class ComponentAggregator {
   /// Any other message type (one added to `Message` later): ignored until a handler cares.
   template <class M>
   void on(const Entry& /*e*/, const M& /*m*/) {}
+  /// A batch of `n` messages of the current port, in order: the same as `on()` for each, with
+  /// cycle samples handled without a variant dispatch (the supervisor calls this when present).
+  void on_batch(const Entry& e, const Message* messages, std::size_t n);
   void end(const Entry& e, const PortDrain& d);
   void on_cycle(const SupervisorCycle& c);
 
@@ -229,7 +232,8 @@ class ComponentAggregator {
 
  private:
   Slot* slot_for(const Entry& e);
-  void raise(Slot& s, Event e);  // the slot is locked by the caller
+  void take_sample(Slot& s, const CycleSample& m);  // all but the copy into data.last
+  void raise(Slot& s, Event e);                      // the slot is locked by the caller
   void resolve_pending(Slot& s, const CycleSample* sample);
   void watch(Slot& s, Nanos now);
   std::size_t clear_slot(Slot& s, const char* why);

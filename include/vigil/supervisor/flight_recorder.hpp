@@ -66,6 +66,20 @@ class FlightRing {
   [[nodiscard]] std::size_t size() const noexcept { return size_; }
   [[nodiscard]] std::size_t capacity() const noexcept { return slots_.size(); }
   [[nodiscard]] bool empty() const noexcept { return size_ == 0; }
+  /// The slot for one more cycle, to be filled in place by the caller (every field: it holds an
+  /// old record), overwriting the oldest when full; null when the ring has no slots. Never
+  /// allocates.
+  [[nodiscard]] CycleRecord* emplace() noexcept {
+    if (slots_.empty()) return nullptr;
+    CycleRecord* r = &slots_[next_];
+    next_ = next_ + 1 == slots_.size() ? 0 : next_ + 1;
+    if (size_ < slots_.size()) ++size_;
+    return r;
+  }
+  /// The slot the next push writes (null when the ring has no slots): for prefetching.
+  [[nodiscard]] const CycleRecord* next_slot() const noexcept {
+    return slots_.empty() ? nullptr : &slots_[next_];
+  }
   /// The newest record; only when !empty().
   [[nodiscard]] const CycleRecord& back() const noexcept {
     return slots_[next_ == 0 ? slots_.size() - 1 : next_ - 1];
