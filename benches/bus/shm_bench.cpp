@@ -131,28 +131,9 @@ void overhead(benchmark::State& state) {
     (void)run_batch(floor);
     (void)run_batch(subject);
   }
-  std::vector<double> floor_ns;
-  std::vector<double> subject_ns;
-  std::vector<double> ratios;
-  bool subject_first = false;
-  for (auto _ : state) {
-    poller.wait_next_poll();
-    Nanos tf = 0;
-    Nanos ts = 0;
-    if (subject_first) {
-      ts = run_batch(subject);
-      tf = run_batch(floor);
-    } else {
-      tf = run_batch(floor);
-      ts = run_batch(subject);
-    }
-    subject_first = !subject_first;
-    floor_ns.push_back(static_cast<double>(tf) / kBatch);
-    subject_ns.push_back(static_cast<double>(ts) / kBatch);
-    ratios.push_back(static_cast<double>(ts) / static_cast<double>(tf));
-    state.SetIterationTime(static_cast<double>(ts) * 1e-9 / kBatch);
-  }
-  report_vs(state, "ns/cycle", median(subject_ns), median(floor_ns), median(ratios));
+  measure_pair(
+      state, "ns/cycle", kBatch, [&] { poller.wait_next_poll(); }, [&] { return run_batch(floor); },
+      [&] { return run_batch(subject); });
   state.counters["goal_ratio_max"] = 1.05;
   state.counters["dropped"] = static_cast<double>(subject.task->port()->dropped());
 }
@@ -174,27 +155,8 @@ void overhead_cold(benchmark::State& state) {
     (void)one(floor);
     (void)one(subject);
   }
-  std::vector<double> floor_ns;
-  std::vector<double> subject_ns;
-  std::vector<double> ratios;
-  bool subject_first = false;
-  for (auto _ : state) {
-    Nanos tf = 0;
-    Nanos ts = 0;
-    if (subject_first) {
-      ts = one(subject);
-      tf = one(floor);
-    } else {
-      tf = one(floor);
-      ts = one(subject);
-    }
-    subject_first = !subject_first;
-    floor_ns.push_back(static_cast<double>(tf));
-    subject_ns.push_back(static_cast<double>(ts));
-    ratios.push_back(static_cast<double>(ts) / static_cast<double>(tf));
-    state.SetIterationTime(static_cast<double>(ts) * 1e-9);
-  }
-  report_vs(state, "ns/cycle", median(subject_ns), median(floor_ns), median(ratios));
+  measure_pair(
+      state, "ns/cycle", 1.0, [&] {}, [&] { return one(floor); }, [&] { return one(subject); });
   state.counters["dropped"] = static_cast<double>(subject.task->port()->dropped());
 }
 

@@ -330,28 +330,9 @@ void sniffer_per_frame(benchmark::State& state) {
     }
   }
   const std::uint64_t dropped0 = subject.dropped();
-  std::vector<double> floor_ns;
-  std::vector<double> subject_ns;
-  std::vector<double> ratios;
-  bool subject_first = false;
-  for (auto _ : state) {
-    poller.wait_next_poll();
-    Nanos tf = 0;
-    Nanos ts = 0;
-    if (subject_first) {
-      ts = run_can_batch(subject);
-      tf = run_can_batch(floor);
-    } else {
-      tf = run_can_batch(floor);
-      ts = run_can_batch(subject);
-    }
-    subject_first = !subject_first;
-    floor_ns.push_back(static_cast<double>(tf) / kCanBatch);
-    subject_ns.push_back(static_cast<double>(ts) / kCanBatch);
-    ratios.push_back(static_cast<double>(ts) / static_cast<double>(tf));
-    state.SetIterationTime(static_cast<double>(ts) * 1e-9 / kCanBatch);
-  }
-  report_vs(state, "ns/frame", median(subject_ns), median(floor_ns), median(ratios));
+  measure_pair(
+      state, "ns/frame", kCanBatch, [&] { poller.wait_next_poll(); },
+      [&] { return run_can_batch(floor); }, [&] { return run_can_batch(subject); });
   if (filtered) state.counters["goal_ratio_max"] = 1.5;
   state.counters["dropped_per_frame"] = static_cast<double>(subject.dropped() - dropped0) /
                                         (static_cast<double>(state.iterations()) * kCanBatch);

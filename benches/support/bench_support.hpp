@@ -237,6 +237,40 @@ inline void report_vs(benchmark::State& state, const char* unit, double value, d
   state.counters["ratio"] = ratio;
 }
 
+/// Times `floor` and `subject` alternately, once each per benchmark iteration, and reports the
+/// medians of their ns per operation and of the per-iteration ratios (`report_vs`). Which of the
+/// two runs first flips every iteration, so neither always meets the caches the other left.
+/// `before()` runs untimed at the start of each iteration (e.g. `Poller::wait_next_poll`);
+/// `time_floor()` and `time_subject()` return the nanoseconds of `ops` operations.
+template <class Before, class TimeFloor, class TimeSubject>
+void measure_pair(benchmark::State& state, const char* unit, double ops, Before&& before,
+                  TimeFloor&& time_floor, TimeSubject&& time_subject) {
+  std::vector<double> floor_ns;
+  std::vector<double> subject_ns;
+  std::vector<double> ratios;
+  bool subject_first = false;
+  for (auto _ : state) {
+    before();
+    Nanos tf = 0;
+    Nanos ts = 0;
+    if (subject_first) {
+      ts = time_subject();
+      tf = time_floor();
+    } else {
+      tf = time_floor();
+      ts = time_subject();
+    }
+    subject_first = !subject_first;
+    floor_ns.push_back(static_cast<double>(tf) / ops);
+    subject_ns.push_back(static_cast<double>(ts) / ops);
+    ratios.push_back(static_cast<double>(ts) / static_cast<double>(tf));
+    state.SetIterationTime(static_cast<double>(ts) * 1e-9 / ops);
+  }
+  // Medians over the iterations: a batch the scheduler interrupted (the machine is shared)
+  // moves a mean, not a median.
+  report_vs(state, unit, median(subject_ns), median(floor_ns), median(ratios));
+}
+
 /// VIGIL_BENCH_FIFO=<priority>: runs the measuring thread (and the threads it creates, which
 /// inherit it) SCHED_FIFO, so that other processes of a shared machine cannot preempt a timed
 /// batch. Returns a description for the context.

@@ -3,6 +3,7 @@
 #include <charconv>
 #include <cmath>
 
+#include "utf8.hpp"
 #include "vigil/assert.hpp"
 
 namespace vigil {
@@ -17,37 +18,6 @@ void append_u_escape(std::string& out, unsigned code) {
   out += kHex[(code >> 8) & 0xF];
   out += kHex[(code >> 4) & 0xF];
   out += kHex[code & 0xF];
-}
-
-// Length of the valid UTF-8 sequence starting at s[i], or 0 when it is invalid (overlong forms,
-// surrogates, code points above U+10FFFF and truncated sequences are all invalid, per RFC 3629).
-std::size_t utf8_sequence(std::string_view s, std::size_t i, unsigned& code) {
-  const auto b = [&](std::size_t k) { return static_cast<unsigned char>(s[i + k]); };
-  const unsigned c0 = b(0);
-  std::size_t n = 0;
-  unsigned min = 0;
-  if (c0 >= 0xC2 && c0 <= 0xDF) {
-    n = 2;
-    code = c0 & 0x1F;
-    min = 0x80;
-  } else if (c0 >= 0xE0 && c0 <= 0xEF) {
-    n = 3;
-    code = c0 & 0x0F;
-    min = 0x800;
-  } else if (c0 >= 0xF0 && c0 <= 0xF4) {
-    n = 4;
-    code = c0 & 0x07;
-    min = 0x10000;
-  } else {
-    return 0;
-  }
-  if (i + n > s.size()) return 0;
-  for (std::size_t k = 1; k < n; ++k) {
-    if ((b(k) & 0xC0) != 0x80) return 0;
-    code = (code << 6) | (b(k) & 0x3F);
-  }
-  if (code < min || code > 0x10FFFF || (code >= 0xD800 && code <= 0xDFFF)) return 0;
-  return n;
 }
 
 }  // namespace
@@ -91,7 +61,7 @@ void append_json_string(std::string& out, std::string_view s) {
       continue;
     }
     unsigned code = 0;
-    const std::size_t n = utf8_sequence(s, i, code);
+    const std::size_t n = exporter::detail::utf8_sequence(s, i, code);
     if (n == 0) {
       out += "\\ufffd";  // one replacement character per invalid byte
       ++i;

@@ -10,6 +10,7 @@
 #include <optional>
 #include <vector>
 
+#include "utf8.hpp"
 #include "vigil/version.hpp"
 
 namespace vigil::exporter {
@@ -17,39 +18,6 @@ namespace vigil::exporter {
 namespace {
 
 // --- text helpers ------------------------------------------------------------------------------
-
-// Length of the valid UTF-8 sequence starting at s[i] (1 for ASCII), 0 when invalid (RFC 3629:
-// no overlong forms, surrogates or code points above U+10FFFF).
-std::size_t utf8_length(std::string_view s, std::size_t i) noexcept {
-  const auto b = [&](std::size_t k) { return static_cast<unsigned char>(s[i + k]); };
-  const unsigned c0 = b(0);
-  if (c0 < 0x80) return 1;
-  std::size_t n = 0;
-  unsigned code = 0;
-  unsigned min = 0;
-  if (c0 >= 0xC2 && c0 <= 0xDF) {
-    n = 2;
-    code = c0 & 0x1F;
-    min = 0x80;
-  } else if (c0 >= 0xE0 && c0 <= 0xEF) {
-    n = 3;
-    code = c0 & 0x0F;
-    min = 0x800;
-  } else if (c0 >= 0xF0 && c0 <= 0xF4) {
-    n = 4;
-    code = c0 & 0x07;
-    min = 0x10000;
-  } else {
-    return 0;
-  }
-  if (i + n > s.size()) return 0;
-  for (std::size_t k = 1; k < n; ++k) {
-    if ((b(k) & 0xC0) != 0x80) return 0;
-    code = (code << 6) | (b(k) & 0x3F);
-  }
-  if (code < min || code > 0x10FFFF || (code >= 0xD800 && code <= 0xDFFF)) return 0;
-  return n;
-}
 
 // Escapes `s` for a HELP line (`quote`: OpenMetrics also escapes '"').
 void append_help(std::string& out, std::string_view s, bool quote) {
@@ -314,7 +282,8 @@ void append_label_value(std::string& out, std::string_view value) {
     } else if (static_cast<unsigned char>(c) < 0x80) {
       out += c;
     } else {
-      const std::size_t n = utf8_length(value, i);
+      unsigned code = 0;
+      const std::size_t n = detail::utf8_sequence(value, i, code);
       if (n == 0) {
         out += "\xEF\xBF\xBD";  // U+FFFD
         ++i;

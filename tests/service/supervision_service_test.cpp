@@ -1,5 +1,6 @@
 #include "vigil/service/supervision_service.hpp"
 
+#include <atomic>
 #include <catch2/catch.hpp>
 #include <cstdio>
 #include <filesystem>
@@ -151,7 +152,7 @@ TEST_CASE("An output that fails to start fails start() and leaves nothing runnin
 TEST_CASE("The monitor runs on its own thread by default and the destructor stops everything",
           "[service]") {
   ComponentRegistry reg;
-  int finals = 0;
+  std::atomic<int> finals{0};  // written by the monitor's thread, read here
   {
     SupervisionService service({.registry = &reg,
                                 .supervisor_period_ns = kNanosPerMilli,
