@@ -233,7 +233,7 @@ class ComponentAggregator {
  private:
   Slot* slot_for(const Entry& e);
   void take_sample(Slot& s, const CycleSample& m);  // all but the copy into data.last
-  void raise(Slot& s, Event e);                      // the slot is locked by the caller
+  void raise(Slot& s, Event e);                     // the slot is locked by the caller
   void resolve_pending(Slot& s, const CycleSample* sample);
   void watch(Slot& s, Nanos now);
   std::size_t clear_slot(Slot& s, const char* why);
@@ -245,7 +245,8 @@ class ComponentAggregator {
   std::size_t hint_ = 0;                      // where the next port's slot probably is
   std::size_t departed_ = 0;                  // records of components that left
   Slot* current_ = nullptr;                   // the slot between begin() and end()
-  Nanos drain_time_ = 0;                      // supervisor clock at begin()
+  Nanos drain_time_ = 0;                      // supervisor clock at begin() (every 16th port)
+  std::uint32_t clock_reads_ = 0;             // ports since the clock was read
   std::atomic<log::RecordConsumer*> log_consumer_{nullptr};
   mutable std::mutex frozen_mutex_;  // frozen_: taken before the hub's lock, never after
   std::deque<std::shared_ptr<const FlightRecord>> frozen_;

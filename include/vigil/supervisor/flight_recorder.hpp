@@ -47,7 +47,7 @@ static_assert(sizeof(CycleRecord) <= 48, "keep the flight recorder's slot at 48 
 class FlightRing {
  public:
   /// Allocates `capacity` slots (0: records nothing). Not RT-safe.
-  explicit FlightRing(std::size_t capacity = 0) : slots_(capacity) {}
+  explicit FlightRing(std::size_t capacity = 0) : slots_(capacity), capacity_(capacity) {}
   /// Records one cycle, overwriting the oldest when full. Never allocates.
   void push(const CycleRecord& r) noexcept {
     if (slots_.empty()) return;
@@ -70,10 +70,10 @@ class FlightRing {
   /// old record), overwriting the oldest when full; null when the ring has no slots. Never
   /// allocates.
   [[nodiscard]] CycleRecord* emplace() noexcept {
-    if (slots_.empty()) return nullptr;
-    CycleRecord* r = &slots_[next_];
-    next_ = next_ + 1 == slots_.size() ? 0 : next_ + 1;
-    if (size_ < slots_.size()) ++size_;
+    if (capacity_ == 0) return nullptr;
+    CycleRecord* r = slots_.data() + next_;
+    next_ = next_ + 1 == capacity_ ? 0 : next_ + 1;
+    size_ += size_ < capacity_ ? 1 : 0;
     return r;
   }
   /// The slot the next push writes (null when the ring has no slots): for prefetching.
@@ -87,6 +87,7 @@ class FlightRing {
 
  private:
   std::vector<CycleRecord> slots_;
+  std::size_t capacity_ = 0;  // slots_.size(), kept: no division by 48 per record
   std::size_t next_ = 0;
   std::size_t size_ = 0;
 };

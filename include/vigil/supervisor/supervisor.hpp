@@ -225,16 +225,19 @@ class Supervisor {
     bool finished = false;
   };
 
-  // With thousands of ports nothing of the next ones is in the caches: ask for the entry two
-  // ports ahead and the port object (its vtable and indexes) one ahead.
+  // With thousands of ports nothing of the next ones is in the caches: a pipeline of hints, the
+  // entry three ports ahead, the port object (vtable, indexes) two ahead, and the next port's
+  // oldest messages (PortReader::prefetch).
   void prefetch_ahead(std::size_t k) const noexcept {
-    if (k + 2 < tracked_.size()) __builtin_prefetch(tracked_[k + 2].entry.get());
-    if (k + 1 < tracked_.size()) {
-      const auto* p = reinterpret_cast<const char*>(tracked_[k + 1].entry->port.get());
+    const std::size_t n = tracked_.size();
+    if (k + 3 < n) __builtin_prefetch(tracked_[k + 3].entry.get());
+    if (k + 2 < n) {
+      const auto* p = reinterpret_cast<const char*>(tracked_[k + 2].entry->port.get());
       __builtin_prefetch(p);
       __builtin_prefetch(p + 64);
       __builtin_prefetch(p + 128);
     }
+    if (k + 1 < n) tracked_[k + 1].entry->port->prefetch();
   }
 
   void refresh() {
