@@ -5,7 +5,9 @@
 ///
 /// Design: everything lives inline (a `LogLinearHistogram<>` plus a few scalars: 9312 bytes), so
 /// `add()` is a handful of instructions on memory the supervisor thread owns: no allocation,
-/// no lock, no virtual call. Readers in other threads get copies (`summary()` or the whole
+/// no lock, no virtual call. `CompactRunningStats` is the same with a `CompactHistogram` (the
+/// buckets of the seen range only, on the heap: 120 bytes inline), for the supervisor's
+/// per-component records, where thousands of 9 KiB histograms would not stay in the caches. Readers in other threads get copies (`summary()` or the whole
 /// object, which is trivially copyable) through whatever hand-over the Registry uses.
 
 #include <cmath>
