@@ -238,7 +238,7 @@ int run_demo(const DemoOptions& o) {
   }
   const bool events_live = platform::is_terminal(stdout) && !o.no_live;
   auto event_panel = std::make_shared<EventPanel>();
-  auto limiter = std::make_shared<EventLineLimiter>(kNanosPerSecond);
+  auto limiter = std::make_shared<supervisor::EventLineLimiter>(kNanosPerSecond);
   const std::uint64_t line_sub =
       system.aggregator().events().subscribe([event_panel, limiter, events_live](const Event& e) {
         if (e.kind == EventKind::StateChange) return;  // the lifecycle is in the table

@@ -65,7 +65,7 @@ void remove_segments(const std::string& name) {
 
 class EmptyTask : public Task<EmptyTask> {
  public:
-  explicit EmptyTask(Registry<Message>& registry) : Task("bench_task", {}, registry) {}
+  explicit EmptyTask(Registry<task::Message>& registry) : Task("bench_task", {}, registry) {}
   void on_update() { empty_update(); }
 };
 
@@ -83,9 +83,9 @@ struct TaskSubject {
     (void)task->configure();
     (void)activity->start();
     if (!shm.empty()) {
-      auto r =
-          bus::ShmReader<Message>::open(bus::shm_segment_name(shm, ::getpid(), 0),
-                                        {kShmMessageSchema, shm}, platform::effective_uid(), false);
+      auto r = bus::ShmReader<task::Message>::open(bus::shm_segment_name(shm, ::getpid(), 0),
+                                                   {task::kShmMessageSchema, shm},
+                                                   platform::effective_uid(), false);
       if (!r) std::abort();
       reader.emplace(std::move(*r));
     }
@@ -100,19 +100,19 @@ struct TaskSubject {
   [[gnu::noinline]] void cycle() noexcept { (void)activity->step(); }
   Poller::Drain drain() {
     if (reader) {
-      return [this](Message* out, std::size_t n) {
+      return [this](task::Message* out, std::size_t n) {
         auto k = reader->pop(out, nullptr, n, nullptr);
         return k ? *k : std::size_t{0};
       };
     }
-    return [p = task->port()](Message* out, std::size_t n) { return p->pop(out, n); };
+    return [p = task->port()](task::Message* out, std::size_t n) { return p->pop(out, n); };
   }
 
   std::string shm_name;
-  Registry<Message> registry;
+  Registry<task::Message> registry;
   std::unique_ptr<EmptyTask> task;
   std::unique_ptr<ManualActivity> activity;
-  std::optional<bus::ShmReader<Message>> reader;
+  std::optional<bus::ShmReader<task::Message>> reader;
 };
 
 template <class S>
@@ -185,19 +185,20 @@ struct Children {
   unpin();
   bus::ShmOptions o;
   o.name = name;
-  o.sticky_types = kShmStickyMessages;
-  auto session = bus::ShmSession::open(o, kShmMessageSchema);
+  o.sticky_types = task::kShmStickyMessages;
+  auto session = bus::ShmSession::open(o, task::kShmMessageSchema);
   if (!session) ::_exit(2);
-  std::vector<std::unique_ptr<bus::ShmPort<Message>>> ports;
+  std::vector<std::unique_ptr<bus::ShmPort<task::Message>>> ports;
   for (int c = 0; c < components; ++c) {
     auto seg = (*session)->create("p" + std::to_string(::getpid()) + ".c" + std::to_string(c), 256);
     if (!seg) ::_exit(3);
-    ports.push_back(std::make_unique<bus::ShmPort<Message>>(std::move(*seg), kShmStickyMessages));
-    TaskInfo info;
+    ports.push_back(
+        std::make_unique<bus::ShmPort<task::Message>>(std::move(*seg), task::kShmStickyMessages));
+    task::TaskInfo info;
     info.name.assign("c" + std::to_string(c));
     info.period_ns = kNanosPerMilli;
     info.threaded = true;
-    (void)ports.back()->producer().push(Message{info});
+    (void)ports.back()->producer().push(task::Message{info});
   }
   const char c = 'r';
   (void)!::write(ready_fd, &c, 1);
@@ -212,14 +213,14 @@ struct Children {
       ++cycle;
       for (std::size_t i = 0; i < ports.size(); ++i) {
         auto& p = ports[i];
-        CycleSample s;
+        task::CycleSample s;
         s.counters.cycles = cycle;
         s.release_ns = now - (10 - k) * kNanosPerMilli;
         s.start_ns = s.release_ns + 2'000;
         s.end_ns = s.start_ns + 20'000 + static_cast<Nanos>(cycle % 13) * 1'000;
         s.overhead_ns = cycle % 64 == 1 ? 150 : 0;
         s.state = TaskState::Running;
-        const Message m{s};
+        const task::Message m{s};
         if (!p->producer().push(m)) p->producer().drop(m, ++dropped[i]);
       }
     }
@@ -300,13 +301,13 @@ void daemon_cpu(benchmark::State& state) {
 
 class Spin : public Task<Spin> {
  public:
-  explicit Spin(Registry<Message>& r) : Task("victim", {}, r) {}
+  explicit Spin(Registry<task::Message>& r) : Task("victim", {}, r) {}
   void on_update() { empty_update(); }
 };
 
 [[noreturn]] void victim_child(const std::string& name, int ready_fd) {
   unpin();
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   bus::ShmOptions o;
   o.name = name;
   if (!place_in_shared_memory(reg, o)) ::_exit(2);

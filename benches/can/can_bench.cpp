@@ -298,7 +298,7 @@ class SnifferSubject {
   std::size_t next_ = 0;
   can::CanRegistry registry_;
   can::Sniffer<kSnifferCapacity> sniffer_;
-  std::vector<std::shared_ptr<RegistryEntry<can::CanMessage>>> entries_;
+  std::vector<std::shared_ptr<bus::RegistryEntry<can::CanMessage>>> entries_;
   std::vector<can::CanMessage> buffer_;
 };
 
@@ -319,8 +319,8 @@ void sniffer_per_frame(benchmark::State& state) {
   }
   CanFloor floor(frames);
   SnifferSubject subject(frames, filtered);
-  Poller poller({[&](Message*, std::size_t) { return floor.drain(); },
-                 [&](Message*, std::size_t) { return subject.drain(); }});
+  Poller poller({[&](task::Message*, std::size_t) { return floor.drain(); },
+                 [&](task::Message*, std::size_t) { return subject.drain(); }});
   for (int i = 0; i < 3; ++i) {  // warm-up: every id and node of the log enters the tables
     poller.wait_next_poll();
     for (std::size_t k = 0; k < frames.size(); k += kCanBatch) {

@@ -102,7 +102,7 @@ struct World {
     return out;
   }
 
-  std::vector<RunningStats> user, latency, period;
+  std::vector<supervisor::RunningStats> user, latency, period;
   ReportSet reports;
   exporter::MetricsSnapshot snapshot;
 };

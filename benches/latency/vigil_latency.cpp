@@ -121,8 +121,8 @@ int main(int argc, char** argv) {
 
   // The supervisor drains the component's port every 10 ms, as in a deployment, on a CPU other
   // than the measured one (what Supervisor::start() does, plus the pinning it does not offer).
-  vigil::ComponentAggregator aggregator;
-  vigil::TaskSupervisor supervisor(vigil::default_registry(), aggregator);
+  vigil::supervisor::ComponentAggregator aggregator;
+  vigil::supervisor::TaskSupervisor supervisor(vigil::default_registry(), aggregator);
   std::atomic<bool> quit{false};
   const int ncpu = vigil::platform::cpu_count();
   const int supervisor_cpu = ncpu > 1 ? (o.cpu + 1) % ncpu : -1;

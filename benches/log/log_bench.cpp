@@ -57,7 +57,7 @@ constexpr int kBatches = 2'000;  // batches per subject per repetition
 constexpr int kWarmup = 200;     // batches before the timed ones
 constexpr double kGoalFloorRatio = 1.3;
 constexpr double kGoalSpdlogRatio = 10.0;
-using LogPort = Port<Message, kDefaultPortCapacity>;
+using LogPort = Port<task::Message, kDefaultPortCapacity>;
 
 /// The floor's call site (a real one, so the record is the same as vigil's).
 constexpr log::CallSite kFloorSite{log::Level::Info, "x {} y {} v {:.3f}", __FILE__, __LINE__,
@@ -65,7 +65,7 @@ constexpr log::CallSite kFloorSite{log::Level::Info, "x {} y {} v {:.3f}", __FIL
 
 /// Drains a port (outside the timing).
 void drain(LogPort& port) {
-  std::array<Message, 64> buf;
+  std::array<task::Message, 64> buf;
   while (port.pop(buf.data(), buf.size()) == buf.size()) {
   }
 }
@@ -73,7 +73,7 @@ void drain(LogPort& port) {
 /// The floor: write the record's fields into a Message and push it.
 struct Floor {
   LogPort port;
-  Message message{std::in_place_type<log::LogRecord>};
+  task::Message message{std::in_place_type<log::LogRecord>};
   log::LogRecord* record = std::get_if<log::LogRecord>(&message);
   std::uint64_t cycle = 1;
   Nanos time_ns = 1;
@@ -104,7 +104,7 @@ struct Vigil {
   }
 
   LogPort port;
-  log::PortSource<Message, kDefaultPortCapacity> source{"bench_log", &port};
+  log::PortSource<task::Message, kDefaultPortCapacity> source{"bench_log", &port};
 };
 
 [[gnu::noinline]] void fmt_call(char* buf, int i, int j, double d) noexcept {

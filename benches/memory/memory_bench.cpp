@@ -53,12 +53,13 @@ std::size_t heap_in_use() {
 
 class Component : public Task<Component> {
  public:
-  Component(std::string name, Registry<Message>& registry) : Task(std::move(name), {}, registry) {}
+  Component(std::string name, Registry<task::Message>& registry)
+      : Task(std::move(name), {}, registry) {}
   void on_update() { empty_update(); }
 };
 
 struct Supervised {
-  Supervised(std::string name, Registry<Message>& registry)
+  Supervised(std::string name, Registry<task::Message>& registry)
       : task(std::move(name), registry),
         activity(task, ManualConfig{.name = "memory", .period_ns = kNanosPerMilli}) {
     (void)task.configure();
@@ -73,9 +74,9 @@ void supervised_component(benchmark::State& state) {
   double per = 0;
   for (auto _ : state) {
     state.PauseTiming();
-    Registry<Message> registry;
-    ComponentAggregator aggregator;
-    TaskSupervisor supervisor(registry, aggregator);
+    Registry<task::Message> registry;
+    supervisor::ComponentAggregator aggregator;
+    supervisor::TaskSupervisor supervisor(registry, aggregator);
     MonitorOptions mo;
     mo.read_thread_stats = false;
     Monitor monitor(aggregator, mo);
@@ -98,11 +99,11 @@ void supervised_component(benchmark::State& state) {
     state.ResumeTiming();
   }
   report(state, "bytes/component", per);
-  const double sizeof_bytes =
-      static_cast<double>(sizeof(Port<Message, kDefaultPortCapacity>) +
-                          4 * (sizeof(CompactRunningStats) + 256) +
-                          FlightRecorderOptions{}.cycles * sizeof(CycleRecord) +
-                          sizeof(ComponentSnapshot) + sizeof(Supervised));
+  const double sizeof_bytes = static_cast<double>(
+      sizeof(Port<task::Message, kDefaultPortCapacity>) +
+      4 * (sizeof(supervisor::CompactRunningStats) + 256) +
+      supervisor::FlightRecorderOptions{}.cycles * sizeof(supervisor::CycleRecord) +
+      sizeof(supervisor::ComponentSnapshot) + sizeof(Supervised));
   state.counters["sizeof_bytes"] = sizeof_bytes;
 }
 
@@ -110,8 +111,8 @@ void port_size(benchmark::State& state) {
   for (auto _ : state) {
   }
   report(state, "bytes/port (sizeof)",
-         static_cast<double>(sizeof(Port<Message, kDefaultPortCapacity>)));
-  state.counters["message_bytes"] = static_cast<double>(sizeof(Message));
+         static_cast<double>(sizeof(Port<task::Message, kDefaultPortCapacity>)));
+  state.counters["message_bytes"] = static_cast<double>(sizeof(task::Message));
   state.counters["capacity"] = static_cast<double>(kDefaultPortCapacity);
 }
 

@@ -72,7 +72,7 @@ struct World {
     members.reserve(n);
     for (std::size_t i = 0; i < n; ++i) {
       members.push_back(registry.join<kCapacity>("component_" + std::to_string(i)));
-      TaskInfo info;
+      task::TaskInfo info;
       info.name.assign("component_" + std::to_string(i));
       info.activity.assign("periodic");
       info.requested_policy = SchedPolicy::Fifo;
@@ -83,10 +83,10 @@ struct World {
       info.tasks_on_thread = 1;
       info.period_ns = kNanosPerMilli;
       info.port_capacity = kCapacity;
-      (void)members.back().port()->try_push(Message{info});
-      StateChange change{
+      (void)members.back().port()->try_push(task::Message{info});
+      task::StateChange change{
           platform::now_ns(), TaskState::Stopped, TaskState::Running, Hook::Start, false, {}};
-      (void)members.back().port()->try_push(Message{change});
+      (void)members.back().port()->try_push(task::Message{change});
     }
     cycles.assign(n, 0);
     feed();
@@ -97,23 +97,23 @@ struct World {
     Nanos t = platform::now_ns() - static_cast<Nanos>(kSamplesPerCycle) * kNanosPerMilli;
     for (std::size_t k = 0; k < kSamplesPerCycle; ++k, t += kNanosPerMilli) {
       for (std::size_t i = 0; i < members.size(); ++i) {
-        CycleSample s;
+        task::CycleSample s;
         s.counters.cycles = ++cycles[i];
         s.release_ns = t;
         s.start_ns = t + 3'000;
         s.end_ns = s.start_ns + 40'000;
         s.overhead_ns = s.cycle() % 16 == 1 ? 150 : 0;
-        (void)members[i].port()->try_push(Message{s});
+        (void)members[i].port()->try_push(task::Message{s});
       }
     }
     (void)supervisor.step();
   }
 
-  Registry<Message> registry;
-  ComponentAggregator aggregator;
-  TaskSupervisor supervisor;
+  Registry<task::Message> registry;
+  supervisor::ComponentAggregator aggregator;
+  supervisor::TaskSupervisor supervisor;
   Monitor monitor;
-  std::vector<Membership<Message, kCapacity>> members;
+  std::vector<bus::Membership<task::Message, kCapacity>> members;
   std::vector<std::uint64_t> cycles;
 };
 

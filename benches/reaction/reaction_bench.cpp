@@ -43,7 +43,7 @@ void burn(Nanos ns) noexcept {
 
 class Injected : public Task<Injected> {
  public:
-  Injected(std::string name, Registry<Message>& reg)
+  Injected(std::string name, Registry<task::Message>& reg)
       : Task(std::move(name), {.detectors = Detectors::Allocation}, reg) {}
   std::atomic<bool> armed{false};
   Fault fault = Fault::Exception;
@@ -95,9 +95,9 @@ EventKind kind_of(Fault f) {
 }
 
 struct Shared {
-  Registry<Message> reg;
-  ComponentAggregator agg;
-  TaskSupervisor sup{reg, agg};
+  Registry<task::Message> reg;
+  supervisor::ComponentAggregator agg;
+  supervisor::TaskSupervisor sup{reg, agg};
   Nanos t0 = platform::now_ns();  // the monitor's 1 s grid starts here
   std::mutex m;
   std::condition_variable cv;

@@ -45,16 +45,16 @@ struct Components {
   }
 
   /// One sample, as CycleRecorder::post builds it, for component i.
-  Message sample(std::size_t i, Nanos now) {
+  task::Message sample(std::size_t i, Nanos now) {
     const std::uint64_t c = ++next[i];
-    CycleSample s;
+    task::CycleSample s;
     s.counters.cycles = c;
     s.release_ns = now;
     s.start_ns = now + 2'000 + static_cast<Nanos>(c % 7) * 100;
     s.end_ns = s.start_ns + 50'000 + static_cast<Nanos>(c % 13) * 1'000;
     s.overhead_ns = c % 16 == 1 ? 120 : 0;
     s.state = TaskState::Running;
-    return Message{s};
+    return task::Message{s};
   }
 
   /// Pushes `per_port` samples into every port (producer side; nothing else is pushing).
@@ -70,23 +70,23 @@ struct Components {
     return pushed;
   }
 
-  Registry<Message> registry;
-  std::vector<Membership<Message, kCapacity>> members;
+  Registry<task::Message> registry;
+  std::vector<bus::Membership<task::Message, kCapacity>> members;
   std::vector<std::uint64_t> next;
 };
 
 /// A handler that only looks at each message: the supervisor's drain + visit without the
 /// aggregation, to split the cost.
 struct NullHandler {
-  using Entry = RegistryEntry<Message>;
+  using Entry = bus::RegistryEntry<task::Message>;
   void on_join(const Entry&) {}
   void on_leave(const Entry&) {}
   void begin(const Entry&) {}
-  void end(const Entry&, const PortDrain&) {}
-  void on_cycle(const SupervisorCycle&) {}
+  void end(const Entry&, const supervisor::PortDrain&) {}
+  void on_cycle(const supervisor::SupervisorCycle&) {}
   template <class M>
   void on(const Entry&, const M& m) {
-    if constexpr (std::is_same_v<M, CycleSample>) sum += static_cast<std::uint64_t>(m.end_ns);
+    if constexpr (std::is_same_v<M, task::CycleSample>) sum += static_cast<std::uint64_t>(m.end_ns);
   }
   std::uint64_t sum = 0;
 };
@@ -94,8 +94,10 @@ struct NullHandler {
 /// An experiment: the aggregator with a clock that costs nothing, to show what its per-message
 /// read of the clock (ComponentAggregator::on(CycleSample): last_sample_at) costs.
 Nanos frozen_now(const void* /*ctx*/) noexcept { return 1; }
-struct AggregatorFrozenClock : ComponentAggregator {
-  AggregatorFrozenClock() : ComponentAggregator(AggregatorOptions{.clock = Clock{&frozen_now}}) {}
+struct AggregatorFrozenClock : supervisor::ComponentAggregator {
+  AggregatorFrozenClock()
+      : supervisor::ComponentAggregator(
+            supervisor::AggregatorOptions{.clock = Clock{&frozen_now}}) {}
 };
 
 template <class Handler>
@@ -104,12 +106,13 @@ void throughput(benchmark::State& state) {
   const auto per_port = static_cast<std::size_t>(state.range(1));
   Components comps(n);
   Handler handler;
-  Supervisor<Message, Handler> supervisor(comps.registry, handler);
+  supervisor::Supervisor<task::Message, Handler> supervisor(comps.registry, handler);
   (void)supervisor.step();  // joins
   // Warm-up: until the aggregator's warm-up (100 ms of the components' clock, 1 ms per sample)
   // is over, so that the timed steps are the steady state: records and histograms touched and
   // grown, no sample kept out of the statistics.
-  const std::size_t warmup_rounds = 1 + AggregatorOptions{}.warmup_ns / kNanosPerMilli / per_port;
+  const std::size_t warmup_rounds =
+      1 + supervisor::AggregatorOptions{}.warmup_ns / kNanosPerMilli / per_port;
   for (std::size_t r = 0; r < warmup_rounds; ++r) {
     (void)comps.fill(per_port);
     (void)supervisor.step();
@@ -134,7 +137,7 @@ void throughput(benchmark::State& state) {
   const double per_second = median(rates);
   report(state, "msg/s", per_second);
   state.counters["ns_per_msg"] = 1e9 / per_second;
-  if constexpr (std::is_same_v<Handler, ComponentAggregator>) {
+  if constexpr (std::is_same_v<Handler, supervisor::ComponentAggregator>) {
     state.counters["goal_value_min"] =
         n >= 10'000 ? kGoalMessagesPerSecond10k : kGoalMessagesPerSecond;
   }
@@ -148,8 +151,8 @@ void cpu_share(benchmark::State& state) {
   int runs = 0;
   for (auto _ : state) {
     Components comps(n);
-    ComponentAggregator aggregator;
-    TaskSupervisor supervisor(comps.registry, aggregator);
+    supervisor::ComponentAggregator aggregator;
+    supervisor::TaskSupervisor supervisor(comps.registry, aggregator);
     (void)supervisor.step();
     std::atomic<bool> quit{false};
     Nanos cpu = 0;
@@ -157,7 +160,7 @@ void cpu_share(benchmark::State& state) {
     std::uint64_t visited = 0;
     std::thread consumer([&] {
       pin_to_cpu(consumer_cpu());
-      const Nanos period = SupervisorOptions{}.period_ns;
+      const Nanos period = supervisor::SupervisorOptions{}.period_ns;
       const Nanos c0 = thread_cpu_ns();
       const Nanos w0 = platform::now_ns();
       Nanos next = w0;
@@ -198,7 +201,7 @@ void cpu_share(benchmark::State& state) {
 }  // namespace
 }  // namespace vigil::bench
 
-BENCHMARK(vigil::bench::throughput<vigil::ComponentAggregator>)
+BENCHMARK(vigil::bench::throughput<vigil::supervisor::ComponentAggregator>)
     ->Name("supervisor/throughput")
     ->ArgNames({"components", "per_port"})
     ->ArgsProduct({{1, 100, 1'000, 10'000}, {10, 256}})

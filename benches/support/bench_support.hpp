@@ -89,13 +89,13 @@ inline Nanos cpu_clock_cost() {
 [[gnu::noinline]] inline void empty_update() noexcept { benchmark::ClobberMemory(); }
 
 /// The period the consumer polls at: the supervisor's default (10 ms).
-inline Nanos consumer_period_ns() { return SupervisorOptions{}.period_ns; }
+inline Nanos consumer_period_ns() { return supervisor::SupervisorOptions{}.period_ns; }
 
 /// A consumer thread, pinned, that pops every queue it was given once per period (never spins),
 /// as the supervisor does, and counts its polls so that a producer can wait for the next one.
 class Poller {
  public:
-  using Drain = std::function<std::size_t(Message*, std::size_t)>;
+  using Drain = std::function<std::size_t(task::Message*, std::size_t)>;
 
   explicit Poller(std::vector<Drain> drains, Nanos period_ns = consumer_period_ns())
       : drains_(std::move(drains)), period_ns_(period_ns), buffer_(64) {
@@ -157,7 +157,7 @@ class Poller {
 
   std::vector<Drain> drains_;
   Nanos period_ns_;
-  std::vector<Message> buffer_;
+  std::vector<task::Message> buffer_;
   std::atomic<bool> quit_{false};
   std::atomic<std::uint64_t> started_{0};
   std::atomic<std::uint64_t> completed_{0};
@@ -174,19 +174,20 @@ class Floor {
     const Nanos t0 = platform::now_ns();
     empty_update();
     const Nanos t1 = platform::now_ns();
-    CycleSample s;
+    task::CycleSample s;
     s.counters.cycles = ++cycles_;
     s.start_ns = t0;
     s.end_ns = t1;
-    pushed_ += queue_.push(Message{s}) ? 1 : 0;
+    pushed_ += queue_.push(task::Message{s}) ? 1 : 0;
   }
   [[nodiscard]] Poller::Drain drain() {
-    return [this](Message* out, std::size_t n) { return queue_.pop(out, n); };
+    return [this](task::Message* out, std::size_t n) { return queue_.pop(out, n); };
   }
   [[nodiscard]] std::uint64_t pushed() const noexcept { return pushed_; }
 
  private:
-  boost::lockfree::spsc_queue<Message, boost::lockfree::capacity<kDefaultPortCapacity>> queue_;
+  boost::lockfree::spsc_queue<task::Message, boost::lockfree::capacity<kDefaultPortCapacity>>
+      queue_;
   std::uint64_t cycles_ = 0;
   std::uint64_t pushed_ = 0;
 };
@@ -197,7 +198,7 @@ class Floor {
 class Floor128 {
  public:
   struct alignas(64) Slot {
-    CycleSample sample;
+    task::CycleSample sample;
   };
   static_assert(sizeof(Slot) == 128);
 
@@ -212,7 +213,7 @@ class Floor128 {
     pushed_ += queue_.push(s) ? 1 : 0;
   }
   [[nodiscard]] Poller::Drain drain() {
-    return [this](Message*, std::size_t) {
+    return [this](task::Message*, std::size_t) {
       return queue_.consume_all(
           [](const Slot& s) { benchmark::DoNotOptimize(s.sample.counters.cycles); });
     };

@@ -51,7 +51,7 @@ constexpr Nanos kPeriod = kNanosPerMilli;
 
 class EmptyTask : public Task<EmptyTask> {
  public:
-  EmptyTask(Registry<Message>& registry, SupervisionOptions options)
+  EmptyTask(Registry<task::Message>& registry, SupervisionOptions options)
       : Task("bench_task", options, registry) {}
   void on_update() { empty_update(); }
 };
@@ -75,11 +75,11 @@ struct TaskSubject {
   ~TaskSubject() { (void)activity.stop(); }
   [[gnu::noinline]] void cycle() noexcept { (void)activity.step(); }
   Poller::Drain drain() {
-    return [p = task.port()](Message* out, std::size_t n) { return p->pop(out, n); };
+    return [p = task.port()](task::Message* out, std::size_t n) { return p->pop(out, n); };
   }
   std::uint64_t dropped() const { return task.port()->dropped(); }
 
-  Registry<Message> registry;
+  Registry<task::Message> registry;
   EmptyTask task;
   ManualActivity activity;
 };
@@ -92,7 +92,7 @@ struct BareSubject {
   ~BareSubject() { (void)activity.stop(); }
   [[gnu::noinline]] void cycle() noexcept { (void)activity.step(); }
   Poller::Drain drain() {
-    return [](Message*, std::size_t) { return std::size_t{0}; };
+    return [](task::Message*, std::size_t) { return std::size_t{0}; };
   }
   std::uint64_t dropped() const { return 0; }
 
@@ -109,11 +109,11 @@ struct GuardSubject {
     empty_update();
   }
   Poller::Drain drain() {
-    return [p = sup.port()](Message* out, std::size_t n) { return p->pop(out, n); };
+    return [p = sup.port()](task::Message* out, std::size_t n) { return p->pop(out, n); };
   }
   std::uint64_t dropped() const { return sup.port()->dropped(); }
 
-  Registry<Message> registry;
+  Registry<task::Message> registry;
   Instrumentation sup;
 };
 
@@ -136,7 +136,7 @@ struct LttngSubject {
     lttng_ust_tracepoint(vigil_bench, cycle_end, c);
   }
   Poller::Drain drain() {
-    return [](Message*, std::size_t) { return std::size_t{0}; };
+    return [](task::Message*, std::size_t) { return std::size_t{0}; };
   }
   std::uint64_t dropped() const { return 0; }
   unsigned long cycles = 0;

@@ -61,8 +61,8 @@ int main(int argc, char** argv) {
     }
   }
 
-  vigil::ComponentAggregator aggregator;
-  vigil::TaskSupervisor supervisor(vigil::default_registry(), aggregator);
+  vigil::supervisor::ComponentAggregator aggregator;
+  vigil::supervisor::TaskSupervisor supervisor(vigil::default_registry(), aggregator);
   vigil::Monitor monitor(aggregator, {.period_ns = 500 * vigil::kNanosPerMilli});
   monitor.set_supervisor(&supervisor);
   monitor.add_check<LatencyCheck>();         // the registration line

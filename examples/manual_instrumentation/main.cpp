@@ -42,8 +42,8 @@ class Gripper : public VendorLoopBase {
 };
 
 int main() {
-  vigil::ComponentAggregator aggregator;
-  vigil::TaskSupervisor supervisor(vigil::default_registry(), aggregator);
+  vigil::supervisor::ComponentAggregator aggregator;
+  vigil::supervisor::TaskSupervisor supervisor(vigil::default_registry(), aggregator);
   vigil::Monitor monitor(aggregator);
   supervisor.start();
 

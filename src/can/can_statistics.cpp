@@ -50,7 +50,9 @@ StatsSummary exact_summary(std::vector<Nanos>& samples) {
   long double sum = 0;
   for (const Nanos v : samples) sum += static_cast<long double>(v);
   s.mean = static_cast<double>(sum / static_cast<long double>(n));
-  const auto at = [&](double q) { return samples[vigil::detail::nearest_rank(q, n) - 1]; };
+  const auto at = [&](double q) {
+    return samples[vigil::supervisor::detail::nearest_rank(q, n) - 1];
+  };
   s.p50 = at(0.5);
   s.p90 = at(0.9);
   s.p99 = at(0.99);
@@ -108,7 +110,7 @@ struct Scalars {
   Nanos last = 0;
   Nanos min = 0;
   Nanos max = 0;
-  vigil::detail::WideSum sum;
+  vigil::supervisor::detail::WideSum sum;
   double ewma = 0;
 
   void add(Nanos v, double weight) {
@@ -157,16 +159,16 @@ struct Timing {
   std::uint64_t records = 0;
   Nanos first_record = 0;
   Nanos last_record = 0;
-  std::unique_ptr<RunningStats> io;   // live mode
-  std::unique_ptr<RunningStats> gap;  // live mode
-  Scalars io_exact;                   // exact mode
-  Scalars gap_exact;                  // exact mode
-  std::vector<Nanos> gaps;            // exact mode: every gap
+  std::unique_ptr<supervisor::RunningStats> io;   // live mode
+  std::unique_ptr<supervisor::RunningStats> gap;  // live mode
+  Scalars io_exact;                               // exact mode
+  Scalars gap_exact;                              // exact mode
+  std::vector<Nanos> gaps;                        // exact mode: every gap
 
   void init(bool exact, double weight) {
     if (exact) return;
-    io = std::make_unique<RunningStats>();
-    gap = std::make_unique<RunningStats>();
+    io = std::make_unique<supervisor::RunningStats>();
+    gap = std::make_unique<supervisor::RunningStats>();
     static_cast<void>(io->set_ewma_weight(weight));
     static_cast<void>(gap->set_ewma_weight(weight));
   }
@@ -455,7 +457,7 @@ void CanAggregator::on(const Entry& /*e*/, const FrameRecord& r) {
   }
 }
 
-void CanAggregator::end(const Entry& /*e*/, const PortDrain& d) {
+void CanAggregator::end(const Entry& /*e*/, const supervisor::PortDrain& d) {
   Impl& m = *impl_;
   if (m.current != nullptr) {
     m.current->info.totals.dropped = d.dropped;
@@ -465,7 +467,7 @@ void CanAggregator::end(const Entry& /*e*/, const PortDrain& d) {
   m.mutex.unlock();
 }
 
-void CanAggregator::on_cycle(const SupervisorCycle& c) {
+void CanAggregator::on_cycle(const supervisor::SupervisorCycle& c) {
   std::lock_guard lock(impl_->mutex);
   impl_->cycles = c.cycle;
 }
@@ -499,7 +501,7 @@ void CanAggregator::visit_gap_distributions(
     visit(d);
   }
   const bool exact = m.options.exact_percentiles;
-  RunningStats merged;  // 9 KB: reused for every group (reset() clears the histogram)
+  supervisor::RunningStats merged;  // 9 KB: reused for every group (reset() clears the histogram)
   std::vector<Nanos> gaps;
   for (const GroupSpec& g : groups) {
     for (const Direction dir : {Direction::Rx, Direction::Tx}) {
@@ -615,8 +617,8 @@ CanSnapshot CanAggregator::snapshot(std::span<const GroupSpec> groups) const {
     c.name = std::move(name);
     c.group = group;
     c.direction = d;
-    RunningStats io;
-    RunningStats gap;
+    supervisor::RunningStats io;
+    supervisor::RunningStats gap;
     static_cast<void>(io.set_ewma_weight(weight));
     static_cast<void>(gap.set_ewma_weight(weight));
     Scalars io_exact;

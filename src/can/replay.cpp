@@ -44,10 +44,10 @@ struct LogReplay::Impl {
                                                   .max_ids = options.max_ids,
                                                   .max_nodes = options.max_nodes}),
         supervisor(registry.ports(), aggregator,
-                   SupervisorOptions{.period_ns = 100 * kNanosPerMilli,
-                                     .batch = 256,
-                                     .thread_name = "vigil-can-replay",
-                                     .clock = Clock{&replay_now, &clock_ns}}) {}
+                   supervisor::SupervisorOptions{.period_ns = 100 * kNanosPerMilli,
+                                                 .batch = 256,
+                                                 .thread_name = "vigil-can-replay",
+                                                 .clock = Clock{&replay_now, &clock_ns}}) {}
 
   void feed(const Frame& f, Direction d) {
     if (frames == 0) {

@@ -14,7 +14,8 @@ CanExtension::CanExtension(can::CanConfig config) : config_(std::move(config)) {
   statistics_ = std::make_unique<can::CanAggregator>(registry_);
   supervisor_ = std::make_unique<can::CanSupervisor>(
       registry_.ports(), *statistics_,
-      SupervisorOptions{.period_ns = 100 * kNanosPerMilli, .thread_name = "vigil-can-sup"});
+      supervisor::SupervisorOptions{.period_ns = 100 * kNanosPerMilli,
+                                    .thread_name = "vigil-can-sup"});
   monitor_ = std::make_unique<can::CanMonitor>(config_);
 }
 

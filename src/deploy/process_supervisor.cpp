@@ -39,10 +39,10 @@ const char* to_string(ProcessEvent::Kind k) noexcept {
 namespace {
 
 // The aggregator asks an entry's port for its capacity; a remote port has nothing to pop here.
-class RemotePort final : public PortReader<Message> {
+class RemotePort final : public PortReader<task::Message> {
  public:
   explicit RemotePort(std::size_t capacity) : capacity_(capacity) {}
-  std::size_t pop(Message* /*out*/, std::size_t /*max*/) noexcept override { return 0; }
+  std::size_t pop(task::Message* /*out*/, std::size_t /*max*/) noexcept override { return 0; }
   [[nodiscard]] std::size_t read_available() const noexcept override { return 0; }
   [[nodiscard]] std::size_t capacity() const noexcept override { return capacity_; }
 
@@ -50,13 +50,13 @@ class RemotePort final : public PortReader<Message> {
   std::size_t capacity_;
 };
 
-using Entry = RegistryEntry<Message>;
+using Entry = bus::RegistryEntry<task::Message>;
 
 struct Process;
 
 struct Segment {
   std::string name;
-  bus::ShmReader<Message> reader;
+  bus::ShmReader<task::Message> reader;
   std::shared_ptr<Entry> entry;
   Process* process = nullptr;
   std::uint32_t incarnation = 1;
@@ -102,12 +102,12 @@ struct ProcessSupervisor::Impl {
   explicit Impl(ProcessSupervisorOptions o)
       : options(std::move(o)),
         aggregator([&] {
-          AggregatorOptions a = options.aggregator;
+          supervisor::AggregatorOptions a = options.aggregator;
           a.clock = options.monitor.clock;  // silences compare the two
           return a;
         }()),
         monitor(aggregator, options.monitor) {
-    expectation.schema = kShmMessageSchema;
+    expectation.schema = task::kShmMessageSchema;
     expectation.supervisor_name = options.name;
     segment_prefix = bus::shm_segment_prefix(options.name);
     uid = platform::effective_uid();
@@ -119,7 +119,7 @@ struct ProcessSupervisor::Impl {
   static constexpr std::size_t kShmMaxBatch = 256;
 
   ProcessSupervisorOptions options;
-  ComponentAggregator aggregator;
+  supervisor::ComponentAggregator aggregator;
   Monitor monitor;
   bus::ShmExpectation expectation;
   std::uint32_t uid = 0;
@@ -146,7 +146,7 @@ struct ProcessSupervisor::Impl {
   bool dir_changed = false;  // the drain thread saw our segments' names change while it slept
   Nanos next_scan = 0;
   std::uint32_t next_id = 1;
-  std::vector<Message> buffer;
+  std::vector<task::Message> buffer;
   std::vector<std::uint64_t> seqs;
   std::vector<ProcessEvent> events;
   // Statistics.
@@ -154,7 +154,7 @@ struct ProcessSupervisor::Impl {
   std::uint64_t messages = 0;
   std::uint64_t rejected_total = 0;
   std::uint64_t reclaimed = 0;
-  RunningStats cycle_time;
+  supervisor::RunningStats cycle_time;
 
   // Subscribers.
   std::mutex subscribers_mutex;
@@ -175,14 +175,14 @@ struct ProcessSupervisor::Impl {
 
   // --- messages into the aggregator -------------------------------------------------------------
 
-  void visit(Segment& s, const Message* msgs, std::size_t n, std::size_t occupancy,
+  void visit(Segment& s, const task::Message* msgs, std::size_t n, std::size_t occupancy,
              std::uint64_t dropped) {
     Entry& e = *s.entry;
     aggregator.begin(e);
     for (std::size_t i = 0; i < n; ++i) {
       std::visit([&](const auto& m) { aggregator.on(e, m); }, msgs[i]);
     }
-    PortDrain d;
+    supervisor::PortDrain d;
     d.messages = n;
     d.occupancy = occupancy;
     d.capacity = s.reader.info().geometry.capacity;
@@ -206,7 +206,7 @@ struct ProcessSupervisor::Impl {
       first = false;
       const std::size_t want = std::min(budget, buffer.size());
       if (want == 0) break;
-      auto n = s.reader.pop(buffer.data(), seqs.data(), want, &check_shm_message);
+      auto n = s.reader.pop(buffer.data(), seqs.data(), want, &task::check_shm_message);
       if (!n) return false;
       if (*n == 0) break;
       visit(s, buffer.data(), *n, occupancy, live->dropped);
@@ -217,8 +217,8 @@ struct ProcessSupervisor::Impl {
     // Emptied, but newer messages were offered than received: they were dropped (or are kept
     // for a retry) and wait in the mailboxes.
     if (s.reader.read_index() == live->write_index && live->offered > s.reader.last_seq()) {
-      std::vector<Message> late;
-      auto m = s.reader.settle(late, &check_shm_message);
+      std::vector<task::Message> late;
+      auto m = s.reader.settle(late, &task::check_shm_message);
       if (!m) return false;
       if (!late.empty()) visit(s, late.data(), late.size(), 0, live->dropped);
     }
@@ -235,11 +235,11 @@ struct ProcessSupervisor::Impl {
     const std::size_t occupancy =
         static_cast<std::size_t>(live->write_index - s.reader.read_index());
     const std::size_t n0 = std::min(occupancy, buffer.size());
-    auto n = s.reader.pop(buffer.data(), seqs.data(), n0, &check_shm_message);
+    auto n = s.reader.pop(buffer.data(), seqs.data(), n0, &task::check_shm_message);
     if (!n) return false;
     const std::uint64_t first_seq = *n > 0 ? seqs[0] : ~std::uint64_t{0};
-    std::vector<Message> early;
-    auto m = s.reader.mailboxes(early, 0, first_seq, &check_shm_message);
+    std::vector<task::Message> early;
+    auto m = s.reader.mailboxes(early, 0, first_seq, &task::check_shm_message);
     if (!m) return false;
     visit(s, early.data(), early.size(), occupancy, live->dropped);
     visit(s, buffer.data(), *n, occupancy, live->dropped);
@@ -250,8 +250,9 @@ struct ProcessSupervisor::Impl {
   // the last record.
   bool finish(Segment& s) {
     if (!drain(s, true)) return false;
-    std::vector<Message> late;
-    auto m = s.reader.mailboxes(late, s.reader.last_seq(), ~std::uint64_t{0}, &check_shm_message);
+    std::vector<task::Message> late;
+    auto m =
+        s.reader.mailboxes(late, s.reader.last_seq(), ~std::uint64_t{0}, &task::check_shm_message);
     if (!m) return false;
     if (!late.empty()) visit(s, late.data(), late.size(), 0, s.last_live.dropped);
     return true;
@@ -282,7 +283,7 @@ struct ProcessSupervisor::Impl {
   }
 
   void open_segment(const std::string& name) {
-    auto r = bus::ShmReader<Message>::open(name, expectation, uid, !options.group.empty());
+    auto r = bus::ShmReader<task::Message>::open(name, expectation, uid, !options.group.empty());
     const std::int32_t name_pid = pid_of_segment(name).value_or(0);
     if (!r) {
       const bus::ShmError& e = r.error();
@@ -455,7 +456,7 @@ struct ProcessSupervisor::Impl {
 
   Report dead_report(const Segment& s, const std::string& message) {
     Report r;
-    for (const ComponentSnapshot& snap : aggregator.snapshot()) {
+    for (const supervisor::ComponentSnapshot& snap : aggregator.snapshot()) {
       if (snap.id == s.entry->id) {
         fill_report(r, snap);
         break;
@@ -586,8 +587,8 @@ struct ProcessSupervisor::Impl {
       return kv.second.forget_at != 0 && t0 > kv.second.forget_at;
     });
     const Nanos t1 = now();
-    SupervisorCycle c{cycles + 1,      t0, t1 - t0, static_cast<std::size_t>(messages - m0),
-                      segments.size(), 0};
+    supervisor::SupervisorCycle c{
+        cycles + 1, t0, t1 - t0, static_cast<std::size_t>(messages - m0), segments.size(), 0};
     aggregator.on_cycle(c);
     ++cycles;
     cycle_time.add(t1 - t0);
@@ -867,7 +868,7 @@ const ProcessSupervisorOptions& ProcessSupervisor::options() const noexcept {
   return impl_->options;
 }
 Monitor& ProcessSupervisor::monitor() noexcept { return impl_->monitor; }
-const ComponentAggregator& ProcessSupervisor::aggregator() const noexcept {
+const supervisor::ComponentAggregator& ProcessSupervisor::aggregator() const noexcept {
   return impl_->aggregator;
 }
 

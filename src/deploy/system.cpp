@@ -10,18 +10,18 @@ namespace vigil::deploy {
 
 System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
   const SupervisionSpec& sv = spec_.supervision;
-  aggregator_ = std::make_unique<ComponentAggregator>(
-      AggregatorOptions{.ewma_weight = sv.ewma_weight,
-                        .warmup_ns = sv.warmup_ns,
-                        .watchdog = sv.watchdog,
-                        .recorder = sv.recorder,
-                        .events = {.queue_capacity = sv.event_queue},
-                        .auto_clear_ns = sv.auto_clear_ns,
-                        .state_events = sv.state_events});
-  supervisor_ = std::make_unique<TaskSupervisor>(
+  aggregator_ = std::make_unique<supervisor::ComponentAggregator>(
+      supervisor::AggregatorOptions{.ewma_weight = sv.ewma_weight,
+                                    .warmup_ns = sv.warmup_ns,
+                                    .watchdog = sv.watchdog,
+                                    .recorder = sv.recorder,
+                                    .events = {.queue_capacity = sv.event_queue},
+                                    .auto_clear_ns = sv.auto_clear_ns,
+                                    .state_events = sv.state_events});
+  supervisor_ = std::make_unique<supervisor::TaskSupervisor>(
       registry_, *aggregator_,
-      SupervisorOptions{.period_ns = spec_.supervision.supervisor_period_ns,
-                        .stack_bytes = spec_.supervision.supervisor_stack_bytes});
+      supervisor::SupervisorOptions{.period_ns = spec_.supervision.supervisor_period_ns,
+                                    .stack_bytes = spec_.supervision.supervisor_stack_bytes});
   monitor_ = std::make_unique<Monitor>(
       *aggregator_, MonitorOptions{.period_ns = spec_.supervision.monitor_period_ns,
                                    .stack_bytes = spec_.supervision.monitor_stack_bytes});
@@ -44,7 +44,8 @@ expected<std::unique_ptr<System>, config::ConfigErrors> System::create(
       root["supervision"]["shared_memory"].error(r.error().message);
     }
   } else {
-    (void)bus::place_from_environment(sys->registry_, kShmMessageSchema, kShmStickyMessages);
+    (void)bus::place_from_environment(sys->registry_, task::kShmMessageSchema,
+                                      task::kShmStickyMessages);
   }
 
   if (sys->spec_.supervision.thresholds_file) {

@@ -6,7 +6,7 @@ namespace vigil::exporter {
 
 namespace {
 
-using Histogram = RunningStats::Histogram;
+using Histogram = supervisor::RunningStats::Histogram;
 
 template <class H>
 BucketCounts reduce(const H& h, std::size_t first, std::size_t last, Nanos shift,
@@ -47,11 +47,12 @@ BucketCounts reduce_stats(const Stats& stats, Nanos shift_ns, double sum_ns) noe
 
 }  // namespace
 
-BucketCounts reduce_to_buckets(const RunningStats& stats, Nanos shift_ns, double sum_ns) noexcept {
+BucketCounts reduce_to_buckets(const supervisor::RunningStats& stats, Nanos shift_ns,
+                               double sum_ns) noexcept {
   return reduce_stats(stats, shift_ns, sum_ns);
 }
 
-BucketCounts reduce_to_buckets(const CompactRunningStats& stats, Nanos shift_ns,
+BucketCounts reduce_to_buckets(const supervisor::CompactRunningStats& stats, Nanos shift_ns,
                                double sum_ns) noexcept {
   return reduce_stats(stats, shift_ns, sum_ns);
 }

@@ -213,7 +213,7 @@ std::string format_can_report(const CanReport& r, const CanTextOptions& options)
 
 namespace {
 
-void write_summary(JsonWriter& w, const StatsSummary& s) {
+void write_summary(exporter::JsonWriter& w, const StatsSummary& s) {
   w.begin_object();
   w.field("count", s.count).field("min", s.min).field("max", s.max).field("mean", s.mean);
   w.field("ewma", s.ewma).field("last", s.last);
@@ -221,7 +221,7 @@ void write_summary(JsonWriter& w, const StatsSummary& s) {
   w.end_object();
 }
 
-void write_status(JsonWriter& w, const Status& s) {
+void write_status(exporter::JsonWriter& w, const Status& s) {
   w.field("status", to_string(s.level()));
   w.key("messages").begin_array();
   for (const StatusMessage& m : s.messages()) {
@@ -230,7 +230,7 @@ void write_status(JsonWriter& w, const Status& s) {
   w.end_array();
 }
 
-void write_totals(JsonWriter& w, const SnifferTotals& t) {
+void write_totals(exporter::JsonWriter& w, const SnifferTotals& t) {
   w.begin_object();
   w.field("frames", t.frames).field("rx", t.rx).field("tx", t.tx);
   w.field("error_frames", t.error_frames).field("remote_frames", t.remote_frames);
@@ -241,7 +241,7 @@ void write_totals(JsonWriter& w, const SnifferTotals& t) {
   w.end_object();
 }
 
-void write_node_stats(JsonWriter& w, const NodeStats& s) {
+void write_node_stats(exporter::JsonWriter& w, const NodeStats& s) {
   w.begin_object();
   w.field("frames", s.frames).field("remote_frames", s.remote_frames);
   w.field("exact_count", s.exact_count).field("records", s.records);
@@ -255,7 +255,7 @@ void write_node_stats(JsonWriter& w, const NodeStats& s) {
 }
 
 // `key: ns`, or `key: null` for a negative value (none).
-void optional_ns(JsonWriter& w, std::string_view key, Nanos ns) {
+void optional_ns(exporter::JsonWriter& w, std::string_view key, Nanos ns) {
   if (ns < 0) {
     w.key(key).null();
   } else {
@@ -263,7 +263,7 @@ void optional_ns(JsonWriter& w, std::string_view key, Nanos ns) {
   }
 }
 
-void write_us(JsonWriter& w, const StatsSummary& s) {
+void write_us(exporter::JsonWriter& w, const StatsSummary& s) {
   w.begin_object();
   if (s.count == 0) {
     w.key("mean").null().key("min").null().key("max").null();
@@ -277,7 +277,7 @@ void write_us(JsonWriter& w, const StatsSummary& s) {
 
 }  // namespace
 
-void write_can_report_members(JsonWriter& w, const CanReport& r,
+void write_can_report_members(exporter::JsonWriter& w, const CanReport& r,
                               const std::vector<std::string>& bus_names) {
   w.field("time_ns", r.time_ns);
   w.field("node_map", to_string(r.node_map));
@@ -412,7 +412,7 @@ void write_can_report_members(JsonWriter& w, const CanReport& r,
 
 std::string can_report_json(const CanReport& report, int indent,
                             const std::vector<std::string>& bus_names) {
-  JsonWriter w(indent);
+  exporter::JsonWriter w(indent);
   w.begin_object();
   w.field("schema", 1);
   write_can_report_members(w, report, bus_names);
@@ -476,7 +476,7 @@ std::string format_can_replay(const LogReplay& replay, const CanReport& report,
 }
 
 std::string can_replay_json(const LogReplay& replay, const CanReport& report, int indent) {
-  JsonWriter w(indent);
+  exporter::JsonWriter w(indent);
   w.begin_object();
   w.field("schema", 1).field("tool", "vigil can-stats");
   w.key("files").begin_array();

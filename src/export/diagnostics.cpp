@@ -10,7 +10,7 @@ namespace {
 
 std::string nanos_text(Nanos ns) { return format_nanos(static_cast<double>(ns)); }
 
-void kv(JsonWriter& w, std::string_view key, const std::string& value) {
+void kv(exporter::JsonWriter& w, std::string_view key, const std::string& value) {
   w.begin_object().field("key", key).field("value", value).end_object();
 }
 
@@ -42,7 +42,7 @@ std::string hardware_id(const Report& r) {
 }
 
 std::string to_diagnostics_json(const ReportSet& reports, std::int64_t wall_time_ns, int indent) {
-  JsonWriter w(indent);
+  exporter::JsonWriter w(indent);
   w.begin_object();
   w.key("header").begin_object();
   std::int64_t sec = wall_time_ns / 1'000'000'000;

@@ -144,7 +144,7 @@ class Pool final : public httplib::TaskQueue {
 
 // --- JSON bodies -------------------------------------------------------------------------------
 
-void write_buckets(JsonWriter& w, const BucketCounts& b) {
+void write_buckets(exporter::JsonWriter& w, const BucketCounts& b) {
   w.begin_object();
   w.key("buckets").begin_array();
   std::uint64_t below = 0;
@@ -160,7 +160,7 @@ void write_buckets(JsonWriter& w, const BucketCounts& b) {
 }
 
 std::string histograms_json(const MetricsSnapshot& s) {
-  JsonWriter w;
+  exporter::JsonWriter w;
   w.begin_object();
   w.field("schema", 1);
   w.field("cycle", s.reports.cycle);
@@ -188,7 +188,7 @@ std::string histograms_json(const MetricsSnapshot& s) {
 }
 
 std::string history_json(const MetricsSnapshot& s) {
-  JsonWriter w;
+  exporter::JsonWriter w;
   w.begin_object();
   w.field("schema", 1);
   w.field("cycle", s.reports.cycle);
@@ -238,9 +238,9 @@ std::string history_json(const MetricsSnapshot& s) {
 }
 
 std::string component_json(const MetricsSnapshot& s, const Report& r) {
-  JsonWriter w;
+  exporter::JsonWriter w;
   w.begin_object();
-  w.field("schema", kJsonSchemaVersion);
+  w.field("schema", exporter::kJsonSchemaVersion);
   w.field("generator", std::string("vigil ") + kVersion);
   w.field("cycle", s.reports.cycle);
   w.field("time_ns", s.reports.time_ns);
@@ -251,7 +251,7 @@ std::string component_json(const MetricsSnapshot& s, const Report& r) {
 }
 
 std::string error_json(std::string_view message) {
-  JsonWriter w;
+  exporter::JsonWriter w;
   w.begin_object().field("error", message).end_object();
   return w.take();
 }
@@ -600,7 +600,7 @@ void HttpServer::Impl::routes(Server& s) {
 
   if (options.events != nullptr) {
     s.Get("/api/v1/events", [this](const httplib::Request& req, httplib::Response& res) {
-      EventHub& hub = *options.events;
+      supervisor::EventHub& hub = *options.events;
       std::uint64_t after = 0;
       double wait_s = 0;
       try {
@@ -656,7 +656,7 @@ void HttpServer::Impl::routes(Server& s) {
 
   s.Get("/healthz", [this](const httplib::Request&, httplib::Response& res) {
     auto p = published();
-    JsonWriter w;
+    exporter::JsonWriter w;
     w.begin_object();
     if (!p) {
       res.status = 503;

@@ -8,12 +8,13 @@
 
 namespace vigil::exporter {
 
-MonitorExporter::MonitorExporter(Monitor& monitor, const ComponentAggregator* aggregator,
+MonitorExporter::MonitorExporter(Monitor& monitor,
+                                 const supervisor::ComponentAggregator* aggregator,
                                  ExportOptions options)
     : monitor_(monitor), aggregator_(aggregator), options_(std::move(options)) {}
 
 expected<std::unique_ptr<MonitorExporter>, Error> MonitorExporter::start(
-    Monitor& monitor, const ComponentAggregator* aggregator, ExportOptions options) {
+    Monitor& monitor, const supervisor::ComponentAggregator* aggregator, ExportOptions options) {
   std::unique_ptr<MonitorExporter> e(new MonitorExporter(monitor, aggregator, std::move(options)));
   if (e->options_.http) {
     if (aggregator != nullptr && e->options_.events) {

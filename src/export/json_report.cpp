@@ -4,7 +4,7 @@
 
 #include "vigil/version.hpp"
 
-namespace vigil {
+namespace vigil::exporter {
 
 void write_json(JsonWriter& w, const StatsSummary& s) {
   w.begin_object();
@@ -23,10 +23,11 @@ void write_json(JsonWriter& w, const StatsSummary& s) {
 
 namespace {
 
-void write_losses(JsonWriter& w, const std::array<std::uint64_t, kLossCauses>& losses) {
+void write_losses(JsonWriter& w, const std::array<std::uint64_t, task::kLossCauses>& losses) {
   w.begin_object();
-  for (int i = 0; i < kLossCauses; ++i) {
-    w.field(platform::to_string(static_cast<LossCause>(i)), losses[static_cast<std::size_t>(i)]);
+  for (int i = 0; i < task::kLossCauses; ++i) {
+    w.field(platform::to_string(static_cast<platform::LossCause>(i)),
+            losses[static_cast<std::size_t>(i)]);
   }
   w.end_object();
 }
@@ -201,4 +202,4 @@ std::string to_json(const ReportSet& reports, const JsonOptions& options) {
   return out;
 }
 
-}  // namespace vigil
+}  // namespace vigil::exporter

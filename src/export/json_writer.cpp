@@ -6,7 +6,7 @@
 #include "utf8.hpp"
 #include "vigil/assert.hpp"
 
-namespace vigil {
+namespace vigil::exporter {
 
 namespace {
 
@@ -210,4 +210,4 @@ std::string JsonWriter::take() {
   return s;
 }
 
-}  // namespace vigil
+}  // namespace vigil::exporter

@@ -4,10 +4,11 @@
 
 namespace vigil::exporter {
 
-std::vector<ComponentHistograms> collect_histograms(const ComponentAggregator& aggregator) {
+std::vector<ComponentHistograms> collect_histograms(
+    const supervisor::ComponentAggregator& aggregator) {
   std::vector<ComponentHistograms> out;
   out.reserve(aggregator.size());
-  aggregator.visit_distributions([&](const ComponentDistributions& d) {
+  aggregator.visit_distributions([&](const supervisor::ComponentDistributions& d) {
     ComponentHistograms h;
     h.id = d.id;
     h.name = std::string(d.name);

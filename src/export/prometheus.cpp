@@ -422,9 +422,9 @@ void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFor
   w.family("vigil_component_rt_losses_total", Type::Counter,
            "Real-time losses detected in the component's update, by cause.");
   each(component, [&](const Report& r) {
-    for (int i = 0; i < kLossCauses; ++i) {
+    for (int i = 0; i < task::kLossCauses; ++i) {
       w.sample_u("vigil_component_rt_losses_total", r.name,
-                 {{"cause", platform::to_string(static_cast<LossCause>(i))}},
+                 {{"cause", platform::to_string(static_cast<platform::LossCause>(i))}},
                  r.counters.losses[static_cast<std::size_t>(i)]);
     }
   });

@@ -7,7 +7,7 @@
 #include <cstdlib>
 #include <cstring>
 
-namespace vigil {
+namespace vigil::exporter {
 
 namespace {
 
@@ -76,11 +76,11 @@ std::string stats_line(const StatsSummary& s) {
       format_nanos(static_cast<double>(s.p99)), format_nanos(static_cast<double>(s.p999)), s.count);
 }
 
-std::string losses_line(const std::array<std::uint64_t, kLossCauses>& losses) {
+std::string losses_line(const std::array<std::uint64_t, task::kLossCauses>& losses) {
   std::string out;
-  for (int i = 0; i < kLossCauses; ++i) {
+  for (int i = 0; i < task::kLossCauses; ++i) {
     if (!out.empty()) out += ", ";
-    out += fmt::format("{} {}", platform::to_string(static_cast<LossCause>(i)),
+    out += fmt::format("{} {}", platform::to_string(static_cast<platform::LossCause>(i)),
                        losses[static_cast<std::size_t>(i)]);
   }
   return out;
@@ -243,4 +243,4 @@ void print_details(std::FILE* out, const ReportSet& reports, ColorMode mode) {
   std::fflush(out);
 }
 
-}  // namespace vigil
+}  // namespace vigil::exporter

@@ -26,7 +26,7 @@ std::string file_stem(std::string_view name) {
   return out;
 }
 
-void meta(JsonWriter& w, const char* what, int pid, int tid, const std::string& name) {
+void meta(exporter::JsonWriter& w, const char* what, int pid, int tid, const std::string& name) {
   w.begin_object()
       .field("name", what)
       .field("ph", "M")
@@ -44,21 +44,21 @@ void meta(JsonWriter& w, const char* what, int pid, int tid, const std::string& 
 std::string event_json(const Event& e) {
   std::string out = fmt::format(R"({{"seq":{},"kind":"{}","severity":"{}","component":)", e.seq,
                                 to_string(e.kind), to_string(e.severity));
-  append_json_string(out, e.component);
+  exporter::append_json_string(out, e.component);
   out +=
       fmt::format(R"(,"component_id":{},"cycle":{},"fault_ns":{},"detected_ns":{},"latency_ns":{},)"
                   R"("count":{},"latched":{},"traced":{},"detail":)",
                   e.component_id, e.cycle, e.fault_ns, e.detected_ns, e.latency_ns(), e.count,
                   e.latched, e.traced);
-  append_json_string(out, e.detail);
+  exporter::append_json_string(out, e.detail);
   out += '}';
   return out;
 }
 
-std::string trace_event_json(const FlightRecord& r) {
+std::string trace_event_json(const supervisor::FlightRecord& r) {
   const int pid = static_cast<int>(r.component_id) + 1;
   const int tid = r.has_info && r.info.tid != 0 ? r.info.tid : pid;
-  JsonWriter w;
+  exporter::JsonWriter w;
   w.begin_object();
   w.field("displayTimeUnit", "ms");
   w.key("traceEvents").begin_array();
@@ -71,9 +71,9 @@ std::string trace_event_json(const FlightRecord& r) {
   }
   meta(w, "thread_name", pid, tid, thread);
 
-  const CycleRecord* prev = nullptr;
-  for (const CycleRecord& c : r.cycles) {
-    const bool overrun = (c.flags & CycleRecord::kOverrun) != 0;
+  const supervisor::CycleRecord* prev = nullptr;
+  for (const supervisor::CycleRecord& c : r.cycles) {
+    const bool overrun = (c.flags & supervisor::CycleRecord::kOverrun) != 0;
     if (prev != nullptr && c.cycle != prev->cycle + 1) {
       w.begin_object()
           .field("name", fmt::format("{} cycles missing (dropped)", c.cycle - prev->cycle - 1))
@@ -99,7 +99,7 @@ std::string trace_event_json(const FlightRecord& r) {
     w.field("overhead_us", us(c.overhead_ns));
     w.field("overrun", overrun);
     w.field("missed_before", c.missed_before);
-    w.field("warmup", (c.flags & CycleRecord::kWarmup) != 0);
+    w.field("warmup", (c.flags & supervisor::CycleRecord::kWarmup) != 0);
     w.field("state", to_string(c.state));
     w.end_object();
     w.end_object();
@@ -216,11 +216,11 @@ expected<void, Error> write_file_atomically(const std::filesystem::path& path,
 
 // --- TraceWriter ---
 
-TraceWriter::TraceWriter(ComponentAggregator& aggregator, TraceWriterOptions options)
+TraceWriter::TraceWriter(supervisor::ComponentAggregator& aggregator, TraceWriterOptions options)
     : aggregator_(aggregator), options_(std::move(options)) {}
 
-expected<std::unique_ptr<TraceWriter>, Error> TraceWriter::start(ComponentAggregator& aggregator,
-                                                                 TraceWriterOptions options) {
+expected<std::unique_ptr<TraceWriter>, Error> TraceWriter::start(
+    supervisor::ComponentAggregator& aggregator, TraceWriterOptions options) {
   std::error_code ec;
   std::filesystem::create_directories(options.directory, ec);
   if (ec || !std::filesystem::is_directory(options.directory)) {
@@ -248,7 +248,7 @@ void TraceWriter::on_event(const Event& e) {
   (void)write(*record, fmt::format("{}-{}", file_stem(e.component), e.seq));
 }
 
-expected<std::filesystem::path, Error> TraceWriter::write(const FlightRecord& r,
+expected<std::filesystem::path, Error> TraceWriter::write(const supervisor::FlightRecord& r,
                                                           const std::string& stem) {
   const std::filesystem::path path = options_.directory / (stem + ".trace.json");
   auto ok = write_file_atomically(path, trace_event_json(r) + "\n");
@@ -292,11 +292,12 @@ std::string TraceWriter::error() const {
 
 // --- EventLogWriter ---
 
-EventLogWriter::EventLogWriter(EventHub& hub, std::FILE* file, std::filesystem::path path)
+EventLogWriter::EventLogWriter(supervisor::EventHub& hub, std::FILE* file,
+                               std::filesystem::path path)
     : hub_(hub), file_(file), path_(std::move(path)) {}
 
 expected<std::unique_ptr<EventLogWriter>, Error> EventLogWriter::start(
-    EventHub& hub, const std::filesystem::path& path) {
+    supervisor::EventHub& hub, const std::filesystem::path& path) {
   errno = 0;
   std::FILE* f = std::fopen(path.c_str(), "wb");
   if (f == nullptr) {

@@ -3,7 +3,7 @@
 #include <exception>
 #include <typeinfo>
 
-namespace vigil {
+namespace vigil::monitor {
 
 std::size_t CheckList::remove(std::string_view name) {
   return std::erase_if(checks_, [&](const auto& c) { return c->name() == name; });
@@ -29,4 +29,4 @@ std::vector<std::string> CheckList::names() const {
   return out;
 }
 
-}  // namespace vigil
+}  // namespace vigil::monitor

@@ -15,14 +15,14 @@
 #include "vigil/platform/thread_stats.hpp"
 #include "vigil/supervisor/running_stats.hpp"
 
-namespace vigil {
+namespace vigil::monitor {
 
 namespace {
 
 // The counters of a component at an earlier monitor cycle: the start of a window.
 struct Baseline {
   Nanos time = 0;
-  Counters counters;
+  task::Counters counters;
 };
 
 // What the monitor remembers about one component between cycles.
@@ -35,9 +35,9 @@ struct Memory {
 
 std::uint64_t minus(std::uint64_t a, std::uint64_t b) noexcept { return a >= b ? a - b : 0; }
 
-Window delta(const Counters& now, const Counters& then) noexcept {
+Window delta(const task::Counters& now, const task::Counters& then) noexcept {
   Window w;
-  static_cast<Counters&>(w) = now.since(then);
+  static_cast<task::Counters&>(w) = now.since(then);
   return w;
 }
 
@@ -45,8 +45,8 @@ Window delta(const Counters& now, const Counters& then) noexcept {
 // when window_ns is 0), or from the oldest one kept; from the counters' origin the first time.
 // Never from before the end of the component's warm-up: what it counted then stays out of every
 // window (it stays in the totals).
-Window window_of(const Memory& m, const Counters& now_counters, const Counters& warmup, Nanos now,
-                 Nanos window_ns) {
+Window window_of(const Memory& m, const task::Counters& now_counters, const task::Counters& warmup,
+                 Nanos now, Nanos window_ns) {
   if (m.history.empty()) {
     Window w = delta(now_counters, warmup);
     w.first = true;
@@ -59,7 +59,7 @@ Window window_of(const Memory& m, const Counters& now_counters, const Counters& 
       break;
     }
   }
-  Counters from = base->counters;
+  task::Counters from = base->counters;
   from.merge(warmup);
   Window w = delta(now_counters, from);
   w.first = false;
@@ -67,7 +67,7 @@ Window window_of(const Memory& m, const Counters& now_counters, const Counters& 
   return w;
 }
 
-void remember(Memory& m, const Counters& counters, Nanos now, Nanos window_ns) {
+void remember(Memory& m, const task::Counters& counters, Nanos now, Nanos window_ns) {
   m.history.push_back(Baseline{now, counters});
   // A baseline older than the newest one that is already window_ns old can never be chosen again.
   while (m.history.size() >= 2 && m.history[1].time <= now - window_ns) m.history.pop_front();
@@ -76,7 +76,7 @@ void remember(Memory& m, const Counters& counters, Nanos now, Nanos window_ns) {
 }  // namespace
 
 struct Monitor::Impl {
-  Impl(Monitor& self, const ComponentAggregator& a, MonitorOptions o)
+  Impl(Monitor& self, const supervisor::ComponentAggregator& a, MonitorOptions o)
       : owner(self),
         aggregator(a),
         options(std::move(o)),
@@ -85,19 +85,19 @@ struct Monitor::Impl {
   }
 
   Monitor& owner;
-  const ComponentAggregator& aggregator;
+  const supervisor::ComponentAggregator& aggregator;
   const MonitorOptions options;
 
   // Cycle state: everything down to step_time is guarded by step_mutex, held for a whole cycle.
   mutable std::mutex step_mutex;
   CheckList checks;
   std::unordered_map<std::uint32_t, Memory> memory;
-  const TaskSupervisor* supervisor = nullptr;
+  const supervisor::TaskSupervisor* supervisor = nullptr;
   std::uint64_t supervisor_cycles = 0;
   Nanos supervisor_changed_at = 0;
   bool supervisor_seen = false;
   std::uint64_t cycle = 0;
-  RunningStats step_time;
+  supervisor::RunningStats step_time;
 
   std::vector<std::pair<std::uint64_t, CycleHook>> hooks;  // guarded by step_mutex
 
@@ -128,8 +128,9 @@ struct Monitor::Impl {
     return thresholds;
   }
 
-  Report supervisor_report(const TaskSupervisor& sup, const ThresholdSet& th, Nanos now) {
-    const SupervisorStats st = sup.stats();
+  Report supervisor_report(const supervisor::TaskSupervisor& sup, const ThresholdSet& th,
+                           Nanos now) {
+    const supervisor::SupervisorStats st = sup.stats();
     const Thresholds& t = th.for_component(options.supervisor_name);
     Report r;
     r.kind = ReportKind::Supervisor;
@@ -237,7 +238,7 @@ struct Monitor::Impl {
   }
 };
 
-Monitor::Monitor(const ComponentAggregator& aggregator, MonitorOptions options)
+Monitor::Monitor(const supervisor::ComponentAggregator& aggregator, MonitorOptions options)
     : impl_(std::make_unique<Impl>(*this, aggregator, std::move(options))) {}
 
 Monitor::~Monitor() { stop(); }
@@ -250,7 +251,7 @@ std::unique_lock<std::mutex> Monitor::lock_checks_() const {
 
 CheckList& Monitor::checks_() noexcept { return impl_->checks; }
 
-void Monitor::set_supervisor(const TaskSupervisor* supervisor) {
+void Monitor::set_supervisor(const supervisor::TaskSupervisor* supervisor) {
   std::lock_guard lock(impl_->step_mutex);
   impl_->supervisor = supervisor;
   impl_->supervisor_seen = false;
@@ -323,7 +324,7 @@ ReportSet Monitor::step() {
     }
   }
   const std::shared_ptr<const ThresholdSet> th = m.current_thresholds();
-  const std::vector<ComponentSnapshot> snaps = m.aggregator.snapshot();
+  const std::vector<supervisor::ComponentSnapshot> snaps = m.aggregator.snapshot();
 
   ReportSet set;
   set.cycle = ++m.cycle;
@@ -344,7 +345,7 @@ ReportSet Monitor::step() {
     return it->second;
   };
 
-  for (const ComponentSnapshot& s : snaps) {
+  for (const supervisor::ComponentSnapshot& s : snaps) {
     Report r;
     fill_report(r, s);
     const Thresholds& t = th->for_component(s.name);
@@ -458,4 +459,4 @@ void Monitor::unsubscribe(std::uint64_t id) {
   std::erase_if(impl_->subscribers, [&](const auto& s) { return s.first == id; });
 }
 
-}  // namespace vigil
+}  // namespace vigil::monitor

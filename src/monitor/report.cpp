@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-namespace vigil {
+namespace vigil::monitor {
 
 const std::string* Report::value(std::string_view key) const noexcept {
   for (const auto& kv : values) {
@@ -47,7 +47,7 @@ std::string format_nanos(double ns) {
   return fmt::format("{}{:.0f}ns", sign, a);
 }
 
-void fill_report(Report& r, const ComponentSnapshot& s) {
+void fill_report(Report& r, const supervisor::ComponentSnapshot& s) {
   r.kind = ReportKind::Component;
   r.id = s.id;
   r.name = s.name;
@@ -90,4 +90,4 @@ void fill_report(Report& r, const ComponentSnapshot& s) {
   }
 }
 
-}  // namespace vigil
+}  // namespace vigil::monitor

@@ -2,7 +2,7 @@
 
 #include <utility>
 
-namespace vigil {
+namespace vigil::monitor {
 
 std::optional<StatusLevel> parse_status_level(std::string_view text) noexcept {
   for (StatusLevel l :
@@ -38,4 +38,4 @@ void Status::clear() noexcept {
   messages_.clear();
 }
 
-}  // namespace vigil
+}  // namespace vigil::monitor

@@ -5,7 +5,7 @@
 
 #include "vigil/monitor/monitor.hpp"
 
-namespace vigil {
+namespace vigil::monitor {
 
 struct ThresholdFile::State {
   explicit State(config::Reloadable<ThresholdSet> f) : file(std::move(f)) {}
@@ -97,4 +97,4 @@ std::uint64_t ThresholdFile::generation() const { return state_->file.generation
 config::ConfigErrors ThresholdFile::errors() const { return state_->file.last_errors(); }
 const std::filesystem::path& ThresholdFile::path() const { return state_->file.path(); }
 
-}  // namespace vigil
+}  // namespace vigil::monitor

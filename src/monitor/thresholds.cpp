@@ -7,7 +7,7 @@
 #include "vigil/config/load.hpp"
 #include "vigil/config/node.hpp"
 
-namespace vigil {
+namespace vigil::monitor {
 
 double Thresholds::custom_value(std::string_view key, double fallback) const {
   const auto it = custom.find(key);
@@ -132,4 +132,4 @@ expected<ThresholdSet, config::ConfigErrors> load_thresholds_string(std::string_
                              [](const config::Node& root) { return load_thresholds(root); });
 }
 
-}  // namespace vigil
+}  // namespace vigil::monitor

@@ -62,7 +62,7 @@ class JsonFileOutput final : public ReportOutput {
 // final reports.
 class ExporterOutput final : public ReportOutput {
  public:
-  ExporterOutput(Monitor& monitor, const ComponentAggregator& aggregator,
+  ExporterOutput(Monitor& monitor, const supervisor::ComponentAggregator& aggregator,
                  exporter::ExportOptions options, exporter::MonitorExporter*& slot)
       : monitor_(monitor), aggregator_(aggregator), options_(std::move(options)), slot_(slot) {}
   expected<void, Error> start() override {
@@ -81,7 +81,7 @@ class ExporterOutput final : public ReportOutput {
 
  private:
   Monitor& monitor_;
-  const ComponentAggregator& aggregator_;
+  const supervisor::ComponentAggregator& aggregator_;
   exporter::ExportOptions options_;
   exporter::MonitorExporter*& slot_;
   std::unique_ptr<exporter::MonitorExporter> exporter_;
@@ -99,9 +99,10 @@ MonitorOptions monitor_options(const SupervisionServiceOptions& o) {
 SupervisionService::SupervisionService(SupervisionServiceOptions options)
     : options_(std::move(options)),
       registry_(options_.registry != nullptr ? *options_.registry : default_registry()),
-      aggregator_(AggregatorOptions{.ewma_weight = options_.ewma_weight, .clock = options_.clock}),
+      aggregator_(supervisor::AggregatorOptions{.ewma_weight = options_.ewma_weight,
+                                                .clock = options_.clock}),
       supervisor_(registry_, aggregator_,
-                  SupervisorOptions{.period_ns = options_.supervisor_period_ns}),
+                  supervisor::SupervisorOptions{.period_ns = options_.supervisor_period_ns}),
       monitor_(aggregator_, monitor_options(options_)) {
   monitor_.set_supervisor(&supervisor_);
   if (options_.summary_file != nullptr) {

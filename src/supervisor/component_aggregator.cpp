@@ -10,7 +10,7 @@
 
 #include "vigil/task/shm_messages.hpp"
 
-namespace vigil {
+namespace vigil::supervisor {
 
 namespace {
 // Total time is user time plus the latest measured supervision overhead: its count, extremes,
@@ -43,7 +43,7 @@ struct TotalStats {
 struct ComponentAggregator::Slot {
   // --- hot: per message ---
   mutable std::mutex mutex;
-  Counters counters;                 // cumulative (ComponentSnapshot::counters)
+  task::Counters counters;           // cumulative (ComponentSnapshot::counters)
   std::uint64_t samples = 0;         // ComponentSnapshot::samples
   std::uint64_t last_cycle = 0;      // cycle of the latest sample (when has_sample)
   Nanos last_start = 0;              // its start (component clock), for the period
@@ -56,12 +56,12 @@ struct ComponentAggregator::Slot {
   TaskState state = TaskState::PreOperational;
   bool has_sample = false;
   bool warming_up = false;
-  bool warm_armed = true;  // the next sample starts a warm-up
-  bool silent = false;     // ComponentSnapshot::silent
-  bool watched = false;    // a cycle arrived since the component entered Running
+  bool warm_armed = true;           // the next sample starts a warm-up
+  bool silent = false;              // ComponentSnapshot::silent
+  bool watched = false;             // a cycle arrived since the component entered Running
   std::size_t port_high_water = 0;  // ComponentSnapshot::port_high_water
-  Nanos deadline_ns = 0;             // data.deadline_ns, for the watchdog's walk
-  FlightRing ring;                   // allocated at join
+  Nanos deadline_ns = 0;            // data.deadline_ns, for the watchdog's walk
+  FlightRing ring;                  // allocated at join
 
   // An exception or loss report waiting for the sample of its cycle (which carries its time).
   struct Pending {
@@ -206,7 +206,7 @@ void ComponentAggregator::end(const Entry& /*e*/, const PortDrain& d) {
   current_ = nullptr;
 }
 
-void ComponentAggregator::on(const Entry& /*e*/, const TaskInfo& m) {
+void ComponentAggregator::on(const Entry& /*e*/, const task::TaskInfo& m) {
   if (current_ == nullptr) return;
   current_->data.has_info = true;
   current_->data.info = m;
@@ -214,7 +214,7 @@ void ComponentAggregator::on(const Entry& /*e*/, const TaskInfo& m) {
   current_->deadline_ns = current_->data.deadline_ns;
 }
 
-void ComponentAggregator::on(const Entry& /*e*/, const CycleSample& m) {
+void ComponentAggregator::on(const Entry& /*e*/, const task::CycleSample& m) {
   if (current_ == nullptr) return;
   // Counters only grow: merging keeps the larger of each, so a late totals-only sample or an
   // exception report counted before its sample never moves one back.
@@ -223,7 +223,7 @@ void ComponentAggregator::on(const Entry& /*e*/, const CycleSample& m) {
   if (!m.totals_only) current_->data.last = m;
 }
 
-void ComponentAggregator::on_batch(const Entry& e, const Message* messages, std::size_t n) {
+void ComponentAggregator::on_batch(const Entry& e, const task::Message* messages, std::size_t n) {
   if (current_ == nullptr) return;
   Slot& s = *current_;
   // Samples, the common case, are handled without a variant dispatch; the full copy of the
@@ -231,15 +231,15 @@ void ComponentAggregator::on_batch(const Entry& e, const Message* messages, std:
   // Likewise the counters: a component's samples carry cumulative counters that only grow, so
   // merging those of the batch's latest sample equals merging each (as on() does); the merge is
   // also made before another message and whenever the warm-up needs the counters of a sample.
-  const CycleSample* latest = nullptr;   // not yet copied into data.last
-  const CycleSample* counted = nullptr;  // not yet merged into the counters
+  const task::CycleSample* latest = nullptr;   // not yet copied into data.last
+  const task::CycleSample* counted = nullptr;  // not yet merged into the counters
   const auto settle = [&] {
     if (counted != nullptr) s.counters.merge(counted->counters);
     if (latest != nullptr) s.data.last = *latest;
     latest = counted = nullptr;
   };
   for (std::size_t i = 0; i < n; ++i) {
-    if (const auto* m = std::get_if<CycleSample>(&messages[i])) [[likely]] {
+    if (const auto* m = std::get_if<task::CycleSample>(&messages[i])) [[likely]] {
       if (s.warming_up || s.warm_armed || m->totals_only) [[unlikely]] {
         s.counters.merge(m->counters);  // the warm-up copies the counters as of this sample
       } else {
@@ -255,7 +255,7 @@ void ComponentAggregator::on_batch(const Entry& e, const Message* messages, std:
   settle();
 }
 
-void ComponentAggregator::take_sample(Slot& s, const CycleSample& m) {
+void ComponentAggregator::take_sample(Slot& s, const task::CycleSample& m) {
   // The caller merged m's counters, or will before anything reads them.
   s.state = m.state;
   if (m.totals_only) return;
@@ -322,7 +322,7 @@ void ComponentAggregator::take_sample(Slot& s, const CycleSample& m) {
     resolve_pending(s, &m);
 }
 
-void ComponentAggregator::resolve_pending(Slot& s, const CycleSample* sample) {
+void ComponentAggregator::resolve_pending(Slot& s, const task::CycleSample* sample) {
   // With a sample: the reports of its cycle get its end as their fault time; reports of older
   // cycles (whose sample was dropped) are raised without one. Without (end of a drain): reports
   // that waited one drain already are raised without a fault time.
@@ -343,7 +343,7 @@ void ComponentAggregator::resolve_pending(Slot& s, const CycleSample* sample) {
   });
 }
 
-void ComponentAggregator::on(const Entry& /*e*/, const RealTimeLoss& m) {
+void ComponentAggregator::on(const Entry& /*e*/, const task::RealTimeLoss& m) {
   // The cumulative counters of the samples are authoritative for counts (a loss report can be
   // dropped by a full port); the report tells which cycle lost, and when it arrived, and makes
   // an event: it waits for the sample of its cycle, which carries the cycle's end.
@@ -365,7 +365,7 @@ void ComponentAggregator::on(const Entry& /*e*/, const RealTimeLoss& m) {
   if (s.has_sample && s.data.last.cycle() >= m.cycle) resolve_pending(s, &s.data.last);
 }
 
-void ComponentAggregator::on(const Entry& /*e*/, const ExceptionReport& m) {
+void ComponentAggregator::on(const Entry& /*e*/, const task::ExceptionReport& m) {
   if (current_ == nullptr) return;
   Slot& s = *current_;
   s.data.has_exception = true;
@@ -396,7 +396,7 @@ void ComponentAggregator::on(const Entry& /*e*/, const ExceptionReport& m) {
   }
 }
 
-void ComponentAggregator::on(const Entry& /*e*/, const StateChange& m) {
+void ComponentAggregator::on(const Entry& /*e*/, const task::StateChange& m) {
   if (current_ == nullptr) return;
   Slot& s = *current_;
   auto& d = s.data;
@@ -686,4 +686,4 @@ void ComponentAggregator::set_ewma_weight(double w) {
   ewma_weight_.store(w, std::memory_order_relaxed);
 }
 
-}  // namespace vigil
+}  // namespace vigil::supervisor

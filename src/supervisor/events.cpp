@@ -9,7 +9,7 @@
 
 #include "vigil/platform/thread.hpp"
 
-namespace vigil {
+namespace vigil::supervisor {
 
 const char* to_string(EventKind k) noexcept {
   switch (k) {
@@ -303,4 +303,4 @@ std::uint64_t EventLineLimiter::folded() const {
   return folded_;
 }
 
-}  // namespace vigil
+}  // namespace vigil::supervisor

@@ -2,7 +2,7 @@
 
 #include "vigil/task/shm_messages.hpp"
 
-namespace vigil {
+namespace vigil::task {
 
 ComponentRegistry& default_registry() {
   static ComponentRegistry registry;
@@ -14,4 +14,4 @@ ComponentRegistry& default_registry() {
   return registry;
 }
 
-}  // namespace vigil
+}  // namespace vigil::task

@@ -6,7 +6,7 @@
 #include <string>
 #include <type_traits>
 
-namespace vigil {
+namespace vigil::task {
 
 namespace {
 
@@ -117,4 +117,4 @@ expected<void, Error> supervise_in_shared_memory(const std::string& name) {
   return place_in_shared_memory(default_registry(), std::move(o));
 }
 
-}  // namespace vigil
+}  // namespace vigil::task

@@ -4,7 +4,7 @@
 #include <exception>
 #include <typeinfo>
 
-namespace vigil {
+namespace vigil::task {
 
 TaskCore::TaskCore(std::string name) : name_(std::move(name)) {}
 TaskCore::~TaskCore() = default;
@@ -148,4 +148,4 @@ void TaskCore::fatal(std::string_view reason) noexcept {
   transition(TaskState::FatalError, Hook::None, reason);
 }
 
-}  // namespace vigil
+}  // namespace vigil::task

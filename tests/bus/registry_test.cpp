@@ -4,6 +4,7 @@
 #include <variant>
 
 using namespace vigil;
+using namespace vigil::bus;
 
 namespace {
 using V = std::variant<int>;

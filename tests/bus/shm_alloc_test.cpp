@@ -9,11 +9,12 @@
 #include "vigil/task/task.hpp"
 
 using namespace vigil;
+using namespace vigil::bus;
 
 namespace {
 class Ctl : public Task<Ctl> {
  public:
-  explicit Ctl(Registry<Message>& registry)
+  explicit Ctl(Registry<task::Message>& registry)
       : Task("alloc", {.detectors = Detectors::Allocation}, registry) {}
   void on_update() {}
 };
@@ -30,7 +31,7 @@ TEST_CASE("Cycles pushing to a shared-memory port allocate nothing, full ring or
   REQUIRE(platform::allocation_counting_available());
   const std::string name = test::unique_supervisor_name();
   test::ShmCleanup cleanup(name);
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   bus::ShmOptions o;
   o.name = name;
   REQUIRE(place_in_shared_memory(reg, o).has_value());

@@ -19,12 +19,13 @@
 #include "vigil/task/task.hpp"
 
 using namespace vigil;
+using namespace vigil::bus;
 
 namespace {
 
 class Ctl : public Task<Ctl> {
  public:
-  Ctl(std::string name, Registry<Message>& registry) : Task(std::move(name), {}, registry) {}
+  Ctl(std::string name, Registry<task::Message>& registry) : Task(std::move(name), {}, registry) {}
   void on_update() {}
 };
 
@@ -37,9 +38,9 @@ struct Placed {
   [[nodiscard]] std::string segment(std::uint32_t index) const {
     return bus::shm_segment_name(name, platform::self_identity().pid, index);
   }
-  [[nodiscard]] bus::ShmReader<Message> reader(std::uint32_t index) const {
-    auto r = bus::ShmReader<Message>::open(segment(index), {kShmMessageSchema, name},
-                                           platform::effective_uid(), false);
+  [[nodiscard]] bus::ShmReader<task::Message> reader(std::uint32_t index) const {
+    auto r = bus::ShmReader<task::Message>::open(segment(index), {task::kShmMessageSchema, name},
+                                                 platform::effective_uid(), false);
     REQUIRE(r.has_value());
     return std::move(*r);
   }
@@ -54,11 +55,11 @@ struct Placed {
 
   std::string name;
   test::ShmCleanup cleanup;
-  Registry<Message> registry;
+  Registry<task::Message> registry;
 };
 
 struct Running {
-  Running(std::string name, Registry<Message>& reg)
+  Running(std::string name, Registry<task::Message>& reg)
       : task(std::move(name), reg), activity(task, {.name = "ctl", .period_ns = kNanosPerMilli}) {
     REQUIRE(task.configure());
     REQUIRE(activity.start());
@@ -70,9 +71,9 @@ struct Running {
   ManualActivity activity;
 };
 
-std::vector<Message> drain_all(bus::ShmReader<Message>& r) {
-  std::vector<Message> out(1024);
-  auto n = r.pop(out.data(), nullptr, out.size(), &check_shm_message);
+std::vector<task::Message> drain_all(bus::ShmReader<task::Message>& r) {
+  std::vector<task::Message> out(1024);
+  auto n = r.pop(out.data(), nullptr, out.size(), &task::check_shm_message);
   REQUIRE(n.has_value());
   out.resize(*n);
   return out;
@@ -89,7 +90,7 @@ TEST_CASE("A registry placed in shared memory gives each component its own segme
     CHECK(p.cleanup.count() == 2);
     CHECK(a.port()->shm() != nullptr);
     CHECK(p.registry.size() == 0);  // not this process's supervisor's business
-    Message m;
+    task::Message m;
     CHECK(a.port()->pop(&m, 1) == 0);
   }
   // No daemon drained them: the leaving components removed their segments themselves.
@@ -103,11 +104,11 @@ TEST_CASE("A component's messages arrive through its segment", "[shm][port]") {
   auto reader = p.reader(0);
   const auto msgs = drain_all(reader);
   REQUIRE_FALSE(msgs.empty());
-  CHECK(std::holds_alternative<TaskInfo>(msgs.front()));
-  CHECK(std::get<TaskInfo>(msgs.front()).name.view() == "motor");
+  CHECK(std::holds_alternative<task::TaskInfo>(msgs.front()));
+  CHECK(std::get<task::TaskInfo>(msgs.front()).name.view() == "motor");
   std::vector<std::uint64_t> cycles;
   for (const auto& m : msgs) {
-    if (const auto* s = std::get_if<CycleSample>(&m)) cycles.push_back(s->cycle());
+    if (const auto* s = std::get_if<task::CycleSample>(&m)) cycles.push_back(s->cycle());
   }
   CHECK(cycles == std::vector<std::uint64_t>{1, 2, 3, 4, 5, 6, 7, 8, 9, 10});
   CHECK(reader.info().component_name == "motor");
@@ -188,8 +189,8 @@ TEST_CASE("VIGIL_SUPERVISOR selects shared memory, and a bad name is refused wit
   test::ShmCleanup cleanup(name);
   SECTION("valid") {
     ::setenv("VIGIL_SUPERVISOR", name.c_str(), 1);
-    Registry<Message> reg;
-    CHECK(bus::place_from_environment(reg, kShmMessageSchema, kShmStickyMessages));
+    Registry<task::Message> reg;
+    CHECK(bus::place_from_environment(reg, task::kShmMessageSchema, task::kShmStickyMessages));
     CHECK(reg.shared_memory() != nullptr);
     Ctl c("env", reg);
     CHECK(cleanup.count() == 1);
@@ -199,14 +200,15 @@ TEST_CASE("VIGIL_SUPERVISOR selects shared memory, and a bad name is refused wit
     auto o = bus::shm_options_from_environment();
     REQUIRE_FALSE(o.has_value());
     CHECK_THAT(o.error().message, Catch::Contains("VIGIL_SUPERVISOR='no/slashes'"));
-    Registry<Message> reg;
-    CHECK_FALSE(bus::place_from_environment(reg, kShmMessageSchema, kShmStickyMessages));
+    Registry<task::Message> reg;
+    CHECK_FALSE(
+        bus::place_from_environment(reg, task::kShmMessageSchema, task::kShmStickyMessages));
     CHECK(reg.shared_memory() == nullptr);
   }
   SECTION("unset") {
     ::unsetenv("VIGIL_SUPERVISOR");
-    Registry<Message> reg;
-    CHECK(bus::place_from_environment(reg, kShmMessageSchema, kShmStickyMessages));
+    Registry<task::Message> reg;
+    CHECK(bus::place_from_environment(reg, task::kShmMessageSchema, task::kShmStickyMessages));
     CHECK(reg.shared_memory() == nullptr);
   }
   ::unsetenv("VIGIL_SUPERVISOR");
@@ -215,47 +217,47 @@ TEST_CASE("VIGIL_SUPERVISOR selects shared memory, and a bad name is refused wit
 TEST_CASE("check_shm_message rejects what would be undefined to read", "[shm][port]") {
   std::string why;
   SECTION("valid messages pass") {
-    Message m{
-        CycleSample{.release_ns = 5, .start_ns = 10, .end_ns = 20, .counters = {.cycles = 1}}};
-    CHECK(check_shm_message(m, why));
-    Message i{TaskInfo{}};
-    CHECK(check_shm_message(i, why));
+    task::Message m{task::CycleSample{
+        .release_ns = 5, .start_ns = 10, .end_ns = 20, .counters = {.cycles = 1}}};
+    CHECK(task::check_shm_message(m, why));
+    task::Message i{task::TaskInfo{}};
+    CHECK(task::check_shm_message(i, why));
   }
   SECTION("a bool byte of 2") {
-    CycleSample s;
+    task::CycleSample s;
     std::memset(&s.overrun, 2, 1);
-    Message m{s};
-    CHECK_FALSE(check_shm_message(m, why));
+    task::Message m{s};
+    CHECK_FALSE(task::check_shm_message(m, why));
     CHECK_THAT(why, Catch::Contains("bool"));
   }
   SECTION("a loss cause used as an index") {
-    RealTimeLoss l;
-    l.cause = static_cast<LossCause>(200);
-    Message m{l};
-    CHECK_FALSE(check_shm_message(m, why));
+    task::RealTimeLoss l;
+    l.cause = static_cast<platform::LossCause>(200);
+    task::Message m{l};
+    CHECK_FALSE(task::check_shm_message(m, why));
   }
   SECTION("states and hooks out of range") {
-    StateChange c;
+    task::StateChange c;
     c.to = static_cast<TaskState>(9);
-    Message m{c};
-    CHECK_FALSE(check_shm_message(m, why));
-    ExceptionReport e;
+    task::Message m{c};
+    CHECK_FALSE(task::check_shm_message(m, why));
+    task::ExceptionReport e;
     e.hook = static_cast<Hook>(77);
-    Message m2{e};
-    CHECK_FALSE(check_shm_message(m2, why));
+    task::Message m2{e};
+    CHECK_FALSE(task::check_shm_message(m2, why));
   }
   SECTION("times that would overflow arithmetic") {
-    Message m{CycleSample{.start_ns = -1, .end_ns = 5, .counters = {.cycles = 1}}};
-    CHECK_FALSE(check_shm_message(m, why));
-    Message m2{CycleSample{.start_ns = 10, .end_ns = 5, .counters = {.cycles = 1}}};
-    CHECK_FALSE(check_shm_message(m2, why));
+    task::Message m{task::CycleSample{.start_ns = -1, .end_ns = 5, .counters = {.cycles = 1}}};
+    CHECK_FALSE(task::check_shm_message(m, why));
+    task::Message m2{task::CycleSample{.start_ns = 10, .end_ns = 5, .counters = {.cycles = 1}}};
+    CHECK_FALSE(task::check_shm_message(m2, why));
   }
   SECTION("unterminated strings are terminated") {
-    ExceptionReport e;
+    task::ExceptionReport e;
     std::memset(e.message.data_, 'x', sizeof e.message.data_);
-    Message m{e};
-    REQUIRE(check_shm_message(m, why));
-    CHECK(std::get<ExceptionReport>(m).message.size() == sizeof e.message.data_ - 1);
+    task::Message m{e};
+    REQUIRE(task::check_shm_message(m, why));
+    CHECK(std::get<task::ExceptionReport>(m).message.size() == sizeof e.message.data_ - 1);
   }
 }
 

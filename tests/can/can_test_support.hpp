@@ -12,7 +12,7 @@ namespace vigil::can::test {
 
 /// Every record waiting in the registry's ports (as a supervisor would see them).
 inline std::vector<FrameRecord> drain_records(CanRegistry& registry) {
-  std::vector<std::shared_ptr<RegistryEntry<CanMessage>>> entries;
+  std::vector<std::shared_ptr<bus::RegistryEntry<CanMessage>>> entries;
   registry.ports().collect(entries);
   std::vector<FrameRecord> out;
   CanMessage buf[64];

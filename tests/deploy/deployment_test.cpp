@@ -45,7 +45,7 @@ TEST_CASE("VIGIL_REGISTER_COMPONENT registers a type in the process's factory in
           "[deploy][factory]") {
   const auto* t = ComponentFactory::instance().find("test.registered");
   REQUIRE(t != nullptr);
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   ComponentContext ctx{"r", {}, {}, &reg, nullptr};
   const auto task = t->make(ctx);
   REQUIRE(task != nullptr);

@@ -105,25 +105,25 @@ supervision: {supervisor_stack: lots, monitor_stack: 4GiB}
 
 TEST_CASE("The supervisor's and the monitor's threads get their configured stacks",
           "[supervisor][monitor][memory]") {
-  STATIC_REQUIRE(SupervisorOptions{}.stack_bytes == platform::kDefaultStackBytes);
+  STATIC_REQUIRE(supervisor::SupervisorOptions{}.stack_bytes == platform::kDefaultStackBytes);
   STATIC_REQUIRE(MonitorOptions{}.stack_bytes == platform::kDefaultStackBytes);
 
-  struct StackHandler : ComponentAggregator {
-    void on_cycle(const SupervisorCycle& c) {
-      ComponentAggregator::on_cycle(c);
+  struct StackHandler : supervisor::ComponentAggregator {
+    void on_cycle(const supervisor::SupervisorCycle& c) {
+      supervisor::ComponentAggregator::on_cycle(c);
       bytes.store(vigil::test::current_stack_bytes());
     }
     std::atomic<std::size_t> bytes{0};
   };
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   StackHandler handler;
-  Supervisor<Message, StackHandler> sup(reg, handler,
-                                        {.period_ns = kNanosPerMilli, .stack_bytes = 160 * 1024});
+  supervisor::Supervisor<task::Message, StackHandler> sup(
+      reg, handler, {.period_ns = kNanosPerMilli, .stack_bytes = 160 * 1024});
   REQUIRE(sup.start().has_value());
   CHECK(vigil::test::stack_serves(wait_for(handler.bytes), 160 * 1024));
   sup.stop();
 
-  ComponentAggregator agg;
+  supervisor::ComponentAggregator agg;
   Monitor mon(agg, {.period_ns = kNanosPerMilli, .stack_bytes = 384 * 1024});
   std::atomic<std::size_t> monitor_bytes{0};
   mon.subscribe([&](const ReportSet&) { monitor_bytes.store(vigil::test::current_stack_bytes()); });

@@ -11,7 +11,7 @@ using vigil::test::drain;
 using vigil::test::only;
 
 TEST_CASE("ManualActivity counts overruns and missed cycles exactly (Skip)", "[exec][manual]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   vigil::test::FakeClock fc;
   vigil::test::Probe p("p", {}, reg);
   Nanos work = 100;
@@ -41,7 +41,7 @@ TEST_CASE("ManualActivity counts overruns and missed cycles exactly (Skip)", "[e
 }
 
 TEST_CASE("ManualActivity CatchUp runs late cycles back to back", "[exec][manual]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   vigil::test::FakeClock fc;
   vigil::test::Probe p("p", {}, reg);
   ManualActivity act(p, {.name = "m",
@@ -65,7 +65,7 @@ TEST_CASE("ManualActivity CatchUp runs late cycles back to back", "[exec][manual
 }
 
 TEST_CASE("The overrun limit moves the task to Exception with a report", "[exec][manual]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   vigil::test::FakeClock fc;
   vigil::test::Probe p("p", {}, reg);
   p.work = [&] { fc.advance(1500); };
@@ -80,7 +80,7 @@ TEST_CASE("The overrun limit moves the task to Exception with a report", "[exec]
     act.step();
   }
   CHECK(p.state() == TaskState::Exception);
-  const auto ex = only<ExceptionReport>(drain(*p.port()));
+  const auto ex = only<task::ExceptionReport>(drain(*p.port()));
   REQUIRE(ex.size() == 1);
   CHECK(ex[0].type == std::string_view("vigil::OverrunLimit"));
 }

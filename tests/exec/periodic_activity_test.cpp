@@ -30,7 +30,7 @@ void wait_cycles(const Probe& p, std::uint64_t n) {
 
 TEST_CASE("Periodic tasks with equal parameters share one thread and run in order",
           "[exec][periodic]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   Probe a("a", {}, reg), b("b", {}, reg), c("c", {}, reg);
   std::mutex m;
   std::vector<char> order;
@@ -79,7 +79,7 @@ TEST_CASE("Periodic tasks with equal parameters share one thread and run in orde
   }
   CHECK(alternating);
   // Each task's identity says where it ran.
-  const auto info = only<TaskInfo>(drain(*a.port()));
+  const auto info = only<task::TaskInfo>(drain(*a.port()));
   REQUIRE_FALSE(info.empty());
   CHECK(info.back().threaded);
   CHECK(info.back().tid == aa.info().tid);
@@ -90,7 +90,7 @@ TEST_CASE("Periodic tasks with equal parameters share one thread and run in orde
 }
 
 TEST_CASE("share_thread = false gives a task its own thread", "[exec][periodic]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   Probe a("a", {}, reg), b("b", {}, reg);
   PeriodicConfig cfg{.name = "own", .period_ns = 2 * kNanosPerMilli, .share_thread = false};
   PeriodicActivity aa(a, cfg), ab(b, cfg);
@@ -108,7 +108,7 @@ TEST_CASE("A FIFO activity's thread reads back its policy, priority and CPU from
     WARN("skipped: no privilege for SCHED_FIFO");
     return;
   }
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   Probe a("a", {}, reg);
   vigil::test::ProcThread proc;
   std::atomic<bool> read{false};
@@ -145,7 +145,7 @@ TEST_CASE("When SCHED_FIFO is refused the activity runs OTHER and says so", "[ex
     data[0].effective &= ~(1U << CAP_SYS_NICE);
     data[0].permitted &= ~(1U << CAP_SYS_NICE);
     syscall(SYS_capset, &hdr, data);
-    Registry<Message> reg;
+    Registry<task::Message> reg;
     Probe a("a", {}, reg);
     PeriodicActivity act(a, {.name = "want-fifo",
                              .period_ns = kNanosPerMilli,
@@ -176,7 +176,7 @@ TEST_CASE("When SCHED_FIFO is refused the activity runs OTHER and says so", "[ex
 }
 
 TEST_CASE("Overruns and skipped cycles are counted on a real thread", "[exec][periodic]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   Probe a("slow", {}, reg);
   a.work = [&] {
     if (a.updates == 5) std::this_thread::sleep_for(std::chrono::milliseconds(10));
@@ -195,7 +195,7 @@ TEST_CASE("Overruns and skipped cycles are counted on a real thread", "[exec][pe
 }
 
 TEST_CASE("start() refuses a task that is not configured", "[exec][periodic]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   Probe a("a", {}, reg);
   PeriodicActivity act(a, {.name = "x", .period_ns = kNanosPerMilli});
   const auto r = act.start();

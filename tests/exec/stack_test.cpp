@@ -15,7 +15,8 @@ using vigil::test::Probe;
 namespace {
 /// A probe that records the stack size of the thread its update runs on.
 struct StackProbe {
-  explicit StackProbe(std::string name, Registry<Message>& reg) : probe(std::move(name), {}, reg) {
+  explicit StackProbe(std::string name, Registry<task::Message>& reg)
+      : probe(std::move(name), {}, reg) {
     probe.work = [this] { bytes.store(vigil::test::current_stack_bytes()); };
     REQUIRE(probe.configure());
   }
@@ -34,7 +35,7 @@ struct StackProbe {
 TEST_CASE("A periodic activity's thread has the configured stack", "[exec][periodic][memory]") {
   STATIC_REQUIRE(kDefaultActivityStackBytes == 512 * 1024);
   STATIC_REQUIRE(PeriodicConfig{}.stack_bytes == kDefaultActivityStackBytes);
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   StackProbe dflt("dflt", reg), big("big", reg), sys("sys", reg);
   // Threads of their own (equal activities would share one thread, and so one stack).
   PeriodicActivity a(dflt.probe,
@@ -59,7 +60,7 @@ TEST_CASE("A periodic activity's thread has the configured stack", "[exec][perio
 
 TEST_CASE("Activities sharing a thread share its stack, and asking for more fails start()",
           "[exec][periodic][memory]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   Probe first("first", {}, reg), smaller("smaller", {}, reg), larger("larger", {}, reg);
   REQUIRE(first.configure());
   REQUIRE(smaller.configure());
@@ -86,7 +87,7 @@ TEST_CASE("Activities sharing a thread share its stack, and asking for more fail
 
 TEST_CASE("A triggered activity's thread has the configured stack", "[exec][triggered][memory]") {
   STATIC_REQUIRE(TriggeredConfig{}.stack_bytes == kDefaultActivityStackBytes);
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   StackProbe p("trig_stack", reg);
   TriggeredActivity act(p.probe, {.name = "trig_stack", .stack_bytes = 192 * 1024});
   REQUIRE(act.start().has_value());

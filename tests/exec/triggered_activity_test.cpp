@@ -12,7 +12,7 @@ using vigil::test::only;
 
 TEST_CASE("TriggeredActivity runs one cycle per trigger when triggers are spaced",
           "[exec][triggered]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   vigil::test::Probe p("t", {}, reg);
   TriggeredActivity act(p, {.name = "trig"});
   REQUIRE(p.configure());
@@ -34,7 +34,7 @@ TEST_CASE("TriggeredActivity runs one cycle per trigger when triggers are spaced
 }
 
 TEST_CASE("Triggers that arrive during a cycle are coalesced, never lost", "[exec][triggered]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   vigil::test::Probe p("t", {}, reg);
   p.work = [] { std::this_thread::sleep_for(std::chrono::milliseconds(2)); };
   TriggeredActivity act(p, {.name = "trig"});

@@ -463,10 +463,10 @@ TEST_CASE("Diagnostics map reports onto a ROS 2 DiagnosticArray", "[export][diag
 }
 
 TEST_CASE("serve_http: one call in a program with real threads", "[export][http]") {
-  Registry<Message> registry;
-  ComponentAggregator aggregator;
-  TaskSupervisor supervisor(registry, aggregator,
-                            SupervisorOptions{.period_ns = 5 * kNanosPerMilli});
+  Registry<task::Message> registry;
+  supervisor::ComponentAggregator aggregator;
+  supervisor::TaskSupervisor supervisor(
+      registry, aggregator, supervisor::SupervisorOptions{.period_ns = 5 * kNanosPerMilli});
   Monitor monitor(aggregator, MonitorOptions{.period_ns = 20 * kNanosPerMilli});
   monitor.set_supervisor(&supervisor);
   HttpOptions o = quiet_options();

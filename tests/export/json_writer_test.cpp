@@ -7,13 +7,13 @@
 
 #include "support/json_reader.hpp"
 
-using vigil::JsonWriter;
+using vigil::exporter::JsonWriter;
 using vigil::test::JsonParser;
 
 namespace {
 std::string quoted(std::string_view s) {
   std::string out;
-  vigil::append_json_string(out, s);
+  vigil::exporter::append_json_string(out, s);
   return out;
 }
 }  // namespace

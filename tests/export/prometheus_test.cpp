@@ -69,7 +69,7 @@ MetricsSnapshot rich_snapshot() {
   // Their gap buckets: the node's gaps exact (samples), the group's from a histogram.
   const std::vector<Nanos> rx = {900'000, 1'000'000, 1'000'000, 1'100'000, 4'000'000};
   const std::vector<Nanos> tx = {10'000'000, 10'000'000};
-  RunningStats merged;
+  supervisor::RunningStats merged;
   for (Nanos v : rx) merged.add(v);
   s.can_histograms.push_back(CanHistograms{.name = "can group left_arm",
                                            .kind = ReportKind::CanGroup,
@@ -137,7 +137,7 @@ TEST_CASE("The Accept header chooses the format", "[export][prometheus]") {
 
 TEST_CASE("Buckets follow the documented rule, cumulative, +Inf equals the count",
           "[export][prometheus][buckets]") {
-  RunningStats stats;
+  supervisor::RunningStats stats;
   const std::vector<Nanos> samples = {
       0,      500,       900,           1'000,          1'400,         2'000,
       33'000, 7'000'000, 9'999'999'999, 10'000'000'000, Nanos{1} << 41};
@@ -145,7 +145,7 @@ TEST_CASE("Buckets follow the documented rule, cumulative, +Inf equals the count
   const BucketCounts b = reduce_to_buckets(stats);
   CHECK(b.count == samples.size());
   // The rule: a sample counts under the first boundary >= the upper edge of its bucket.
-  using H = RunningStats::Histogram;
+  using H = supervisor::RunningStats::Histogram;
   for (std::size_t k = 0; k < kBucketBounds; ++k) {
     std::uint64_t expected = 0;
     for (Nanos v : samples) {
@@ -161,12 +161,12 @@ TEST_CASE("Buckets follow the documented rule, cumulative, +Inf equals the count
   CHECK(b.sum_ns == Approx(stats.mean() * static_cast<double>(stats.count())));
 
   // A shift moves every edge (total time = user + overhead).
-  RunningStats one;
+  supervisor::RunningStats one;
   one.add(900);
   CHECK(reduce_to_buckets(one).cumulative[0] == 1);
   CHECK(reduce_to_buckets(one, 200).cumulative[0] == 0);
   CHECK(reduce_to_buckets(one, 200).cumulative[1] == 1);
-  CHECK(reduce_to_buckets(RunningStats{}).count == 0);
+  CHECK(reduce_to_buckets(supervisor::RunningStats{}).count == 0);
 }
 
 TEST_CASE("Every family has HELP and TYPE, in both formats", "[export][prometheus]") {

@@ -18,8 +18,8 @@ using vigil::test::JsonParser;
 
 namespace {
 
-FlightRecord sample_record() {
-  FlightRecord r;
+supervisor::FlightRecord sample_record() {
+  supervisor::FlightRecord r;
   r.component = "encoder";
   r.component_id = 7;
   r.has_info = true;
@@ -27,12 +27,12 @@ FlightRecord sample_record() {
   r.info.tid = 4242;
   r.info.period_ns = kNanosPerMilli;
   for (std::uint64_t i = 1; i <= 10; ++i) {
-    CycleRecord c;
+    supervisor::CycleRecord c;
     c.cycle = 100 + i;
     c.release_ns = static_cast<Nanos>(i) * kNanosPerMilli;
     c.start_ns = c.release_ns + 50 * kNanosPerMicro;
     c.end_ns = c.start_ns + (i == 10 ? 1500 : 20) * kNanosPerMicro;
-    c.flags = i == 10 ? CycleRecord::kOverrun : 0;
+    c.flags = i == 10 ? supervisor::CycleRecord::kOverrun : 0;
     c.state = i == 10 ? TaskState::Exception : TaskState::Running;
     r.cycles.push_back(c);
   }
@@ -59,7 +59,7 @@ std::vector<Json> of_phase(const Json& trace, const std::string& ph) {
 
 TEST_CASE("A flight record is trace-event JSON: X per cycle, markers, counters, names",
           "[export][trace]") {
-  const FlightRecord r = sample_record();
+  const supervisor::FlightRecord r = sample_record();
   const Json t = JsonParser::parse(trace_event_json(r));  // throws on invalid JSON
   const auto x = of_phase(t, "X");
   REQUIRE(x.size() == 9);
@@ -109,7 +109,7 @@ TEST_CASE("Events are one JSON object per line, escaped", "[export][events]") {
 
 TEST_CASE("EventLogWriter writes every event as a JSON line", "[export][events]") {
   const auto path = std::filesystem::temp_directory_path() / "vigil_events_test.jsonl";
-  EventHub hub;
+  supervisor::EventHub hub;
   {
     auto w = EventLogWriter::start(hub, path);
     REQUIRE(w.has_value());
@@ -135,7 +135,7 @@ TEST_CASE("EventLogWriter writes every event as a JSON line", "[export][events]"
 
 TEST_CASE("HTTP: events by long poll, on-demand traces, and the clear endpoint when enabled",
           "[export][http][events]") {
-  EventHub hub;
+  supervisor::EventHub hub;
   std::string cleared = "-";
   HttpOptions o;
   o.listen.port = 0;

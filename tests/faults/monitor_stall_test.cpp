@@ -23,7 +23,8 @@ constexpr Nanos kMs = kNanosPerMilli;
 
 class Counter : public Task<Counter> {
  public:
-  Counter(std::string name, Registry<Message>& registry) : Task(std::move(name), {}, registry) {}
+  Counter(std::string name, Registry<task::Message>& registry)
+      : Task(std::move(name), {}, registry) {}
   void on_update() { cycles.fetch_add(1, std::memory_order_relaxed); }
   std::atomic<std::uint64_t> cycles{0};
 };
@@ -64,9 +65,9 @@ const Report* find(const ReportSet& s, std::string_view name) { return s.find(na
 
 TEST_CASE("Monitor thread stalled 1.5 s: counters exact, nothing dropped, the stall reported",
           "[faults][monitor]") {
-  Registry<Message> registry;
-  ComponentAggregator aggregator;
-  TaskSupervisor supervisor(registry, aggregator, {.period_ns = 5 * kMs});
+  Registry<task::Message> registry;
+  supervisor::ComponentAggregator aggregator;
+  supervisor::TaskSupervisor supervisor(registry, aggregator, {.period_ns = 5 * kMs});
   Monitor monitor(aggregator, {.period_ns = 20 * kMs});
   monitor.set_supervisor(&supervisor);
   ThresholdSet t;

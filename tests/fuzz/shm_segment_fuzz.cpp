@@ -65,9 +65,9 @@ const Self& self() {
   return s;
 }
 
-class NoPort final : public PortReader<Message> {
+class NoPort final : public PortReader<task::Message> {
  public:
-  std::size_t pop(Message* /*out*/, std::size_t /*max*/) noexcept override { return 0; }
+  std::size_t pop(task::Message* /*out*/, std::size_t /*max*/) noexcept override { return 0; }
   [[nodiscard]] std::size_t read_available() const noexcept override { return 0; }
   [[nodiscard]] std::size_t capacity() const noexcept override { return 1; }
 };
@@ -82,7 +82,7 @@ void read_image(const std::uint8_t* data, std::size_t size) {
   auto* image = static_cast<std::byte*>(p);
   if (size > 0) std::memcpy(image, data, size);
 
-  const bus::ShmExpectation expect{kShmMessageSchema, kSupervisorPlaceholder};
+  const bus::ShmExpectation expect{task::kShmMessageSchema, kSupervisorPlaceholder};
   auto info = bus::validate_shm_image(image, size, expect);
   if (!info) {
     check(!info.error().field.empty() && !info.error().message.empty());
@@ -92,21 +92,21 @@ void read_image(const std::uint8_t* data, std::size_t size) {
   check(g.segment_size == size);
   check(g.ring_offset + std::uint64_t{g.capacity} * g.record_size <= size);
 
-  ComponentAggregator aggregator;
-  RegistryEntry<Message> entry;
+  supervisor::ComponentAggregator aggregator;
+  bus::RegistryEntry<task::Message> entry;
   entry.id = 1;
   entry.name = info->component_name;
   entry.port = std::make_shared<NoPort>();
   aggregator.on_join(entry);
-  const auto feed = [&](Message& m) {
+  const auto feed = [&](task::Message& m) {
     std::string why;
-    if (!check_shm_message(m, why)) {
+    if (!task::check_shm_message(m, why)) {
       check(!why.empty());
       return;
     }
     aggregator.begin(entry);
     std::visit([&](const auto& x) { aggregator.on(entry, x); }, m);
-    aggregator.end(entry, PortDrain{});
+    aggregator.end(entry, supervisor::PortDrain{});
   };
 
   bus::ShmRingReader reader(image, g);
@@ -119,7 +119,7 @@ void read_image(const std::uint8_t* data, std::size_t size) {
   if (n) {
     check(*n <= g.capacity);
     for (std::size_t i = 0; i < *n; ++i) {
-      Message m;
+      task::Message m;
       bus::ShmError why;
       if (bus::decode_shm_record(raw.data() + i * g.record_size, m, &why)) {
         feed(m);
@@ -131,7 +131,7 @@ void read_image(const std::uint8_t* data, std::size_t size) {
   std::vector<std::byte> rec(g.record_size);
   for (std::uint32_t t = 0; t < g.type_count + 1; ++t) {
     if (!reader.read_mailbox(t, rec.data())) continue;
-    Message m;
+    task::Message m;
     if (bus::decode_shm_record(rec.data(), m, nullptr)) feed(m);
   }
   (void)reader.live();
@@ -198,8 +198,8 @@ void supervise(const std::byte* image, std::size_t size) {
 std::vector<std::byte> message_image(std::uint8_t mode, const std::uint8_t* data,
                                      std::size_t size) {
   const Self& me = self();
-  const bus::ShmGeometry g =
-      bus::ShmGeometry::make(kShmMessageSchema.type_count, kShmMessageSchema.payload_size, 8);
+  const bus::ShmGeometry g = bus::ShmGeometry::make(task::kShmMessageSchema.type_count,
+                                                    task::kShmMessageSchema.payload_size, 8);
   std::vector<std::byte> image(g.segment_size);
   bus::ShmIdentity who;
   who.supervisor_name = me.supervisor;
@@ -209,14 +209,14 @@ std::vector<std::byte> message_image(std::uint8_t mode, const std::uint8_t* data
   who.start_ticks = me.ticks;
   who.process_name = "fuzz";
   who.command_line = "fuzz --messages";
-  bus::init_shm_segment(image.data(), g, kShmMessageSchema, who);
-  constexpr auto sizes = bus::detail::VariantTypes<Message>::sizes;
+  bus::init_shm_segment(image.data(), g, task::kShmMessageSchema, who);
+  constexpr auto sizes = bus::detail::VariantTypes<task::Message>::sizes;
   std::uint64_t seq = 0;
   std::uint64_t write = 0;
   std::size_t at = 0;
   while (at < size) {
     const std::uint8_t k = data[at++];
-    const std::uint32_t type = (k & 0x7FU) % kShmMessageSchema.type_count;
+    const std::uint32_t type = (k & 0x7FU) % task::kShmMessageSchema.type_count;
     const bool mailbox = (k & 0x80U) != 0 || write == g.capacity;
     std::byte* rec = mailbox ? image.data() + g.mailbox_offset + type * g.mailbox_stride + 8
                              : image.data() + g.ring_offset + write * g.record_size;

@@ -30,8 +30,8 @@ T zeroed() {
   return t;
 }
 
-TaskInfo task_info() {
-  auto t = zeroed<TaskInfo>();
+task::TaskInfo task_info() {
+  auto t = zeroed<task::TaskInfo>();
   t.name = "motor";
   t.activity = "periodic";
   t.requested_policy = SchedPolicy::Fifo;
@@ -46,8 +46,8 @@ TaskInfo task_info() {
   return t;
 }
 
-CycleSample sample(std::uint64_t cycle, bool overrun) {
-  auto s = zeroed<CycleSample>();
+task::CycleSample sample(std::uint64_t cycle, bool overrun) {
+  auto s = zeroed<task::CycleSample>();
   s.release_ns = static_cast<Nanos>(cycle) * kNanosPerMilli;
   s.start_ns = s.release_ns + 20 * kNanosPerMicro;
   s.end_ns = s.start_ns + (overrun ? 1200 : 300) * kNanosPerMicro;
@@ -58,8 +58,8 @@ CycleSample sample(std::uint64_t cycle, bool overrun) {
   return s;
 }
 
-StateChange state_change(TaskState from, TaskState to) {
-  auto c = zeroed<StateChange>();
+task::StateChange state_change(TaskState from, TaskState to) {
+  auto c = zeroed<task::StateChange>();
   c.time_ns = kNanosPerSecond;
   c.from = from;
   c.to = to;
@@ -68,8 +68,8 @@ StateChange state_change(TaskState from, TaskState to) {
   return c;
 }
 
-ExceptionReport exception() {
-  auto e = zeroed<ExceptionReport>();
+task::ExceptionReport exception() {
+  auto e = zeroed<task::ExceptionReport>();
   e.cycle = 7;
   e.count = 1;
   e.hook = Hook::None;
@@ -82,8 +82,8 @@ ExceptionReport exception() {
 // the real producer: the component's identity, its start, samples (the ring holds 4; the rest
 // are dropped into the mailboxes), an exception.
 std::vector<std::byte> segment(std::int32_t pid, std::uint64_t ticks, std::uint32_t samples) {
-  const bus::ShmGeometry g =
-      bus::ShmGeometry::make(kShmMessageSchema.type_count, kShmMessageSchema.payload_size, 4);
+  const bus::ShmGeometry g = bus::ShmGeometry::make(task::kShmMessageSchema.type_count,
+                                                    task::kShmMessageSchema.payload_size, 4);
   std::vector<std::byte> image(g.segment_size);
   bus::ShmIdentity who;
   who.supervisor_name = "fuzz";
@@ -94,10 +94,10 @@ std::vector<std::byte> segment(std::int32_t pid, std::uint64_t ticks, std::uint3
   who.created_unix_ns = 1'700'000'000'000'000'000;
   who.process_name = "ctl";
   who.command_line = "ctl --config ctl.yaml";
-  bus::init_shm_segment(image.data(), g, kShmMessageSchema, who);
-  bus::ShmProducer<Message> producer(image.data(), g, kShmStickyMessages);
+  bus::init_shm_segment(image.data(), g, task::kShmMessageSchema, who);
+  bus::ShmProducer<task::Message> producer(image.data(), g, task::kShmStickyMessages);
   std::uint64_t dropped = 0;
-  const auto send = [&](const Message& m) {
+  const auto send = [&](const task::Message& m) {
     if (!producer.push(m)) producer.drop(m, ++dropped);
   };
   send(task_info());
@@ -167,10 +167,10 @@ int main(int argc, char** argv) {
   append_message(sticky, 0x80, task_info());
   append_message(sticky, 0x84, state_change(TaskState::Running, TaskState::Stopped));
   append_message(sticky, 0x81, sample(100, true));
-  RealTimeLoss loss;  // zeroed in place: 16 bytes are returned in registers, padding not kept
+  task::RealTimeLoss loss;  // zeroed in place: 16 bytes are returned in registers, padding not kept
   std::memset(static_cast<void*>(&loss), 0, sizeof loss);
   loss.cycle = 3;
-  loss.cause = LossCause::Allocation;
+  loss.cause = platform::LossCause::Allocation;
   loss.count = 2;
   append_message(sticky, 2, loss);
   append_message(sticky, 1, sample(101, false));

@@ -36,7 +36,7 @@ namespace {
 
 class Ctl : public Task<Ctl> {
  public:
-  Ctl(std::string name, Registry<Message>& registry) : Task(std::move(name), {}, registry) {}
+  Ctl(std::string name, Registry<task::Message>& registry) : Task(std::move(name), {}, registry) {}
   void on_update() {}
 };
 
@@ -117,7 +117,7 @@ std::unique_ptr<Child> spawn(const std::function<void(const ChildLink&)>& body) 
 // once every component ran, then waits for "go" and does `then` (by default: runs until killed).
 void run_components(const ChildLink& link, const std::string& sup,
                     const std::vector<std::string>& names, const std::function<void()>& then = {}) {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   bus::ShmOptions o;
   o.name = sup;
   if (!place_in_shared_memory(reg, o)) ::_exit(90);
@@ -140,7 +140,7 @@ void run_components(const ChildLink& link, const std::string& sup,
 }
 
 struct Daemon {
-  explicit Daemon(const std::string& name, bool thread = true) {
+  explicit Daemon(const std::string& name, bool thread = true) : threaded(thread) {
     deploy::ProcessSupervisorOptions o;
     o.name = name;
     o.monitor.read_thread_stats = false;
@@ -162,6 +162,7 @@ struct Daemon {
                                                  std::chrono::milliseconds timeout = 10s) {
     const auto end = std::chrono::steady_clock::now() + timeout;
     while (std::chrono::steady_clock::now() < end) {
+      if (!threaded) sup->step();
       {
         std::lock_guard lock(mutex);
         for (const auto& e : events) {
@@ -182,11 +183,13 @@ struct Daemon {
     const auto end = std::chrono::steady_clock::now() + 10s;
     while (count(deploy::ProcessEvent::Kind::Joined) < n &&
            std::chrono::steady_clock::now() < end) {
+      if (!threaded) sup->step();
       std::this_thread::sleep_for(2ms);
     }
     REQUIRE(count(deploy::ProcessEvent::Kind::Joined) >= n);
   }
 
+  bool threaded;  // false: the test steps the daemon (wait_event and wait_joined do)
   std::unique_ptr<deploy::ProcessSupervisor> sup;
   std::mutex mutex;
   std::vector<deploy::ProcessEvent> events;
@@ -285,8 +288,8 @@ TEST_CASE("A process records its own end in its segments (for a daemon that come
   // No daemon ever drained it: a death by a signal keeps the segment, with the signal in it.
   const auto names = platform::list_shared_memory(bus::shm_segment_prefix(name));
   REQUIRE(names.size() == 1);
-  auto r = bus::ShmReader<Message>::open(names[0], {kShmMessageSchema, name},
-                                         platform::effective_uid(), false);
+  auto r = bus::ShmReader<task::Message>::open(names[0], {task::kShmMessageSchema, name},
+                                               platform::effective_uid(), false);
   REQUIRE(r.has_value());
   const auto live = r->live();
   REQUIRE(live.has_value());
@@ -309,7 +312,9 @@ TEST_CASE("A process records its own end in its segments (for a daemon that come
 TEST_CASE("A restarted process rejoins as a new incarnation", "[integration][multi_process]") {
   const std::string name = test::unique_supervisor_name();
   test::ShmCleanup cleanup(name);
-  Daemon d(name);
+  // Stepped by the test, no thread: the second child is forked while the daemon runs, and a
+  // child forked from a multi-threaded process may not start threads (POSIX; TSan enforces it).
+  Daemon d(name, false);
   auto first = spawn([&](const ChildLink& l) { run_components(l, name, {"r.x"}); });
   REQUIRE(first->wait_ready());
   d.wait_joined(1);
@@ -338,7 +343,7 @@ TEST_CASE("Counters stay exact for a process started before the daemon and acros
   test::ShmCleanup cleanup(name);
   // The child steps its component by hand: exactly 500 cycles, then 2500 more, then stops it.
   auto c = spawn([&](const ChildLink& l) {
-    Registry<Message> reg;
+    Registry<task::Message> reg;
     bus::ShmOptions o;
     o.name = name;
     if (!place_in_shared_memory(reg, o)) ::_exit(90);

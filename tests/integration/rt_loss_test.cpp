@@ -18,8 +18,8 @@ using vigil::test::Probe;
 
 namespace {
 struct Run {
-  std::array<std::uint64_t, kLossCauses> totals{};
-  std::vector<RealTimeLoss> losses;
+  std::array<std::uint64_t, task::kLossCauses> totals{};
+  std::vector<task::RealTimeLoss> losses;
   std::uint64_t cycles = 0;
 };
 
@@ -32,8 +32,8 @@ Run run(Probe& p, std::uint64_t cycles) {
   Run r;
   auto consume = [&] {
     for (const auto& m : vigil::test::drain(*p.port())) {
-      if (const auto* l = std::get_if<RealTimeLoss>(&m)) r.losses.push_back(*l);
-      if (const auto* s = std::get_if<CycleSample>(&m)) {
+      if (const auto* l = std::get_if<task::RealTimeLoss>(&m)) r.losses.push_back(*l);
+      if (const auto* s = std::get_if<task::CycleSample>(&m)) {
         r.totals = s->counters.losses;
         r.cycles = s->cycle();
       }
@@ -48,21 +48,23 @@ Run run(Probe& p, std::uint64_t cycles) {
   return r;
 }
 
-std::uint64_t of(const Run& r, LossCause c) { return r.totals[static_cast<std::size_t>(c)]; }
+std::uint64_t of(const Run& r, platform::LossCause c) {
+  return r.totals[static_cast<std::size_t>(c)];
+}
 }  // namespace
 
 #if !defined(VIGIL_ALLOC_GUARD_DISABLED)
 TEST_CASE("Allocating on every 100th cycle of 10,000 gives exactly 100 allocation losses",
           "[rt_loss][allocation]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   Probe p("alloc", {.detectors = Detectors::Allocation}, reg);
   p.script.allocate_every = 100;
   const Run r = run(p, 10'000);
   CHECK(r.cycles == 10'000);
-  CHECK(of(r, LossCause::Allocation) == 100);
+  CHECK(of(r, platform::LossCause::Allocation) == 100);
   REQUIRE(r.losses.size() == 100);
   for (const auto& l : r.losses) {
-    CHECK(l.cause == LossCause::Allocation);
+    CHECK(l.cause == platform::LossCause::Allocation);
     CHECK(l.count == 1);
     CHECK(l.cycle % 100 == 0);  // attributed to the cycle that allocated
   }
@@ -71,14 +73,14 @@ TEST_CASE("Allocating on every 100th cycle of 10,000 gives exactly 100 allocatio
 
 TEST_CASE("Sleeping 1 ms on every 50th cycle is counted as blocking, in those cycles only",
           "[rt_loss][blocking]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   Probe p("sleepy", {.detectors = Detectors::Blocking}, reg);
   p.script.sleep_every = 50;
   const Run r = run(p, 2'000);
-  CHECK(of(r, LossCause::Blocking) >= 40);
+  CHECK(of(r, platform::LossCause::Blocking) >= 40);
   std::uint64_t cycles_with_loss = 0;
   for (const auto& l : r.losses) {
-    CHECK(l.cause == LossCause::Blocking);
+    CHECK(l.cause == platform::LossCause::Blocking);
     CHECK(l.cycle % 50 == 0);
     ++cycles_with_loss;
   }
@@ -87,31 +89,31 @@ TEST_CASE("Sleeping 1 ms on every 50th cycle is counted as blocking, in those cy
 
 TEST_CASE("Touching fresh pages is counted as page faults, in those cycles only",
           "[rt_loss][page_faults]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   Probe p("toucher", {.detectors = Detectors::PageFaults}, reg);
   p.script.touch_pages_every = 100;
   const Run r = run(p, 2'000);
-  CHECK(of(r, LossCause::MinorFault) >= 20 * 4);  // 4 fresh pages per touching cycle
-  CHECK(of(r, LossCause::MajorFault) == 0);
+  CHECK(of(r, platform::LossCause::MinorFault) >= 20 * 4);  // 4 fresh pages per touching cycle
+  CHECK(of(r, platform::LossCause::MajorFault) == 0);
 #if !defined(VIGIL_SANITIZER_BUILD)
   // (AddressSanitizer's shadow memory takes page faults of its own in other cycles.)
   for (const auto& l : r.losses) {
-    CHECK(l.cause == LossCause::MinorFault);
+    CHECK(l.cause == platform::LossCause::MinorFault);
     CHECK(l.cycle % 100 == 0);
   }
 #endif
 }
 
 TEST_CASE("A clean component has no loss of any kind with every detector on", "[rt_loss]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   Probe p("clean", {.detectors = Detectors::All}, reg);
   const Run r = run(p, 10'000);
-  for (int c = 0; c < kLossCauses; ++c) {
+  for (int c = 0; c < task::kLossCauses; ++c) {
 #if defined(VIGIL_SANITIZER_BUILD)
     // AddressSanitizer's shadow memory takes page faults of its own: not the component's.
-    if (c == static_cast<int>(LossCause::MinorFault)) continue;
+    if (c == static_cast<int>(platform::LossCause::MinorFault)) continue;
 #endif
-    INFO("cause " << platform::to_string(static_cast<LossCause>(c)));
+    INFO("cause " << platform::to_string(static_cast<platform::LossCause>(c)));
     CHECK(r.totals[static_cast<std::size_t>(c)] == 0);
   }
 #if !defined(VIGIL_SANITIZER_BUILD)
@@ -120,7 +122,7 @@ TEST_CASE("A clean component has no loss of any kind with every detector on", "[
 }
 
 TEST_CASE("Detectors are selected per component", "[rt_loss]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   Probe off("off", {.detectors = Detectors::None}, reg);
   off.script.sleep_every = 10;
   off.script.touch_pages_every = 10;
@@ -131,7 +133,7 @@ TEST_CASE("Detectors are selected per component", "[rt_loss]") {
 
 TEST_CASE("Thread statistics agree with /proc over the same interval", "[rt_loss][thread_stats]") {
   // A triggered activity's thread sleeps between triggers, so it is still while both read.
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   Probe p("worker", {.detectors = Detectors::Blocking | Detectors::PageFaults}, reg);
   p.script.sleep_every = 2;
   p.script.touch_pages_every = 3;

@@ -28,7 +28,7 @@ struct LogBench {
   /// Every record waiting in the port (other messages are skipped).
   std::vector<log::LogRecord> records() {
     std::vector<log::LogRecord> out;
-    Message m;
+    task::Message m;
     while (port.pop(&m, 1) == 1) {
       if (const auto* r = std::get_if<log::LogRecord>(&m)) out.push_back(*r);
     }
@@ -46,8 +46,8 @@ struct LogBench {
     return s;
   }
 
-  Port<Message, N> port;
-  log::PortSource<Message, N> source;
+  Port<task::Message, N> port;
+  log::PortSource<task::Message, N> source;
 };
 
 }  // namespace vigil::test

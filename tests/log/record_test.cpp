@@ -156,5 +156,5 @@ TEST_CASE("One static call site per call site, shared by every call", "[log][rec
 TEST_CASE("LogRecord fits in Message", "[log][record]") {
   STATIC_REQUIRE(sizeof(log::LogRecord) == 120);
   STATIC_REQUIRE(std::is_trivially_copyable_v<log::LogRecord>);
-  STATIC_REQUIRE(sizeof(Message) <= 128);
+  STATIC_REQUIRE(sizeof(task::Message) <= 128);
 }

@@ -23,7 +23,7 @@ struct Collect final : log::Sink {
 
 class Joint : public Task<Joint> {
  public:
-  Joint(Registry<Message>& reg, test::FakeClock& clock)
+  Joint(Registry<task::Message>& reg, test::FakeClock& clock)
       : Task("log_joint", {}, reg), clock_(clock) {}
   void on_update() {
     clock_.advance(1'000);  // the update takes 1 us
@@ -45,13 +45,13 @@ class Joint : public Task<Joint> {
 
 TEST_CASE("A Task logs from on_update(), and lines carry its cycle and the cycle's start time",
           "[log][task]") {
-  Registry<Message> reg;
-  ComponentAggregator agg;
+  Registry<task::Message> reg;
+  supervisor::ComponentAggregator agg;
   log::LogService service;
   auto sink = std::make_shared<Collect>();
   service.add_sink(sink);
   agg.set_log_consumer(&service);
-  TaskSupervisor sup(reg, agg);
+  supervisor::TaskSupervisor sup(reg, agg);
   test::FakeClock clock;
   Joint joint(reg, clock);
   ManualActivity act(joint, {.name = "m", .period_ns = kNanosPerMilli, .clock = clock.clock()});
@@ -81,11 +81,11 @@ TEST_CASE("A Task logs from on_update(), and lines carry its cycle and the cycle
 }
 
 TEST_CASE("Code instrumented with an UpdateGuard logs from the guarded scope", "[log][task]") {
-  Registry<Message> reg;
-  ComponentAggregator agg;
+  Registry<task::Message> reg;
+  supervisor::ComponentAggregator agg;
   log::LogService service;
   agg.set_log_consumer(&service);
-  TaskSupervisor sup(reg, agg);
+  supervisor::TaskSupervisor sup(reg, agg);
   Instrumentation drive("log_legacy_drive", {}, reg);
   drive.init({.activity = "drive"});
   for (int i = 0; i < 3; ++i) {
@@ -103,9 +103,9 @@ TEST_CASE("Code instrumented with an UpdateGuard logs from the guarded scope", "
 }
 
 TEST_CASE("Without a log consumer the aggregator ignores records", "[log][task]") {
-  Registry<Message> reg;
-  ComponentAggregator agg;
-  TaskSupervisor sup(reg, agg);
+  Registry<task::Message> reg;
+  supervisor::ComponentAggregator agg;
+  supervisor::TaskSupervisor sup(reg, agg);
   Instrumentation c("log_no_consumer", {}, reg);
   c.init();
   {

@@ -21,7 +21,7 @@ enum class Phase : std::uint8_t { Idle, Moving };
 
 class Chatty : public Task<Chatty> {
  public:
-  explicit Chatty(Registry<Message>& reg)
+  explicit Chatty(Registry<task::Message>& reg)
       : Task("log_chatty", {.detectors = Detectors::Allocation}, reg) {}
   void on_update() {
     ++n_;
@@ -47,13 +47,13 @@ TEST_CASE("Allocation counting is unavailable under sanitizers", "[log][alloc]")
 #else
 TEST_CASE("1,000,000 log calls allocate nothing on the logging thread", "[log][alloc]") {
   REQUIRE(platform::allocation_counting_available());
-  Registry<Message> reg;
-  ComponentAggregator agg;
+  Registry<task::Message> reg;
+  supervisor::ComponentAggregator agg;
   log::LogService service({.rate_limit = 100});
   auto tail = std::make_shared<log::TailSink>(4);
   service.add_sink(tail);
   agg.set_log_consumer(&service);
-  TaskSupervisor sup(reg, agg, {.period_ns = kNanosPerMilli});
+  supervisor::TaskSupervisor sup(reg, agg, {.period_ns = kNanosPerMilli});
   REQUIRE(sup.start().has_value());
   std::uint64_t allocations = ~std::uint64_t{0};
   std::uint64_t pushed = 0, dropped = 0;
@@ -78,7 +78,7 @@ TEST_CASE("1,000,000 log calls allocate nothing on the logging thread", "[log][a
   CHECK(pushed == 1'000'000);
   const auto s = agg.find("log_chatty");
   REQUIRE(s.has_value());
-  CHECK(s->counters.losses[static_cast<int>(LossCause::Allocation)] == 0);
+  CHECK(s->counters.losses[static_cast<int>(platform::LossCause::Allocation)] == 0);
   const auto st = service.stats("log_chatty");
   // Every call is accounted for: written, suppressed by the rate limit, or dropped (port full).
   CHECK(st.lines + st.suppressed + dropped == 1'000'000 + 1'000);

@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 using namespace vigil;
+using namespace vigil::monitor;
 
 namespace {
 
@@ -51,7 +52,7 @@ TEST_CASE("The Check concept accepts plain classes and CheckBase", "[monitor][ch
 }
 
 TEST_CASE("A CheckList runs its checks in order and exposes what it added", "[monitor][check]") {
-  ComponentSnapshot s;
+  supervisor::ComponentSnapshot s;
   s.counters.cycles = 11;
   const Thresholds t;
   const Window w;
@@ -77,7 +78,7 @@ TEST_CASE("A CheckList runs its checks in order and exposes what it added", "[mo
 
 TEST_CASE("A check that throws makes the component ERROR, and the others still run",
           "[monitor][check]") {
-  ComponentSnapshot s;
+  supervisor::ComponentSnapshot s;
   const Thresholds t;
   const Window w;
   CheckList list;

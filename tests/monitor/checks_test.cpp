@@ -5,13 +5,14 @@
 #include "vigil/monitor/checks/builtin.hpp"
 
 using namespace vigil;
+using namespace vigil::monitor;
 
 namespace {
 
 constexpr Nanos kPeriod = kNanosPerMilli;
 
-ComponentSnapshot periodic(SchedPolicy policy = SchedPolicy::Other) {
-  ComponentSnapshot s;
+supervisor::ComponentSnapshot periodic(SchedPolicy policy = SchedPolicy::Other) {
+  supervisor::ComponentSnapshot s;
   s.id = 1;
   s.name = "c";
   s.has_info = true;
@@ -25,7 +26,7 @@ ComponentSnapshot periodic(SchedPolicy policy = SchedPolicy::Other) {
 }
 
 template <class C>
-Report run(const ComponentSnapshot& s, const Thresholds& t = {}, const Window& w = {},
+Report run(const supervisor::ComponentSnapshot& s, const Thresholds& t = {}, const Window& w = {},
            Nanos silence = -1) {
   C check;
   Report r;
@@ -46,7 +47,7 @@ Window window(std::uint64_t cycles, std::uint64_t overruns = 0) {
 }  // namespace
 
 TEST_CASE("Initialization: no TaskInfo is WARN 'not configured'", "[monitor][checks]") {
-  ComponentSnapshot s;
+  supervisor::ComponentSnapshot s;
   s.name = "c";
   Report r = run<checks::InitializationCheck>(s);
   CHECK(r.status.level() == StatusLevel::Warn);
@@ -66,7 +67,7 @@ TEST_CASE("Initialization: no TaskInfo is WARN 'not configured'", "[monitor][che
 }
 
 TEST_CASE("Exception: any exception is ERROR with the last type and message", "[monitor][checks]") {
-  ComponentSnapshot s = periodic();
+  supervisor::ComponentSnapshot s = periodic();
   CHECK(run<checks::ExceptionCheck>(s).status.ok());
 
   s.counters.exceptions = 1;
@@ -93,7 +94,7 @@ TEST_CASE("Exception: any exception is ERROR with the last type and message", "[
     CHECK(run<checks::ExceptionCheck>(s, t, window(10)).status.level() == StatusLevel::Error);
   }
   SECTION("FatalError without an exception report is ERROR too") {
-    ComponentSnapshot f = periodic();
+    supervisor::ComponentSnapshot f = periodic();
     f.state = TaskState::FatalError;
     Report fr = run<checks::ExceptionCheck>(f);
     CHECK(fr.status.level() == StatusLevel::Error);
@@ -103,7 +104,7 @@ TEST_CASE("Exception: any exception is ERROR with the last type and message", "[
 
 TEST_CASE("Overrun: the EWMA of total time at and just above near_fraction x period",
           "[monitor][checks][overrun]") {
-  ComponentSnapshot s = periodic();
+  supervisor::ComponentSnapshot s = periodic();
   s.total_ns.count = 100;
   s.total_ns.ewma = 0.9 * kPeriod;  // exactly at the limit: passes
   CHECK(run<checks::OverrunCheck>(s).status.ok());
@@ -123,14 +124,14 @@ TEST_CASE("Overrun: the EWMA of total time at and just above near_fraction x per
   s.total_ns.ewma = 10.0 * kPeriod;
   CHECK(run<checks::OverrunCheck>(s, t).status.ok());
 
-  ComponentSnapshot aperiodic = s;
+  supervisor::ComponentSnapshot aperiodic = s;
   aperiodic.info.period_ns = 0;
   CHECK(run<checks::OverrunCheck>(aperiodic).status.ok());
 }
 
 TEST_CASE("Overrun: rates in the window at and just above warn_rate and error_rate",
           "[monitor][checks][overrun]") {
-  const ComponentSnapshot s = periodic();
+  const supervisor::ComponentSnapshot s = periodic();
   // Defaults: warn above 0 (any overrun), error above 10 %.
   CHECK(run<checks::OverrunCheck>(s, {}, window(1000, 0)).status.ok());
   Report one = run<checks::OverrunCheck>(s, {}, window(1000, 1));
@@ -158,7 +159,7 @@ TEST_CASE("Overrun: rates in the window at and just above warn_rate and error_ra
 
 TEST_CASE("Starvation: silence at and just above max(periods x period, min_silence)",
           "[monitor][checks][starvation]") {
-  const ComponentSnapshot s = periodic();
+  const supervisor::ComponentSnapshot s = periodic();
   Thresholds t;
   t.starvation.min_silence_ns = 0;
   const Nanos limit = 10 * kPeriod;
@@ -183,7 +184,7 @@ TEST_CASE("Starvation: silence at and just above max(periods x period, min_silen
     CHECK(run<checks::StarvationCheck>(s, k, {}, 2'500'001).status.level() == StatusLevel::Stale);
   }
   SECTION("non-periodic components: aperiodic_silence, off by default") {
-    ComponentSnapshot a = s;
+    supervisor::ComponentSnapshot a = s;
     a.info.period_ns = 0;
     CHECK(run<checks::StarvationCheck>(a, {}, {}, 3600 * kNanosPerSecond).status.ok());
     Thresholds ap;
@@ -193,7 +194,7 @@ TEST_CASE("Starvation: silence at and just above max(periods x period, min_silen
           StatusLevel::Stale);
   }
   SECTION("only Running components starve") {
-    ComponentSnapshot stopped = s;
+    supervisor::ComponentSnapshot stopped = s;
     stopped.state = TaskState::Stopped;
     CHECK(run<checks::StarvationCheck>(stopped, t, {}, limit * 100).status.ok());
     CHECK(run<checks::StarvationCheck>(s, t, {}, -1).status.ok());  // silence unknown
@@ -201,19 +202,19 @@ TEST_CASE("Starvation: silence at and just above max(periods x period, min_silen
 }
 
 TEST_CASE("RealTime: losses in the window on a FIFO thread, by cause", "[monitor][checks]") {
-  ComponentSnapshot s = periodic(SchedPolicy::Fifo);
+  supervisor::ComponentSnapshot s = periodic(SchedPolicy::Fifo);
   Window w = window(100);
   CHECK(run<checks::RealTimeCheck>(s, {}, w).status.ok());
-  w.losses[static_cast<std::size_t>(LossCause::Allocation)] = 3;
-  w.losses[static_cast<std::size_t>(LossCause::Blocking)] = 1;
+  w.losses[static_cast<std::size_t>(platform::LossCause::Allocation)] = 3;
+  w.losses[static_cast<std::size_t>(platform::LossCause::Blocking)] = 1;
   s.counters.losses = w.losses;
-  s.counters.losses[static_cast<std::size_t>(LossCause::Allocation)] = 7;
+  s.counters.losses[static_cast<std::size_t>(platform::LossCause::Allocation)] = 7;
   Report r = run<checks::RealTimeCheck>(s, {}, w);
   CHECK(r.status.level() == StatusLevel::Warn);
   CHECK(r.status.summary() == "real-time losses: 3 allocation, 1 blocking (8 in total)");
   CHECK(r.value("latest_loss") == nullptr);  // no RealTimeLoss report arrived
   s.has_loss = true;
-  s.last_loss = RealTimeLoss{42, LossCause::Blocking, 1};
+  s.last_loss = task::RealTimeLoss{42, platform::LossCause::Blocking, 1};
   r = run<checks::RealTimeCheck>(s, {}, w);
   REQUIRE(r.value("latest_loss") != nullptr);
   CHECK(*r.value("latest_loss") == "cycle 42: 1 blocking");
@@ -221,11 +222,11 @@ TEST_CASE("RealTime: losses in the window on a FIFO thread, by cause", "[monitor
   Thresholds t;
   t.realtime.warn_losses = 4;  // 4 in the window: at the limit
   CHECK(run<checks::RealTimeCheck>(s, t, w).status.ok());
-  w.losses[static_cast<std::size_t>(LossCause::MinorFault)] = 1;  // 5: above
+  w.losses[static_cast<std::size_t>(platform::LossCause::MinorFault)] = 1;  // 5: above
   CHECK(run<checks::RealTimeCheck>(s, t, w).status.level() == StatusLevel::Warn);
 
   SECTION("OTHER threads are not checked unless fifo_only is false") {
-    ComponentSnapshot other = s;
+    supervisor::ComponentSnapshot other = s;
     other.info.policy = SchedPolicy::Other;
     CHECK(run<checks::RealTimeCheck>(other, {}, w).status.ok());
     Thresholds all;
@@ -235,7 +236,7 @@ TEST_CASE("RealTime: losses in the window on a FIFO thread, by cause", "[monitor
 }
 
 TEST_CASE("NotRealtime: asked for FIFO, runs OTHER", "[monitor][checks]") {
-  ComponentSnapshot s = periodic(SchedPolicy::Fifo);
+  supervisor::ComponentSnapshot s = periodic(SchedPolicy::Fifo);
   CHECK(run<checks::NotRealtimeCheck>(s).status.ok());
   s.info.policy = SchedPolicy::Other;
   s.info.realtime_refused = true;
@@ -246,7 +247,7 @@ TEST_CASE("NotRealtime: asked for FIFO, runs OTHER", "[monitor][checks]") {
 }
 
 TEST_CASE("Overhead: supervision share at and just above warn_share", "[monitor][checks]") {
-  ComponentSnapshot s = periodic();
+  supervisor::ComponentSnapshot s = periodic();
   CHECK(run<checks::OverheadCheck>(s).status.ok());  // never measured
   // 400 us cycles with 20 us of overhead: above both floors (1 us, 1 % of the 1 ms period).
   s.total_ns.count = 100;
@@ -267,7 +268,7 @@ TEST_CASE("Overhead: a large share of a tiny cycle is no warning (the floors)",
           "[monitor][checks]") {
   // The false alarm of examples/multi_process: on_update() takes 100 ns, supervision ~400 ns
   // per measured cycle, period 1 ms: an 80 % share of a cycle that costs nothing.
-  ComponentSnapshot s = periodic();
+  supervisor::ComponentSnapshot s = periodic();
   s.total_ns.count = 5000;
   s.total_ns.mean = 500.0;
   s.overhead_ns.count = 80;
@@ -304,7 +305,7 @@ TEST_CASE("Overhead: a large share of a tiny cycle is no warning (the floors)",
 }
 
 TEST_CASE("Drops: port drops in the window, with the count", "[monitor][checks]") {
-  ComponentSnapshot s = periodic();
+  supervisor::ComponentSnapshot s = periodic();
   s.counters.dropped = 15;
   Window w = window(100);
   CHECK(run<checks::DropsCheck>(s, {}, w).status.ok());  // dropped earlier, not now
@@ -321,7 +322,7 @@ TEST_CASE("Drops: port drops in the window, with the count", "[monitor][checks]"
 }
 
 TEST_CASE("Disabled checks say nothing", "[monitor][checks]") {
-  ComponentSnapshot s = periodic(SchedPolicy::Fifo);
+  supervisor::ComponentSnapshot s = periodic(SchedPolicy::Fifo);
   s.info.policy = SchedPolicy::Other;
   s.counters.exceptions = 3;
   s.total_ns.count = 1;

@@ -39,7 +39,7 @@ class FakeClock {
 template <class Traits = DefaultTaskTraits>
 class BasicProbe : public Task<BasicProbe<Traits>, Traits> {
  public:
-  BasicProbe(std::string name, Registry<Message>& registry, FakeClock& clock,
+  BasicProbe(std::string name, Registry<task::Message>& registry, FakeClock& clock,
              SupervisionOptions options = {.detectors = Detectors::None,
                                            .overhead_sample_every = 0})
       : Task<BasicProbe<Traits>, Traits>(std::move(name), options, registry), clock_(clock) {}
@@ -85,12 +85,13 @@ struct Harness {
   }
 
   FakeClock clock;
-  Registry<Message> registry;
+  Registry<task::Message> registry;
   // No warm-up: the tests count every cycle in the statistics; no watchdog: the starvation
   // tests see the monitor's view alone (both have their own tests, tests/supervisor).
-  ComponentAggregator aggregator{
-      AggregatorOptions{.clock = clock.clock(), .warmup_ns = 0, .watchdog = {.enabled = false}}};
-  TaskSupervisor supervisor{registry, aggregator, SupervisorOptions{.clock = clock.clock()}};
+  supervisor::ComponentAggregator aggregator{supervisor::AggregatorOptions{
+      .clock = clock.clock(), .warmup_ns = 0, .watchdog = {.enabled = false}}};
+  supervisor::TaskSupervisor supervisor{registry, aggregator,
+                                        supervisor::SupervisorOptions{.clock = clock.clock()}};
   Monitor monitor;
 };
 

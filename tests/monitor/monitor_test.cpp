@@ -13,6 +13,7 @@
 #include "vigil/exec/periodic_activity.hpp"
 
 using namespace vigil;
+using namespace vigil::monitor;
 using vigil::test::Harness;
 using vigil::test::PeriodicProbe;
 using vigil::test::Probe;
@@ -272,7 +273,8 @@ namespace {
 // A component whose update blocks on a condition variable while `block` is set.
 class Blocker : public Task<Blocker> {
  public:
-  Blocker(std::string name, Registry<Message>& registry) : Task(std::move(name), {}, registry) {}
+  Blocker(std::string name, Registry<task::Message>& registry)
+      : Task(std::move(name), {}, registry) {}
   void on_update() {
     cycles.fetch_add(1, std::memory_order_relaxed);
     std::unique_lock lock(mutex_);
@@ -311,9 +313,9 @@ bool wait_for(Pred pred, std::chrono::milliseconds timeout = std::chrono::second
 
 TEST_CASE("Starvation, real thread: the components of a blocked thread go STALE",
           "[monitor][e2e][starvation][thread]") {
-  Registry<Message> registry;
-  ComponentAggregator aggregator;
-  TaskSupervisor supervisor(registry, aggregator, {.period_ns = 5 * kMs});
+  Registry<task::Message> registry;
+  supervisor::ComponentAggregator aggregator;
+  supervisor::TaskSupervisor supervisor(registry, aggregator, {.period_ns = 5 * kMs});
   Monitor monitor(aggregator);
   ThresholdSet t;
   t.defaults.starvation.min_silence_ns = 200 * kMs;  // generous: sanitizers and loaded machines

@@ -14,6 +14,7 @@
 #include "vigil/monitor/threshold_file.hpp"
 
 using namespace vigil;
+using namespace vigil::monitor;
 namespace fs = std::filesystem;
 
 namespace {

@@ -44,9 +44,10 @@ TEST_CASE("A small explicit stack is raised to the minimum and not overrun by th
 TEST_CASE("setup_realtime_process bounds the malloc arenas and says so", "[platform][memory]") {
   const auto bounded = setup_realtime_process(
       {.lock_memory = false, .prefault_heap_bytes = 0, .malloc_arena_max = 2});
-#if defined(VIGIL_SANITIZER_BUILD)
-  // The sanitizers replace malloc: mallopt(M_ARENA_MAX) has no arenas to bound and fails.
+#if defined(__SANITIZE_ADDRESS__)
+  // ASan replaces malloc: mallopt(M_ARENA_MAX) has no arenas to bound and fails, and says so.
   CHECK(bounded.malloc_arena_max == 0);
+  CHECK(bounded.describe().find("malloc arenas: glibc default") != std::string::npos);
 #else
   CHECK(bounded.malloc_arena_max == 2);
   CHECK(bounded.describe().find("malloc arenas: at most 2") != std::string::npos);

@@ -14,9 +14,9 @@
 #include <type_traits>
 #include <vector>
 
-using vigil::CompactHistogram;
-using vigil::HistogramRange;
-using vigil::LogLinearHistogram;
+using vigil::supervisor::CompactHistogram;
+using vigil::supervisor::HistogramRange;
+using vigil::supervisor::LogLinearHistogram;
 
 namespace Catch {
 template <>

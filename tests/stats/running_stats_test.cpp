@@ -15,8 +15,8 @@
 #include <vector>
 
 using vigil::Nanos;
-using vigil::RunningStats;
 using vigil::StatsSummary;
+using vigil::supervisor::RunningStats;
 
 // ---- A counting replacement of the global operator new/delete (not malloc), for the whole test
 // binary. It counts only while `g_counting` is set, so Catch2's own allocations do not matter.
@@ -401,7 +401,7 @@ TEST_CASE(
   const std::size_t n = GENERATE(1, 7, 1000, 50'000);
   INFO(kind << ", n = " << n);
   auto data = make_data(kind, n, 23 + n);
-  vigil::CompactRunningStats c;
+  vigil::supervisor::CompactRunningStats c;
   auto fixed = std::make_unique<RunningStats>();
   for (Nanos v : data) {
     c.add(v);
@@ -418,7 +418,7 @@ TEST_CASE(
 
 TEST_CASE("CompactRunningStats allocates while its range grows, then never",
           "[stats][running][compact][alloc]") {
-  vigil::CompactRunningStats s;
+  vigil::supervisor::CompactRunningStats s;
   std::mt19937_64 rng(78);
   std::uniform_int_distribution<Nanos> cycle(40'000, 70'000);  // two octaves
   g_allocations = 0;

@@ -14,10 +14,11 @@
 #include "vigil/task/instrumentation.hpp"
 
 using namespace vigil;
+using namespace vigil::supervisor;
 
 TEST_CASE("The aggregator computes latency, period, user time and demangles exceptions",
           "[supervisor][aggregator]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   vigil::test::FakeClock fc;
   vigil::test::Probe p("p", {.overhead_sample_every = 1}, reg);
   p.work = [&] { fc.advance(250); };
@@ -53,7 +54,7 @@ TEST_CASE("The aggregator computes latency, period, user time and demangles exce
 
 TEST_CASE("Records of components that left are kept for a while, then forgotten",
           "[supervisor][aggregator]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   vigil::test::FakeClock fc;
   ComponentAggregator agg({.retain_left_ns = 5 * kNanosPerSecond, .clock = fc.clock()});
   TaskSupervisor sup(reg, agg);
@@ -77,7 +78,7 @@ TEST_CASE("Stress: many components push while the supervisor drains and readers 
   // Run under TSan in CI: proves the pipeline has no data race.
   constexpr int kComponents = 8;
   constexpr int kCycles = 20000;
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   ComponentAggregator agg;
   TaskSupervisor sup(reg, agg, {.period_ns = 200 * kNanosPerMicro});
   REQUIRE(sup.start().has_value());
@@ -121,23 +122,25 @@ TEST_CASE("Stress: many components push while the supervisor drains and readers 
 
 TEST_CASE("The aggregator keeps the latest real-time loss report, counts come from the samples",
           "[supervisor][aggregator]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   ComponentAggregator agg;
   TaskSupervisor sup(reg, agg);
   auto m = reg.join<16>("lossy");
-  CycleSample s;
+  task::CycleSample s;
   s.counters.cycles = 7;
-  s.counters.losses[static_cast<std::size_t>(LossCause::Allocation)] = 3;
-  REQUIRE(m.port()->try_push(Message{RealTimeLoss{7, LossCause::Allocation, 2}}));
-  REQUIRE(m.port()->try_push(Message{s}));
+  s.counters.losses[static_cast<std::size_t>(platform::LossCause::Allocation)] = 3;
+  REQUIRE(
+      m.port()->try_push(task::Message{task::RealTimeLoss{7, platform::LossCause::Allocation, 2}}));
+  REQUIRE(m.port()->try_push(task::Message{s}));
   sup.step();
   const auto snap = agg.find("lossy");
   REQUIRE(snap.has_value());
   REQUIRE(snap->has_loss);
   CHECK(snap->last_loss.cycle == 7);
-  CHECK(snap->last_loss.cause == LossCause::Allocation);
+  CHECK(snap->last_loss.cause == platform::LossCause::Allocation);
   CHECK(snap->last_loss.count == 2);
-  CHECK(snap->counters.loss(LossCause::Allocation) == 3);  // the sample's total, not the report's
+  CHECK(snap->counters.loss(platform::LossCause::Allocation) ==
+        3);  // the sample's total, not the report's
 }
 
 TEST_CASE("The aggregator's percentiles keep the documented bound against exact percentiles",
@@ -146,7 +149,7 @@ TEST_CASE("The aggregator's percentiles keep the documented bound against exact 
   // component's cycle time looks; the record's compact histograms must report every percentile
   // as exact <= reported <= exact + exact / 32 (docs: relative error < 2^-5), and exactly what
   // a fixed RunningStats reports for the same samples.
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   auto member = reg.join<1024>("known");
   ComponentAggregator agg({.warmup_ns = 0});
   TaskSupervisor sup(reg, agg);
@@ -164,7 +167,7 @@ TEST_CASE("The aggregator's percentiles keep the documented bound against exact 
     const Nanos u = r < 900   ? 50'000 + static_cast<Nanos>(next() % 12'000)
                     : r < 995 ? 190'000 + static_cast<Nanos>(next() % 20'000)
                               : 1'000'000 + static_cast<Nanos>(next() % 4'000'000);
-    CycleSample s;
+    task::CycleSample s;
     s.counters.cycles = c;
     s.release_ns = release;
     s.start_ns = release + 1'000;
@@ -172,7 +175,7 @@ TEST_CASE("The aggregator's percentiles keep the documented bound against exact 
     release += kNanosPerMilli;
     user.push_back(u);
     reference.add(u);
-    REQUIRE(member.port()->try_push(Message{s}));
+    REQUIRE(member.port()->try_push(task::Message{s}));
     if (c % 1000 == 0) sup.step();
   }
   const auto snap = agg.find("known");
@@ -185,9 +188,9 @@ TEST_CASE("The aggregator's percentiles keep the documented bound against exact 
         static_cast<std::size_t>(std::ceil(q * static_cast<double>(user.size()))), 1, user.size());
     return user[rank - 1];
   };
-  for (const auto& [q, got] : {std::pair{0.5, snap->user_ns.p50}, std::pair{0.9, snap->user_ns.p90},
-                               std::pair{0.99, snap->user_ns.p99},
-                               std::pair{0.999, snap->user_ns.p999}}) {
+  for (const auto& [q, got] :
+       {std::pair{0.5, snap->user_ns.p50}, std::pair{0.9, snap->user_ns.p90},
+        std::pair{0.99, snap->user_ns.p99}, std::pair{0.999, snap->user_ns.p999}}) {
     INFO("q = " << q << ", exact = " << exact(q) << ", reported = " << got);
     CHECK(got >= exact(q));
     CHECK(got - exact(q) <= exact(q) / 32);

@@ -13,6 +13,7 @@
 #include "vigil/supervisor/component_aggregator.hpp"
 
 using namespace vigil;
+using namespace vigil::supervisor;
 
 namespace {
 
@@ -47,7 +48,7 @@ struct Rig {
     }
   }
   vigil::test::FakeClock fc;
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   ComponentAggregator agg;
   TaskSupervisor sup;
   vigil::test::Probe probe;

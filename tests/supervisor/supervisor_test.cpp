@@ -11,11 +11,12 @@
 #include "vigil/supervisor/component_aggregator.hpp"
 
 using namespace vigil;
+using namespace vigil::supervisor;
 using vigil::test::Probe;
 
 TEST_CASE("A component started before the supervisor exists is supervised from the start",
           "[supervisor][pipeline]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   Probe p("early", {}, reg);
   ManualActivity act(p);
   REQUIRE(p.configure());
@@ -33,7 +34,7 @@ TEST_CASE("A component started before the supervisor exists is supervised from t
 }
 
 TEST_CASE("Components join and leave while everything runs", "[supervisor][pipeline]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   ComponentAggregator agg;
   TaskSupervisor sup(reg, agg, {.period_ns = kNanosPerMilli});
   REQUIRE(sup.start().has_value());
@@ -58,6 +59,7 @@ TEST_CASE("Components join and leave while everything runs", "[supervisor][pipel
   const auto late = agg.find("late");
   REQUIRE(late.has_value());
   CHECK_FALSE(late->alive);
+  INFO("missed " << late->counters.missed_cycles << " samples " << late->samples);
   CHECK(late->counters.cycles > 10);
   CHECK(late->state == TaskState::Stopped);
   const auto sa = agg.find("a");
@@ -76,7 +78,7 @@ struct Cap8 {
 
 TEST_CASE("Counters stay exact when the port drops samples (capacity 8, supervisor paused)",
           "[supervisor][pipeline]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   vigil::test::FakeClock fc;
   vigil::test::BasicProbe<Cap8> p("lossy", {.detectors = Detectors::Allocation}, reg);
   ManualActivity act(p, {.name = "m", .period_ns = 1000, .clock = fc.clock()});

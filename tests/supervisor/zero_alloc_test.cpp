@@ -13,6 +13,7 @@
 #include "vigil/task/instrumentation.hpp"
 
 using namespace vigil;
+using namespace vigil::supervisor;
 
 #if defined(VIGIL_ALLOC_GUARD_DISABLED)
 TEST_CASE("Allocation counting is unavailable under sanitizers", "[supervisor][alloc]") {
@@ -23,7 +24,7 @@ TEST_CASE("Allocation counting is unavailable under sanitizers", "[supervisor][a
 TEST_CASE("1,000,000 supervised cycles allocate nothing on the component's thread",
           "[supervisor][alloc]") {
   REQUIRE(platform::allocation_counting_available());
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   ComponentAggregator agg;
   TaskSupervisor sup(reg, agg, {.period_ns = kNanosPerMilli});
   REQUIRE(sup.start().has_value());
@@ -50,11 +51,11 @@ TEST_CASE("1,000,000 supervised cycles allocate nothing on the component's threa
   const auto s = agg.find("clean");
   REQUIRE(s.has_value());
   CHECK(s->counters.cycles == 1'000'001);
-  CHECK(s->counters.losses[static_cast<int>(LossCause::Allocation)] == loss_count);
+  CHECK(s->counters.losses[static_cast<int>(platform::LossCause::Allocation)] == loss_count);
 }
 
 TEST_CASE("A periodic thread's cycles allocate nothing", "[supervisor][alloc]") {
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   vigil::test::Probe p("periodic", {.detectors = Detectors::Allocation}, reg);
   std::atomic<std::uint64_t> at10{0}, at300{0};
   p.work = [&] {
@@ -83,7 +84,7 @@ TEST_CASE("Counters stay exact under loss: overruns, exceptions and RT losses",
   } catch (const std::exception&) {
   }
   const auto per_throw = platform::thread_allocations() - a0;
-  Registry<Message> reg;
+  Registry<task::Message> reg;
   vigil::test::FakeClock fc;
   BasicInstrumentation<8> sup("lossy", {.detectors = Detectors::Allocation}, reg);
   sup.init({.activity = "loop", .period_ns = 1000}, fc.clock());
@@ -118,7 +119,7 @@ TEST_CASE("Counters stay exact under loss: overruns, exceptions and RT losses",
   CHECK(s->counters.cycles == 100'001);
   CHECK(s->counters.overruns == overruns);
   CHECK(s->counters.exceptions == exceptions);
-  CHECK(s->counters.losses[static_cast<int>(LossCause::Allocation)] ==
+  CHECK(s->counters.losses[static_cast<int>(platform::LossCause::Allocation)] ==
         allocations + per_throw * exceptions);
   CHECK(s->counters.dropped > 100'000);  // samples and loss reports
   CHECK(s->counters.dropped == sup.port()->dropped());

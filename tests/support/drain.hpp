@@ -8,9 +8,9 @@
 namespace vigil::test {
 
 template <class PortT>
-std::vector<Message> drain(PortT& port) {
-  std::vector<Message> out;
-  Message buf[64];
+std::vector<task::Message> drain(PortT& port) {
+  std::vector<task::Message> out;
+  task::Message buf[64];
   for (;;) {
     const auto n = port.pop(buf, 64);
     if (n == 0) break;
@@ -20,7 +20,7 @@ std::vector<Message> drain(PortT& port) {
 }
 
 template <class T>
-std::vector<T> only(const std::vector<Message>& ms) {
+std::vector<T> only(const std::vector<task::Message>& ms) {
   std::vector<T> out;
   for (const auto& m : ms) {
     if (const auto* p = std::get_if<T>(&m)) out.push_back(*p);
@@ -29,9 +29,9 @@ std::vector<T> only(const std::vector<Message>& ms) {
 }
 
 /// The cycle samples among `ms`, without the totals-only repeats sent on stop and leave.
-inline std::vector<CycleSample> cycles_of(const std::vector<Message>& ms) {
-  std::vector<CycleSample> out;
-  for (const auto& s : only<CycleSample>(ms)) {
+inline std::vector<task::CycleSample> cycles_of(const std::vector<task::Message>& ms) {
+  std::vector<task::CycleSample> out;
+  for (const auto& s : only<task::CycleSample>(ms)) {
     if (!s.totals_only) out.push_back(s);
   }
   return out;

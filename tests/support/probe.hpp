@@ -26,7 +26,7 @@ class BasicProbe : public Task<BasicProbe<Traits>, Traits> {
 
  public:
   explicit BasicProbe(std::string name, SupervisionOptions options = {},
-                      Registry<Message>& registry = default_registry())
+                      Registry<task::Message>& registry = default_registry())
       : Base(std::move(name), options, registry) {}
 
   ProbeScript script;

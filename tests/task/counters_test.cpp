@@ -3,8 +3,8 @@
 #include <catch2/catch.hpp>
 #include <type_traits>
 
-using vigil::Counters;
 using vigil::platform::LossCause;
+using vigil::task::Counters;
 
 namespace {
 Counters sample(std::uint64_t base) {
@@ -23,7 +23,7 @@ Counters sample(std::uint64_t base) {
 TEST_CASE("Counters are trivially copyable and list every member once", "[task][counters]") {
   STATIC_REQUIRE(std::is_trivially_copyable_v<Counters>);
   STATIC_REQUIRE(Counters::kScalars.size() == 5);
-  STATIC_REQUIRE(sizeof(Counters) == (5 + vigil::kLossCauses) * sizeof(std::uint64_t));
+  STATIC_REQUIRE(sizeof(Counters) == (5 + vigil::task::kLossCauses) * sizeof(std::uint64_t));
 }
 
 TEST_CASE("Counters::merge keeps the larger of each counter", "[task][counters]") {

@@ -9,6 +9,7 @@
 #include "vigil/exec/manual_activity.hpp"
 
 using namespace vigil;
+using namespace vigil::task;
 using vigil::test::drain;
 using vigil::test::only;
 

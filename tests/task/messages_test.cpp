@@ -4,6 +4,7 @@
 #include <type_traits>
 
 using namespace vigil;
+using namespace vigil::task;
 
 TEST_CASE("Every message type is trivially copyable and Message stays small", "[task][messages]") {
   STATIC_REQUIRE(std::is_trivially_copyable_v<TaskInfo>);

@@ -6,6 +6,7 @@
 #include "support/probe.hpp"
 
 using namespace vigil;
+using namespace vigil::task;
 using vigil::test::Probe;
 
 TEST_CASE("Every legal transition of the lifecycle, with hooks checking their state",

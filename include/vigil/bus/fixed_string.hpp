@@ -9,7 +9,7 @@
 #include <string>
 #include <string_view>
 
-namespace vigil {
+namespace vigil::bus {
 
 /// Inline, NUL-terminated, fixed-capacity string. Longer input is truncated (never an error:
 /// names and exception texts are informative, and truncation must not cost the RT side).
@@ -50,4 +50,9 @@ struct FixedString {
   }
 };
 
+}  // namespace vigil::bus
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using bus::FixedString;
 }  // namespace vigil

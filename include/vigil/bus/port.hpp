@@ -23,7 +23,7 @@
 #include "vigil/assert.hpp"
 #include "vigil/bus/shm_port.hpp"
 
-namespace vigil {
+namespace vigil::bus {
 
 /// The consumer's view of a port (type-erased capacity). Supervisor side only.
 template <class Variant>
@@ -137,4 +137,10 @@ class Port final : public PortReader<Variant> {
   boost::lockfree::spsc_queue<Variant, boost::lockfree::capacity<N>> queue_;
 };
 
+}  // namespace vigil::bus
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using bus::Port;
+using bus::PortReader;
 }  // namespace vigil

@@ -22,7 +22,7 @@
 #include "vigil/bus/port.hpp"
 #include "vigil/bus/shm_session.hpp"
 
-namespace vigil {
+namespace vigil::bus {
 
 /// One registered port. Shared by the registry, the member and the supervisor.
 template <class Variant>
@@ -204,4 +204,9 @@ void Membership<Variant, N>::leave(std::vector<Variant> last_words) {
   port_ = nullptr;
 }
 
+}  // namespace vigil::bus
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using bus::Registry;
 }  // namespace vigil

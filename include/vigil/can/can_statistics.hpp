@@ -173,7 +173,7 @@ struct GapDistribution {
   std::uint32_t node = 0;  ///< a node's number (`kNoNode`: the frames of no node; 0 for a group)
   Direction direction = Direction::Rx;
   /// Live: the gaps' statistics with their histogram. Null in exact mode.
-  const RunningStats* stats = nullptr;
+  const supervisor::RunningStats* stats = nullptr;
   /// Exact mode: every gap, in no particular order (min, max, sum are exact). Empty live.
   std::span<const Nanos> samples{};
 
@@ -194,7 +194,7 @@ struct CanAggregatorOptions {
   /// Node keys aggregated at most (records of more: `unaggregated_node_records`).
   std::size_t max_nodes = 4096;
   /// Weight of the newest sample in the EWMAs (0 < w <= 1).
-  double ewma_weight = RunningStats::kDefaultEwmaWeight;
+  double ewma_weight = supervisor::RunningStats::kDefaultEwmaWeight;
 };
 
 /**
@@ -213,7 +213,7 @@ struct CanAggregatorOptions {
  */
 class CanAggregator {
  public:
-  using Entry = RegistryEntry<CanMessage>;
+  using Entry = bus::RegistryEntry<CanMessage>;
 
   /// Reads sniffer states from `registry`, which must outlive the aggregator.
   explicit CanAggregator(CanRegistry& registry, CanAggregatorOptions options = {});
@@ -231,9 +231,9 @@ class CanAggregator {
   /// Adds one record's timing to its id and node. O(1) amortised (hash lookups).
   void on(const Entry& e, const FrameRecord& r);
   /// Ends the batch: reads the sniffer's tables (exact counts), frees replaced filters.
-  void end(const Entry& e, const PortDrain& d);
+  void end(const Entry& e, const supervisor::PortDrain& d);
   /// Counts supervisor cycles.
-  void on_cycle(const SupervisorCycle& c);
+  void on_cycle(const supervisor::SupervisorCycle& c);
 
   // --- readers (any thread) ---
   /// A consistent copy of every statistic, with categories for "all" and for `groups`.
@@ -257,10 +257,10 @@ class CanAggregator {
   std::unique_ptr<Impl> impl_;
 };
 
-static_assert(SupervisorHandler<CanAggregator, CanMessage>);
+static_assert(supervisor::SupervisorHandler<CanAggregator, CanMessage>);
 
 /// The CAN supervisor: drains the sniffers' ports into a `CanAggregator`.
-using CanSupervisor = Supervisor<CanMessage, CanAggregator>;
+using CanSupervisor = supervisor::Supervisor<CanMessage, CanAggregator>;
 
 /// Exact nearest-rank percentiles of `samples` (sorted in place): count, min, max, mean, p50,
 /// p90, p99, p99.9, with the same rank rule as `RunningStats` (smallest sample with at least

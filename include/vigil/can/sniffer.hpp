@@ -197,7 +197,7 @@ class Sniffer {
  private:
   std::shared_ptr<detail::SnifferState> state_;
   detail::SnifferState* raw_;
-  Membership<CanMessage, PortCapacity> membership_;
+  bus::Membership<CanMessage, PortCapacity> membership_;
   Port<CanMessage, PortCapacity>* port_;
 };
 

@@ -63,7 +63,7 @@ struct ComponentSpec {
 struct SupervisionSpec {
   Nanos supervisor_period_ns = 10 * kNanosPerMilli;
   Nanos monitor_period_ns = kNanosPerSecond;
-  double ewma_weight = kDefaultEwmaWeight;
+  double ewma_weight = supervisor::kDefaultEwmaWeight;
   /// Thresholds embedded in the deployment, or loaded from `thresholds_file` (watched and
   /// reloaded at run time when it changes).
   ThresholdSet thresholds;
@@ -80,13 +80,13 @@ struct SupervisionSpec {
   /// `warmup`: the first cycles kept out of the statistics and windows (AggregatorOptions).
   Nanos warmup_ns = 100 * kNanosPerMilli;
   /// `watchdog: {enabled, periods, floor, aperiodic}`.
-  WatchdogOptions watchdog{};
+  supervisor::WatchdogOptions watchdog{};
   /// `events: {queue, auto_clear, state_changes}`.
   std::size_t event_queue = 1024;
   Nanos auto_clear_ns = 0;
   bool state_events = true;
   /// `flight_recorder: {cycles, min_interval, max_records}`.
-  FlightRecorderOptions recorder{};
+  supervisor::FlightRecorderOptions recorder{};
 };
 
 /// `outputs.http`: serve the reports over HTTP while the system runs (docs/guide/http.md).

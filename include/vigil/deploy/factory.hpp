@@ -42,11 +42,11 @@ struct ComponentContext {
   SupervisionOptions supervision;
   /// The component's `parameters:` mapping (undefined when absent). Read with the config API.
   config::Node parameters;
-  Registry<Message>* registry_ptr = nullptr;
+  Registry<task::Message>* registry_ptr = nullptr;
   /// The running system (for services such as CAN sniffers); null outside a System.
   System* system = nullptr;
 
-  [[nodiscard]] Registry<Message>& registry() const noexcept { return *registry_ptr; }
+  [[nodiscard]] Registry<task::Message>& registry() const noexcept { return *registry_ptr; }
 };
 
 /// Makes a component; throws or returns null to fail (reported with the component's location).

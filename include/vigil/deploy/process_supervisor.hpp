@@ -53,7 +53,7 @@ struct ProcessSupervisorOptions {
   /// Options of the monitor (its period is the live view's pace).
   MonitorOptions monitor;
   /// Options of the aggregator (the clock must be the monitor's).
-  AggregatorOptions aggregator;
+  supervisor::AggregatorOptions aggregator;
   /// Thread name of the drain loop.
   std::string thread_name = "vigil-supervise";
 };
@@ -153,7 +153,7 @@ class ProcessSupervisor {
   [[nodiscard]] ProcessSupervisorStats stats() const;
   [[nodiscard]] const ProcessSupervisorOptions& options() const noexcept;
   [[nodiscard]] Monitor& monitor() noexcept;
-  [[nodiscard]] const ComponentAggregator& aggregator() const noexcept;
+  [[nodiscard]] const supervisor::ComponentAggregator& aggregator() const noexcept;
 
   struct Impl;
 

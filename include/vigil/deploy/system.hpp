@@ -70,9 +70,9 @@ class System {
   }
 
   [[nodiscard]] const DeploymentSpec& spec() const noexcept { return spec_; }
-  [[nodiscard]] Registry<Message>& registry() noexcept { return registry_; }
-  [[nodiscard]] ComponentAggregator& aggregator() noexcept { return *aggregator_; }
-  [[nodiscard]] TaskSupervisor& supervisor() noexcept { return *supervisor_; }
+  [[nodiscard]] Registry<task::Message>& registry() noexcept { return registry_; }
+  [[nodiscard]] supervisor::ComponentAggregator& aggregator() noexcept { return *aggregator_; }
+  [[nodiscard]] supervisor::TaskSupervisor& supervisor() noexcept { return *supervisor_; }
   [[nodiscard]] Monitor& monitor() noexcept { return *monitor_; }
   /// The exporter serving `outputs.http` / `outputs.textfile` while the system runs (e.g.
   /// `exporter()->http()->address()` for the port chosen for `listen: 0`); null when the
@@ -110,9 +110,9 @@ class System {
   };
 
   DeploymentSpec spec_;
-  Registry<Message> registry_;
-  std::unique_ptr<ComponentAggregator> aggregator_;
-  std::unique_ptr<TaskSupervisor> supervisor_;
+  Registry<task::Message> registry_;
+  std::unique_ptr<supervisor::ComponentAggregator> aggregator_;
+  std::unique_ptr<supervisor::TaskSupervisor> supervisor_;
   std::unique_ptr<Monitor> monitor_;
   std::optional<ThresholdFile> thresholds_file_;  // after monitor_: detached before it dies
   std::vector<std::unique_ptr<Extension>> extensions_;

@@ -58,16 +58,16 @@ struct BucketCounts {
 /// upper edge first (total time: user time plus the latest overhead); `sum_ns` overrides the
 /// sum when >= 0 (else count * mean). O(buckets between the minimum's and the maximum's).
 /// Allocation-free; not thread-safe against writers of `stats`.
-[[nodiscard]] BucketCounts reduce_to_buckets(const RunningStats& stats, Nanos shift_ns = 0,
-                                             double sum_ns = -1.0) noexcept;
+[[nodiscard]] BucketCounts reduce_to_buckets(const supervisor::RunningStats& stats,
+                                             Nanos shift_ns = 0, double sum_ns = -1.0) noexcept;
 
 /// The same for the supervisor's per-component statistics (same buckets, allocated for the seen
 /// range only): identical results for identical samples.
-[[nodiscard]] BucketCounts reduce_to_buckets(const CompactRunningStats& stats, Nanos shift_ns = 0,
-                                             double sum_ns = -1.0) noexcept;
+[[nodiscard]] BucketCounts reduce_to_buckets(const supervisor::CompactRunningStats& stats,
+                                             Nanos shift_ns = 0, double sum_ns = -1.0) noexcept;
 
 /// The same from a bare histogram with a known sum. O(histogram buckets).
-[[nodiscard]] BucketCounts reduce_to_buckets(const RunningStats::Histogram& histogram,
+[[nodiscard]] BucketCounts reduce_to_buckets(const supervisor::RunningStats::Histogram& histogram,
                                              double sum_ns, Nanos shift_ns = 0) noexcept;
 
 /// The same from every sample of a distribution (e.g. the CAN aggregator's exact mode): each

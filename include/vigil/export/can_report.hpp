@@ -35,7 +35,7 @@ struct CanTextOptions {
 
 /// Writes the report's members (time, status, totals, summary, nodes, ids, sniffers) into the
 /// object `w` has open, so that a tool can add its own members around them.
-void write_can_report_members(JsonWriter& w, const can::CanReport& report,
+void write_can_report_members(exporter::JsonWriter& w, const can::CanReport& report,
                               const std::vector<std::string>& bus_names);
 
 /// Options of the text form of a replay.

@@ -87,7 +87,7 @@ struct HttpOptions {
   std::string thread_name = "vigil-http";
   /// Events served at `GET /api/v1/events?after=SEQ&wait=SECONDS` (a long poll; null: the
   /// endpoint answers 404). The hub must outlive the server.
-  EventHub* events = nullptr;
+  supervisor::EventHub* events = nullptr;
   /// Longest wait of an events long poll (a request asking more gets this).
   Nanos events_max_wait_ns = 25 * kNanosPerSecond;
   /// `POST /api/v1/clear[?component=NAME]` clears latched faults through this function (the

@@ -62,7 +62,7 @@ class MonitorExporter {
   /// once. `monitor` and `aggregator` (may be null: histograms then carry only count and sum)
   /// must outlive the exporter. Fails when the server cannot start (port taken...).
   static expected<std::unique_ptr<MonitorExporter>, Error> start(
-      Monitor& monitor, const ComponentAggregator* aggregator, ExportOptions options);
+      Monitor& monitor, const supervisor::ComponentAggregator* aggregator, ExportOptions options);
 
   /// Unsubscribes (waiting for a publication in progress), then stops the server. Must not run
   /// on the monitor's thread (e.g. from a subscriber).
@@ -81,7 +81,8 @@ class MonitorExporter {
   [[nodiscard]] std::string textfile_error() const;
 
  private:
-  MonitorExporter(Monitor& monitor, const ComponentAggregator* aggregator, ExportOptions options);
+  MonitorExporter(Monitor& monitor, const supervisor::ComponentAggregator* aggregator,
+                  ExportOptions options);
   void on_cycle(const ReportSet& reports);
 
   struct Link {
@@ -90,7 +91,7 @@ class MonitorExporter {
   };
 
   Monitor& monitor_;
-  const ComponentAggregator* aggregator_;
+  const supervisor::ComponentAggregator* aggregator_;
   ExportOptions options_;
   std::unique_ptr<HttpServer> http_;
   std::shared_ptr<Link> link_;
@@ -101,7 +102,7 @@ class MonitorExporter {
 
 /// One call: serves `monitor`'s reports over HTTP with `options` (127.0.0.1:9479 by default).
 [[nodiscard]] inline expected<std::unique_ptr<MonitorExporter>, Error> serve_http(
-    Monitor& monitor, const ComponentAggregator& aggregator, HttpOptions options = {}) {
+    Monitor& monitor, const supervisor::ComponentAggregator& aggregator, HttpOptions options = {}) {
   return MonitorExporter::start(monitor, &aggregator,
                                 ExportOptions{.http = std::move(options),
                                               .textfile = {},

@@ -21,7 +21,7 @@
 #include "vigil/export/json_writer.hpp"
 #include "vigil/monitor/report.hpp"
 
-namespace vigil {
+namespace vigil::exporter {
 
 /// The version written in the "schema" field.
 inline constexpr int kJsonSchemaVersion = 1;
@@ -41,4 +41,10 @@ void write_json(JsonWriter& w, const Report& report);
 /// Writes a statistics object: count, last, min, mean, ewma, max, p50, p90, p99, p999.
 void write_json(JsonWriter& w, const StatsSummary& stats);
 
+}  // namespace vigil::exporter
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using exporter::JsonOptions;
+using exporter::to_json;
 }  // namespace vigil

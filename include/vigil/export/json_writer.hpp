@@ -30,7 +30,7 @@
 #include <type_traits>
 #include <vector>
 
-namespace vigil {
+namespace vigil::exporter {
 
 /// Appends `s` to `out` as a JSON string literal (with the quotes), escaped and UTF-8-repaired
 /// as described in the file comment.
@@ -96,4 +96,4 @@ class JsonWriter {
   bool wrote_root_ = false;
 };
 
-}  // namespace vigil
+}  // namespace vigil::exporter

@@ -35,7 +35,7 @@ struct ComponentHistograms {
 /// The buckets of every component of `aggregator`, by id. Takes each record's lock for the
 /// time of one reduction (microseconds). Not RT-safe (allocates); any non-RT thread.
 [[nodiscard]] std::vector<ComponentHistograms> collect_histograms(
-    const ComponentAggregator& aggregator);
+    const supervisor::ComponentAggregator& aggregator);
 
 /// The gap distributions of one CAN node or group report as Prometheus buckets (served as
 /// `vigil_can_gap_seconds` and `vigil_can_group_gap_seconds`).

@@ -14,7 +14,7 @@
 
 #include "vigil/monitor/report.hpp"
 
-namespace vigil {
+namespace vigil::exporter {
 
 /// When to colour the status with ANSI escapes.
 enum class ColorMode : std::uint8_t {
@@ -43,4 +43,17 @@ void print_summary(std::FILE* out, const ReportSet& reports, ColorMode mode = Co
 /// Writes format_details to `out` (colour per `mode`).
 void print_details(std::FILE* out, const ReportSet& reports, ColorMode mode = ColorMode::Auto);
 
+}  // namespace vigil::exporter
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using exporter::ColorMode;
+using exporter::format_detail;
+using exporter::format_details;
+using exporter::format_summary;
+using exporter::format_summary_header;
+using exporter::format_summary_line;
+using exporter::print_details;
+using exporter::print_summary;
+using exporter::use_color;
 }  // namespace vigil

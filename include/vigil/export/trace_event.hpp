@@ -31,7 +31,7 @@ namespace vigil::exporter {
 /// counter tracks "latency_us" and "user_us", an instant (`i`) marker on the faulting cycle (or
 /// at the deadline that passed), markers where cycles are missing, and the event in
 /// `otherData`. Timestamps are the monotonic clock in microseconds.
-[[nodiscard]] std::string trace_event_json(const FlightRecord& record);
+[[nodiscard]] std::string trace_event_json(const supervisor::FlightRecord& record);
 
 /// An event as one JSON object on one line (no newline): seq, kind, severity, component,
 /// component_id, cycle, fault_ns, detected_ns, latency_ns, count, latched, traced, detail
@@ -50,8 +50,8 @@ class TraceWriter {
  public:
   /// Creates the directory and subscribes to `aggregator`'s events (which must outlive the
   /// writer). Fails when the directory cannot be created.
-  static expected<std::unique_ptr<TraceWriter>, Error> start(ComponentAggregator& aggregator,
-                                                             TraceWriterOptions options);
+  static expected<std::unique_ptr<TraceWriter>, Error> start(
+      supervisor::ComponentAggregator& aggregator, TraceWriterOptions options);
   /// Unsubscribes (after the record being written).
   ~TraceWriter();
   TraceWriter(const TraceWriter&) = delete;
@@ -68,11 +68,12 @@ class TraceWriter {
   [[nodiscard]] std::string error() const;
 
  private:
-  TraceWriter(ComponentAggregator& aggregator, TraceWriterOptions options);
+  TraceWriter(supervisor::ComponentAggregator& aggregator, TraceWriterOptions options);
   void on_event(const Event& e);
-  expected<std::filesystem::path, Error> write(const FlightRecord& r, const std::string& stem);
+  expected<std::filesystem::path, Error> write(const supervisor::FlightRecord& r,
+                                               const std::string& stem);
 
-  ComponentAggregator& aggregator_;
+  supervisor::ComponentAggregator& aggregator_;
   TraceWriterOptions options_;
   std::uint64_t subscription_ = 0;
   mutable std::mutex mutex_;
@@ -90,7 +91,7 @@ expected<void, Error> write_file_atomically(const std::filesystem::path& path,
 class EventLogWriter {
  public:
   /// Opens (truncates) `path` and subscribes to `hub` (which must outlive the writer).
-  static expected<std::unique_ptr<EventLogWriter>, Error> start(EventHub& hub,
+  static expected<std::unique_ptr<EventLogWriter>, Error> start(supervisor::EventHub& hub,
                                                                 const std::filesystem::path& path);
   /// Unsubscribes and closes the file.
   ~EventLogWriter();
@@ -104,8 +105,8 @@ class EventLogWriter {
   [[nodiscard]] std::string error() const;
 
  private:
-  EventLogWriter(EventHub& hub, std::FILE* file, std::filesystem::path path);
-  EventHub& hub_;
+  EventLogWriter(supervisor::EventHub& hub, std::FILE* file, std::filesystem::path path);
+  supervisor::EventHub& hub_;
   std::FILE* file_;
   std::filesystem::path path_;
   std::uint64_t subscription_ = 0;

@@ -33,15 +33,15 @@
 #include "vigil/monitor/thresholds.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 
-namespace vigil {
+namespace vigil::monitor {
 
 /// What a check sees about one component in one monitor cycle. References are valid during the
 /// call only.
 struct CheckInput {
-  const ComponentSnapshot& component;  ///< the aggregator's record of the component
-  const Thresholds& thresholds;        ///< the component's (defaults + its overrides)
-  const Window& window;                ///< counter deltas over the recent window
-  Nanos now_ns;                        ///< monitor clock at the start of the cycle
+  const supervisor::ComponentSnapshot& component;  ///< the aggregator's record of the component
+  const Thresholds& thresholds;                    ///< the component's (defaults + its overrides)
+  const Window& window;                            ///< counter deltas over the recent window
+  Nanos now_ns;                                    ///< monitor clock at the start of the cycle
   /// Time since the latest cycle arrived, or since the monitor saw the component enter Running if
   /// later; -1 when the component is not Running (or left).
   Nanos silence_ns;
@@ -136,4 +136,11 @@ class CheckList {
   std::vector<std::unique_ptr<CheckBase>> checks_;
 };
 
+}  // namespace vigil::monitor
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using monitor::Check;
+using monitor::CheckBase;
+using monitor::CheckInput;
 }  // namespace vigil

@@ -35,7 +35,7 @@
 #include "vigil/platform/thread.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 
-namespace vigil {
+namespace vigil::monitor {
 
 /// Options of a monitor.
 struct MonitorOptions {
@@ -65,7 +65,7 @@ class Monitor {
   using Callback = std::function<void(const ReportSet&)>;
 
   /// Monitors the components of `aggregator`, which must outlive the monitor. Not RT-safe.
-  explicit Monitor(const ComponentAggregator& aggregator, MonitorOptions options = {});
+  explicit Monitor(const supervisor::ComponentAggregator& aggregator, MonitorOptions options = {});
   /// Stops the thread if it runs.
   ~Monitor();
   Monitor(const Monitor&) = delete;
@@ -74,7 +74,7 @@ class Monitor {
   /// Also reports `supervisor` (which must outlive the monitor, or be detached with nullptr):
   /// its cycles, drain time, messages and ports, Stale when it stopped cycling and Warn when its
   /// drain time nears its period.
-  void set_supervisor(const TaskSupervisor* supervisor);
+  void set_supervisor(const supervisor::TaskSupervisor* supervisor);
 
   // --- checks ---
 
@@ -164,4 +164,10 @@ class Monitor {
   std::unique_ptr<Impl> impl_;
 };
 
+}  // namespace vigil::monitor
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using monitor::Monitor;
+using monitor::MonitorOptions;
 }  // namespace vigil

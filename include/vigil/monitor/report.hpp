@@ -19,7 +19,7 @@
 #include "vigil/supervisor/running_stats.hpp"
 #include "vigil/task/messages.hpp"
 
-namespace vigil {
+namespace vigil::monitor {
 
 /// What a report describes.
 enum class ReportKind : std::uint8_t {
@@ -59,7 +59,7 @@ struct KeyValue {
 /// `Thresholds::window_ns`): the `Counters` counted since the window's start (`Counters::since`).
 /// On the first observation of a component the window starts when the component joined (the
 /// counters' origin), and `first` is true.
-struct Window : Counters {
+struct Window : task::Counters {
   Nanos duration_ns = 0;  ///< monitor time covered (0 on the first observation)
   bool first = true;
 
@@ -104,7 +104,7 @@ struct Report {
   /// For reports that are not components (CAN nodes, groups): the state in words
   /// ("responding", "silent", "never seen"), shown and exported instead of `state`.
   std::string state_label;
-  Counters counters;          ///< cumulative, exact
+  task::Counters counters;    ///< cumulative, exact
   std::uint64_t samples = 0;  ///< cycle samples received (fewer than cycles when some dropped)
   Window window;              ///< counter deltas over the recent window
 
@@ -123,8 +123,8 @@ struct Report {
 
   // --- warm-up, events, latch (vigil/supervisor/events.hpp) ---
   std::uint64_t warmup_cycles = 0;  ///< samples of the warm-up, kept out of the statistics
-  Counters warmup;                  ///< the counters when the warm-up ended (its overruns, ...)
-  LatchedFault latch;               ///< the latched fault, if `latch.active`
+  task::Counters warmup;            ///< the counters when the warm-up ended (its overruns, ...)
+  supervisor::LatchedFault latch;   ///< the latched fault, if `latch.active`
   Nanos deadline_ns = 0;            ///< the watchdog's limit (0: not watched)
   std::uint64_t deadline_misses = 0;
   std::uint64_t events = 0;  ///< events raised for it
@@ -170,6 +170,16 @@ struct ReportSet {
 
 /// Fills the identity, counters and statistics of `r` from `s` (not the status, window, silence,
 /// tasks_on_thread or thread fields, which the monitor computes).
-void fill_report(Report& r, const ComponentSnapshot& s);
+void fill_report(Report& r, const supervisor::ComponentSnapshot& s);
 
+}  // namespace vigil::monitor
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using monitor::format_nanos;
+using monitor::KeyValue;
+using monitor::Report;
+using monitor::ReportKind;
+using monitor::ReportSet;
+using monitor::to_string;
 }  // namespace vigil

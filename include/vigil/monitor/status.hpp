@@ -23,7 +23,7 @@
 #include <string_view>
 #include <vector>
 
-namespace vigil {
+namespace vigil::monitor {
 
 /// Severity of a status. The numeric values are ROS diagnostics' levels.
 enum class StatusLevel : std::uint8_t {
@@ -106,4 +106,14 @@ class Status {
   std::vector<StatusMessage> messages_;
 };
 
+}  // namespace vigil::monitor
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using monitor::parse_status_level;
+using monitor::Status;
+using monitor::StatusLevel;
+using monitor::StatusMessage;
+using monitor::to_string;
+using monitor::worst;
 }  // namespace vigil

@@ -26,7 +26,7 @@
 #include "vigil/expected.hpp"
 #include "vigil/monitor/thresholds.hpp"
 
-namespace vigil {
+namespace vigil::monitor {
 
 class Monitor;
 
@@ -78,4 +78,9 @@ class ThresholdFile {
   std::shared_ptr<State> state_;  // shared with the monitor's cycle hook
 };
 
+}  // namespace vigil::monitor
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using monitor::ThresholdFile;
 }  // namespace vigil

@@ -20,11 +20,11 @@
 #include "vigil/expected.hpp"
 #include "vigil/platform/clock.hpp"
 
-namespace vigil {
-
-namespace config {
+namespace vigil::config {
 class Node;
-}
+}  // namespace vigil::config
+
+namespace vigil::monitor {
 
 /// Initialization check: a component that has not sent its identity (TaskInfo) is not configured.
 struct InitializationThresholds {
@@ -174,4 +174,22 @@ struct ThresholdSet {
 [[nodiscard]] expected<ThresholdSet, config::ConfigErrors> load_thresholds_string(
     std::string_view text, std::string name = "<string>");
 
+}  // namespace vigil::monitor
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using monitor::DropsThresholds;
+using monitor::ExceptionThresholds;
+using monitor::InitializationThresholds;
+using monitor::load_thresholds;
+using monitor::load_thresholds_file;
+using monitor::load_thresholds_string;
+using monitor::NotRealtimeThresholds;
+using monitor::OverheadThresholds;
+using monitor::OverrunThresholds;
+using monitor::read_thresholds;
+using monitor::RealTimeThresholds;
+using monitor::StarvationThresholds;
+using monitor::Thresholds;
+using monitor::ThresholdSet;
 }  // namespace vigil

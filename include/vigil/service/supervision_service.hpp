@@ -77,7 +77,7 @@ struct SupervisionServiceOptions {
   /// subscribers and the outputs). false: stop() publishes the latest cycle's reports as they are.
   bool final_cycle = true;
   /// Weight of the newest sample in every EWMA of the aggregator, in (0, 1].
-  double ewma_weight = kDefaultEwmaWeight;
+  double ewma_weight = supervisor::kDefaultEwmaWeight;
   /// Where the text summary is written (print_summary) when the service stops; null: nowhere.
   std::FILE* summary_file = stdout;
   /// Also write the summary after every monitor cycle, not only at stop (a live console view).
@@ -170,8 +170,8 @@ class SupervisionService {
   // --- the parts ---
 
   [[nodiscard]] ComponentRegistry& registry() noexcept { return registry_; }
-  [[nodiscard]] ComponentAggregator& aggregator() noexcept { return aggregator_; }
-  [[nodiscard]] TaskSupervisor& supervisor() noexcept { return supervisor_; }
+  [[nodiscard]] supervisor::ComponentAggregator& aggregator() noexcept { return aggregator_; }
+  [[nodiscard]] supervisor::TaskSupervisor& supervisor() noexcept { return supervisor_; }
   /// The monitor: add checks, set or watch thresholds here.
   [[nodiscard]] Monitor& monitor() noexcept { return monitor_; }
   [[nodiscard]] const SupervisionServiceOptions& options() const noexcept { return options_; }
@@ -185,8 +185,8 @@ class SupervisionService {
 
   SupervisionServiceOptions options_;
   ComponentRegistry& registry_;
-  ComponentAggregator aggregator_;
-  TaskSupervisor supervisor_;
+  supervisor::ComponentAggregator aggregator_;
+  supervisor::TaskSupervisor supervisor_;
   Monitor monitor_;
   std::uint64_t monitor_subscription_ = 0;
   std::vector<std::unique_ptr<ReportOutput>> outputs_;

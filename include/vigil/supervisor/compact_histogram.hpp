@@ -35,7 +35,7 @@
 
 #include "vigil/supervisor/histogram.hpp"
 
-namespace vigil {
+namespace vigil::supervisor {
 
 /**
  * A `LogLinearHistogram<SubBucketBits, MaxExponent>` whose counters are allocated for the seen
@@ -47,7 +47,7 @@ namespace vigil {
  * moving does not.
  *
  * @code
- * vigil::CompactHistogram<> h;              // 48 bytes until the first sample
+ * vigil::supervisor::CompactHistogram<> h;              // 48 bytes until the first sample
  * h.add(52'000);                            // allocates one chunk: [32768, 65535], 256 bytes
  * h.add(61'000);                            // same chunk: no allocation
  * const vigil::Nanos p99 = h.value_at_quantile(0.99);
@@ -281,4 +281,4 @@ class CompactHistogram {
 
 static_assert(sizeof(CompactHistogram<>) == 48, "CompactHistogram<>: a 48-byte header");
 
-}  // namespace vigil
+}  // namespace vigil::supervisor

@@ -37,7 +37,7 @@
 #include "vigil/task/default_registry.hpp"
 #include "vigil/task/messages.hpp"
 
-namespace vigil {
+namespace vigil::supervisor {
 
 /// A component's latched fault: the first Error event since the latch was last cleared raised
 /// it; later Error events only count and move `last_*`. It stays until cleared
@@ -61,13 +61,13 @@ struct ComponentSnapshot {
   std::string name;
   bool alive = true;      ///< false once the component left (kept for a while)
   bool has_info = false;  ///< a TaskInfo arrived (the component was configured)
-  TaskInfo info;
+  task::TaskInfo info;
   TaskState state = TaskState::PreOperational;
   bool has_sample = false;
-  CycleSample last;  ///< latest cycle sample received
+  task::CycleSample last;  ///< latest cycle sample received
   std::uint64_t samples = 0;
-  Counters counters;     ///< cumulative, exact even when samples were dropped
-  StatsSummary user_ns;  ///< on_update() alone
+  task::Counters counters;  ///< cumulative, exact even when samples were dropped
+  StatsSummary user_ns;     ///< on_update() alone
   /// user + the latest measured supervision overhead: count, min, max, mean and EWMA exact;
   /// percentiles are user_ns's plus that overhead (capped at max).
   StatsSummary total_ns;
@@ -75,16 +75,16 @@ struct ComponentSnapshot {
   StatsSummary period_ns;    ///< start-to-start of consecutive cycles
   StatsSummary overhead_ns;  ///< supervision's own time per cycle (sampled)
   bool has_exception = false;
-  ExceptionReport last_exception;
+  task::ExceptionReport last_exception;
   std::string last_exception_type;  ///< demangled
   /// The latest real-time loss reported (the cycle it happened in, its cause and count); the
   /// totals by cause are in `counters.losses`.
   bool has_loss = false;
-  RealTimeLoss last_loss;
+  task::RealTimeLoss last_loss;
   Nanos last_loss_at = 0;  ///< supervisor clock when it arrived
   bool has_state_change = false;
-  StateChange last_change;
-  Nanos joined_at = 0;       ///< supervisor clock
+  task::StateChange last_change;
+  Nanos joined_at = 0;  ///< supervisor clock
   /// Supervisor clock when the latest sample was drained (read once per 16 port drains, so
   /// within microseconds of it); 0 if none.
   Nanos last_sample_at = 0;
@@ -97,7 +97,7 @@ struct ComponentSnapshot {
   bool warming_up = false;
   std::uint64_t warmup_cycles = 0;  ///< samples kept out of the statistics
   /// The counters when the latest warm-up ended (zeros before): overruns etc. of the warm-up.
-  Counters warmup_counters;
+  task::Counters warmup_counters;
   LatchedFault latch;
   /// Watchdog: the silence after which a Deadline event is raised (0: not watched).
   Nanos deadline_ns = 0;
@@ -173,7 +173,7 @@ struct AggregatorOptions {
 /// The supervisor handler for `Message`. Not RT-safe (supervisor thread and readers only).
 class ComponentAggregator {
  public:
-  using Entry = RegistryEntry<Message>;
+  using Entry = bus::RegistryEntry<task::Message>;
 
   explicit ComponentAggregator(AggregatorOptions options = {});
   ~ComponentAggregator();
@@ -184,18 +184,18 @@ class ComponentAggregator {
   void on_join(const Entry& e);
   void on_leave(const Entry& e);
   void begin(const Entry& e);
-  void on(const Entry& e, const TaskInfo& m);
-  void on(const Entry& e, const CycleSample& m);
-  void on(const Entry& e, const RealTimeLoss& m);
-  void on(const Entry& e, const ExceptionReport& m);
-  void on(const Entry& e, const StateChange& m);
+  void on(const Entry& e, const task::TaskInfo& m);
+  void on(const Entry& e, const task::CycleSample& m);
+  void on(const Entry& e, const task::RealTimeLoss& m);
+  void on(const Entry& e, const task::ExceptionReport& m);
+  void on(const Entry& e, const task::StateChange& m);
   void on(const Entry& e, const log::LogRecord& m);  // forwarded to the log consumer, if any
   /// Any other message type (one added to `Message` later): ignored until a handler cares.
   template <class M>
   void on(const Entry& /*e*/, const M& /*m*/) {}
   /// A batch of `n` messages of the current port, in order: the same as `on()` for each, with
   /// cycle samples handled without a variant dispatch (the supervisor calls this when present).
-  void on_batch(const Entry& e, const Message* messages, std::size_t n);
+  void on_batch(const Entry& e, const task::Message* messages, std::size_t n);
   void end(const Entry& e, const PortDrain& d);
   void on_cycle(const SupervisorCycle& c);
 
@@ -238,9 +238,9 @@ class ComponentAggregator {
 
  private:
   Slot* slot_for(const Entry& e);
-  void take_sample(Slot& s, const CycleSample& m);  // all but the copy into data.last
-  void raise(Slot& s, Event e);                     // the slot is locked by the caller
-  void resolve_pending(Slot& s, const CycleSample* sample);
+  void take_sample(Slot& s, const task::CycleSample& m);  // all but the copy into data.last
+  void raise(Slot& s, Event e);                           // the slot is locked by the caller
+  void resolve_pending(Slot& s, const task::CycleSample* sample);
   void watch(Slot& s, Nanos now);
   std::size_t clear_slot(Slot& s, const char* why);
   AggregatorOptions options_;
@@ -260,11 +260,11 @@ class ComponentAggregator {
   mutable EventHub events_;  // last: destroyed first, its dispatchers may still read the above
 };
 
-static_assert(SupervisorHandler<ComponentAggregator, Message>);
+static_assert(SupervisorHandler<ComponentAggregator, task::Message>);
 
 /// The supervisor of tasks: one non-RT thread (or step()) that drains the port of every
 /// component of a registry into a ComponentAggregator. Each component's own side is its
 /// Task<Derived> or Instrumentation. (Was `ComponentSupervisorLoop`.)
-using TaskSupervisor = Supervisor<Message, ComponentAggregator>;
+using TaskSupervisor = Supervisor<task::Message, ComponentAggregator>;
 
-}  // namespace vigil
+}  // namespace vigil::supervisor

@@ -28,7 +28,7 @@
 
 #include "vigil/platform/clock.hpp"
 
-namespace vigil {
+namespace vigil::supervisor {
 
 /// What happened.
 enum class EventKind : std::uint8_t {
@@ -177,4 +177,14 @@ class EventLineLimiter {
   std::uint64_t folded_ = 0;
 };
 
+}  // namespace vigil::supervisor
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using supervisor::Event;
+using supervisor::EventCallback;
+using supervisor::EventKind;
+using supervisor::EventSeverity;
+using supervisor::format_event;
+using supervisor::to_string;
 }  // namespace vigil

@@ -19,7 +19,7 @@
 #include "vigil/supervisor/events.hpp"
 #include "vigil/task/messages.hpp"
 
-namespace vigil {
+namespace vigil::supervisor {
 
 /// One cycle as the flight recorder keeps it.
 struct CycleRecord {
@@ -97,7 +97,7 @@ struct FlightRecord {
   std::string component;
   std::uint32_t component_id = 0;
   bool has_info = false;
-  TaskInfo info;                    ///< activity, period, thread id, policy (when has_info)
+  task::TaskInfo info;              ///< activity, period, thread id, policy (when has_info)
   std::vector<CycleRecord> cycles;  ///< oldest first
   /// Why it was frozen: the event (kind, cycle, fault time, detail); for a record taken on
   /// demand, kind is StateChange with detail "on demand" and no fault time.
@@ -116,4 +116,4 @@ struct FlightRecorderOptions {
   std::size_t max_records = 64;
 };
 
-}  // namespace vigil
+}  // namespace vigil::supervisor

@@ -28,7 +28,7 @@
 #include <limits>
 #include <type_traits>
 
-namespace vigil {
+namespace vigil::supervisor {
 
 /// An inclusive range of values, [lowest, highest]: where a quantile of a histogram lies.
 struct HistogramRange {
@@ -233,4 +233,4 @@ static_assert(sizeof(LogLinearHistogram<>) == 1152 * 8 + 3 * 8,
               "LogLinearHistogram<> should be 9240 bytes (1152 uint64 counters + 3 counters)");
 static_assert(std::is_trivially_copyable_v<LogLinearHistogram<>>);
 
-}  // namespace vigil
+}  // namespace vigil::supervisor

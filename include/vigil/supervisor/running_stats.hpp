@@ -7,8 +7,9 @@
 /// `add()` is a handful of instructions on memory the supervisor thread owns: no allocation,
 /// no lock, no virtual call. `CompactRunningStats` is the same with a `CompactHistogram` (the
 /// buckets of the seen range only, on the heap: 120 bytes inline), for the supervisor's
-/// per-component records, where thousands of 9 KiB histograms would not stay in the caches. Readers in other threads get copies (`summary()` or the whole
-/// object, which is trivially copyable) through whatever hand-over the Registry uses.
+/// per-component records, where thousands of 9 KiB histograms would not stay in the caches. Readers
+/// in other threads get copies (`summary()` or the whole object, which is trivially copyable)
+/// through whatever hand-over the Registry uses.
 
 #include <cmath>
 #include <cstdint>
@@ -19,7 +20,7 @@
 #include "vigil/supervisor/compact_histogram.hpp"
 #include "vigil/supervisor/histogram.hpp"
 
-namespace vigil {
+namespace vigil::supervisor {
 
 /**
  * A snapshot of `RunningStats`, trivially copyable and 80 bytes, for reports and exporters.
@@ -219,7 +220,7 @@ class BasicRunningStats {
   /// The histogram type: 5 sub-bucket bits, values up to 2^40 - 1 ns.
   using Histogram = H;
   /// Default EWMA weight (vigil::kDefaultEwmaWeight).
-  static constexpr double kDefaultEwmaWeight = vigil::kDefaultEwmaWeight;
+  static constexpr double kDefaultEwmaWeight = vigil::supervisor::kDefaultEwmaWeight;
 
   /// Counts sample `value` (a duration in ns). O(1), allocation-free, RT-safe.
   constexpr void add(Nanos value) noexcept {
@@ -322,4 +323,9 @@ static_assert(sizeof(RunningStats) == 72 + sizeof(RunningStats::Histogram),
 static_assert(sizeof(CompactRunningStats) == 72 + 48,
               "CompactRunningStats should be 120 bytes: 72 bytes of scalars and the header");
 
+}  // namespace vigil::supervisor
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using supervisor::StatsSummary;
 }  // namespace vigil

@@ -28,7 +28,7 @@
 #include "vigil/platform/thread.hpp"
 #include "vigil/supervisor/running_stats.hpp"
 
-namespace vigil {
+namespace vigil::supervisor {
 
 /// What the supervisor learnt about one port in one cycle.
 struct PortDrain {
@@ -66,8 +66,9 @@ struct handles_all<H, E, std::variant<T...>>
 /// have `on_batch(entry, const Variant* messages, std::size_t n)`: the supervisor then hands it
 /// each popped batch instead of visiting message by message (it must do what `on` would).
 template <class H, class Variant>
-concept SupervisorHandler = detail::handles_all<H, RegistryEntry<Variant>, Variant>::value &&
-    requires(H& h, const RegistryEntry<Variant>& e, const PortDrain& d, const SupervisorCycle& c) {
+concept SupervisorHandler = detail::handles_all<H, bus::RegistryEntry<Variant>, Variant>::value &&
+    requires(H& h, const bus::RegistryEntry<Variant>& e, const PortDrain& d,
+             const SupervisorCycle& c) {
   h.on_join(e);
   h.on_leave(e);
   h.begin(e);
@@ -102,7 +103,7 @@ template <class Variant, class Handler>
 requires SupervisorHandler<Handler, Variant>
 class Supervisor {
  public:
-  using Entry = RegistryEntry<Variant>;
+  using Entry = bus::RegistryEntry<Variant>;
 
   Supervisor(Registry<Variant>& registry, Handler& handler, SupervisorOptions options = {})
       : registry_(registry), handler_(handler), options_(std::move(options)) {
@@ -290,4 +291,4 @@ class Supervisor {
   RunningStats per_cycle_;
 };
 
-}  // namespace vigil
+}  // namespace vigil::supervisor

@@ -15,7 +15,7 @@
 
 #include "vigil/platform/rt_loss.hpp"
 
-namespace vigil {
+namespace vigil::task {
 
 /// Number of real-time-loss causes (platform::LossCause), the size of `Counters::losses`.
 inline constexpr int kLossCauses = platform::kLossCauseCount;
@@ -74,4 +74,4 @@ static_assert(std::is_trivially_copyable_v<Counters>, "Counters travel in every 
 static_assert(sizeof(Counters) == (Counters::kScalars.size() + kLossCauses) * sizeof(std::uint64_t),
               "a member of Counters is missing from Counters::kScalars");
 
-}  // namespace vigil
+}  // namespace vigil::task

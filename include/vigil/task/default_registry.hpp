@@ -7,7 +7,7 @@
 #include "vigil/bus/registry.hpp"
 #include "vigil/task/messages.hpp"
 
-namespace vigil {
+namespace vigil::task {
 
 /// The registry of ports that carry component messages.
 using ComponentRegistry = Registry<Message>;
@@ -17,4 +17,10 @@ using ComponentRegistry = Registry<Message>;
 /// allocate): components call it from their constructors, never from a cycle.
 ComponentRegistry& default_registry();
 
+}  // namespace vigil::task
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using task::ComponentRegistry;
+using task::default_registry;
 }  // namespace vigil

@@ -29,7 +29,7 @@
 #include "vigil/platform/thread.hpp"
 #include "vigil/task/supervision.hpp"
 
-namespace vigil {
+namespace vigil::task {
 
 /// Identity of a manually instrumented component (what an activity would otherwise say).
 struct ManualInfo {
@@ -164,4 +164,12 @@ class [[nodiscard]] UpdateGuard {
   Supervisor& s_;
 };
 
+}  // namespace vigil::task
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using task::BasicInstrumentation;
+using task::Instrumentation;
+using task::ManualInfo;
+using task::UpdateGuard;
 }  // namespace vigil

@@ -25,7 +25,7 @@
 #include "vigil/task/counters.hpp"
 #include "vigil/task/state.hpp"
 
-namespace vigil {
+namespace vigil::task {
 
 using platform::LossCause;
 using platform::SchedPolicy;
@@ -151,4 +151,13 @@ static_assert(std::is_trivially_copyable_v<Message>, "Message must be trivially 
 // Every cycle copies one Message into the port: 128 bytes are two cache lines. Keep it there.
 static_assert(sizeof(Message) <= 128, "keep Message within 128 bytes: it is copied every cycle");
 
+}  // namespace vigil::task
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using platform::SchedPolicy;
+using task::Detectors;
+using task::has;
+using task::OverrunPolicy;
+using task::to_string;
 }  // namespace vigil

@@ -21,7 +21,7 @@
 #include "vigil/expected.hpp"
 #include "vigil/task/messages.hpp"
 
-namespace vigil {
+namespace vigil::task {
 
 /// The schema of `Message` in a segment. Increment the version when a message type changes
 /// without changing size (sizes are part of the id already).
@@ -47,4 +47,10 @@ expected<void, Error> place_in_shared_memory(Registry<Message>& registry, bus::S
 /// `vigil supervise --name <name>` instead of in this process. Not RT-safe.
 expected<void, Error> supervise_in_shared_memory(const std::string& name);
 
+}  // namespace vigil::task
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using task::place_in_shared_memory;
+using task::supervise_in_shared_memory;
 }  // namespace vigil

@@ -24,7 +24,7 @@
 
 #include <cstdint>
 
-namespace vigil {
+namespace vigil::task {
 
 /// Lifecycle state of a task.
 enum class TaskState : std::uint8_t {
@@ -74,4 +74,11 @@ enum class Hook : std::uint8_t { None, Configure, Start, Update, Stop, Cleanup }
   return "?";
 }
 
+}  // namespace vigil::task
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using task::Hook;
+using task::TaskState;
+using task::to_string;
 }  // namespace vigil

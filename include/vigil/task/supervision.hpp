@@ -18,7 +18,7 @@
 #include "vigil/task/messages.hpp"
 #include "vigil/task/task_core.hpp"
 
-namespace vigil {
+namespace vigil::task {
 
 /// Default capacity of a component's port: 256 messages of 128 bytes (32 KiB). At 1 kHz and a
 /// supervisor period of 10 ms a component queues about 10 messages, so this absorbs a supervisor
@@ -270,7 +270,7 @@ class CycleRecorder {
 
   std::string name_;
   SupervisionOptions options_;
-  Membership<Message, N> membership_;
+  bus::Membership<Message, N> membership_;
   log::PortSource<Message, N> log_{name_, membership_.port()};
   Clock system_clock_ = Clock::system();
   const Clock* clock_ = &system_clock_;
@@ -294,4 +294,11 @@ class CycleRecorder {
 };
 
 }  // namespace detail
+}  // namespace vigil::task
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using task::DefaultTaskTraits;
+using task::kDefaultPortCapacity;
+using task::SupervisionOptions;
 }  // namespace vigil

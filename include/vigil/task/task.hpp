@@ -29,7 +29,7 @@
 #include "vigil/task/supervision.hpp"
 #include "vigil/task/task_core.hpp"
 
-namespace vigil {
+namespace vigil::task {
 
 namespace detail {
 template <class T>
@@ -274,4 +274,9 @@ class Task : public TaskCore {
   detail::CycleRecorder<Traits::port_capacity> recorder_;
 };
 
+}  // namespace vigil::task
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using task::Task;
 }  // namespace vigil

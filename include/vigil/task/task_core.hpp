@@ -12,7 +12,7 @@
 #include "vigil/task/messages.hpp"
 #include "vigil/task/state.hpp"
 
-namespace vigil {
+namespace vigil::task {
 
 /// Timing of one cycle, written by the activity before update() and completed by supervision.
 struct CycleContext {
@@ -120,4 +120,11 @@ class TaskCore {
   std::string refusal_;
 };
 
+}  // namespace vigil::task
+
+// The names a program writes, also in vigil (docs/design/modules.md).
+namespace vigil {
+using task::ActivityInfo;
+using task::CycleContext;
+using task::TaskCore;
 }  // namespace vigil

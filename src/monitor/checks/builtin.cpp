@@ -1,6 +1,6 @@
 #include "vigil/monitor/checks/builtin.hpp"
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 void add_builtin_checks(CheckList& list) {
   list.add<InitializationCheck>();
@@ -14,4 +14,4 @@ void add_builtin_checks(CheckList& list) {
   list.add<LatchedCheck>();
 }
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks

@@ -5,7 +5,7 @@
 
 #include <string>
 
-namespace vigil::checks::detail {
+namespace vigil::monitor::checks::detail {
 
 /// A ratio as a percentage with up to 3 significant digits: "93%", "0.1%", "12.5%".
 inline std::string percent(double ratio) {
@@ -16,4 +16,4 @@ inline std::string percent(double ratio) {
   return fmt::format("{:.0f}%", p);
 }
 
-}  // namespace vigil::checks::detail
+}  // namespace vigil::monitor::checks::detail

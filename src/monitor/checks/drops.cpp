@@ -2,11 +2,11 @@
 
 #include <fmt/format.h>
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 void DropsCheck::run(const CheckInput& in, Report& out) const {
   const DropsThresholds& t = in.thresholds.drops;
-  const ComponentSnapshot& c = in.component;
+  const supervisor::ComponentSnapshot& c = in.component;
   if (!t.enabled) return;
   if (in.window.dropped <= t.warn_drops) return;
   out.merge(StatusLevel::Warn,
@@ -14,4 +14,4 @@ void DropsCheck::run(const CheckInput& in, Report& out) const {
                         in.window.dropped == 1 ? "" : "s", c.counters.dropped));
 }
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks

@@ -2,12 +2,12 @@
 
 #include <fmt/format.h>
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 void ExceptionCheck::run(const CheckInput& in, Report& out) const {
   const ExceptionThresholds& t = in.thresholds.exception;
   if (!t.enabled) return;
-  const ComponentSnapshot& c = in.component;
+  const supervisor::ComponentSnapshot& c = in.component;
   const bool failed_state = c.state == TaskState::Exception || c.state == TaskState::FatalError;
   const std::uint64_t n = c.counters.exceptions;
   if (n == 0) {
@@ -31,4 +31,4 @@ void ExceptionCheck::run(const CheckInput& in, Report& out) const {
   }
 }
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks

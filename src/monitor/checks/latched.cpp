@@ -2,7 +2,7 @@
 
 #include <fmt/format.h>
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 namespace {
 bool exception_kind(EventKind k) noexcept {
@@ -11,7 +11,7 @@ bool exception_kind(EventKind k) noexcept {
 }  // namespace
 
 void LatchedCheck::run(const CheckInput& in, Report& out) const {
-  const LatchedFault& l = in.component.latch;
+  const supervisor::LatchedFault& l = in.component.latch;
   if (!l.active) return;
   if (exception_kind(l.first_kind) &&
       (!in.thresholds.exception.enabled || !in.thresholds.exception.sticky)) {
@@ -27,4 +27,4 @@ void LatchedCheck::run(const CheckInput& in, Report& out) const {
                         ago(l.first_ns), ago(l.last_ns)));
 }
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks

@@ -4,11 +4,11 @@
 
 #include "monitor/checks/common.hpp"
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 void OverheadCheck::run(const CheckInput& in, Report& out) const {
   const OverheadThresholds& t = in.thresholds.overhead;
-  const ComponentSnapshot& c = in.component;
+  const supervisor::ComponentSnapshot& c = in.component;
   if (!t.enabled || c.overhead_ns.count == 0 || c.total_ns.mean <= 0) return;
   const double share = c.overhead_share();
   if (share <= t.warn_share) return;
@@ -23,4 +23,4 @@ void OverheadCheck::run(const CheckInput& in, Report& out) const {
                                            detail::percent(share), detail::percent(t.warn_share)));
 }
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks

@@ -4,11 +4,11 @@
 
 #include "monitor/checks/common.hpp"
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 void OverrunCheck::run(const CheckInput& in, Report& out) const {
   const OverrunThresholds& t = in.thresholds.overrun;
-  const ComponentSnapshot& c = in.component;
+  const supervisor::ComponentSnapshot& c = in.component;
   const Nanos period = c.has_info ? c.info.period_ns : 0;
   if (!t.enabled || period <= 0) return;
   const double p = static_cast<double>(period);
@@ -44,4 +44,4 @@ void OverrunCheck::run(const CheckInput& in, Report& out) const {
   out.merge(level, std::move(msg));
 }
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks

@@ -2,16 +2,16 @@
 
 #include <fmt/format.h>
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 namespace {
-std::string by_cause(const std::array<std::uint64_t, kLossCauses>& losses) {
+std::string by_cause(const std::array<std::uint64_t, task::kLossCauses>& losses) {
   std::string out;
-  for (int i = 0; i < kLossCauses; ++i) {
+  for (int i = 0; i < task::kLossCauses; ++i) {
     const std::uint64_t n = losses[static_cast<std::size_t>(i)];
     if (n == 0) continue;
     if (!out.empty()) out += ", ";
-    out += fmt::format("{} {}", n, platform::to_string(static_cast<LossCause>(i)));
+    out += fmt::format("{} {}", n, platform::to_string(static_cast<platform::LossCause>(i)));
   }
   return out.empty() ? "none" : out;
 }
@@ -19,7 +19,7 @@ std::string by_cause(const std::array<std::uint64_t, kLossCauses>& losses) {
 
 void RealTimeCheck::run(const CheckInput& in, Report& out) const {
   const RealTimeThresholds& t = in.thresholds.realtime;
-  const ComponentSnapshot& c = in.component;
+  const supervisor::ComponentSnapshot& c = in.component;
   if (!t.enabled) return;
   if (t.fifo_only && !(c.has_info && c.info.policy == SchedPolicy::Fifo)) return;
   const std::uint64_t n = in.window.total_losses();
@@ -32,4 +32,4 @@ void RealTimeCheck::run(const CheckInput& in, Report& out) const {
   }
 }
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks

@@ -5,7 +5,7 @@
 
 #include <fmt/format.h>
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 Nanos starvation_limit(const Thresholds& t, Nanos period_ns) noexcept {
   const StarvationThresholds& s = t.starvation;
@@ -17,7 +17,7 @@ Nanos starvation_limit(const Thresholds& t, Nanos period_ns) noexcept {
 
 void StarvationCheck::run(const CheckInput& in, Report& out) const {
   if (!in.thresholds.starvation.enabled || in.silence_ns < 0) return;
-  const ComponentSnapshot& c = in.component;
+  const supervisor::ComponentSnapshot& c = in.component;
   if (!c.alive || c.state != TaskState::Running) return;
   const Nanos limit = starvation_limit(in.thresholds, c.has_info ? c.info.period_ns : 0);
   if (limit <= 0) return;
@@ -28,4 +28,4 @@ void StarvationCheck::run(const CheckInput& in, Report& out) const {
                                             format_nanos(static_cast<double>(limit))));
 }
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks

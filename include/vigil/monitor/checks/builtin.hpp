@@ -13,10 +13,10 @@
 #include "vigil/monitor/checks/realtime.hpp"
 #include "vigil/monitor/checks/starvation.hpp"
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 /// Appends the built-in checks in their reporting order: initialization, exception,
 /// starvation, overrun, realtime, not_realtime, overhead, drops, latched. Not RT-safe.
 void add_builtin_checks(CheckList& list);
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks

@@ -15,7 +15,7 @@
 
 #include "vigil/monitor/check.hpp"
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 class ExceptionCheck {
  public:
@@ -23,4 +23,4 @@ class ExceptionCheck {
   void run(const CheckInput& in, Report& out) const;
 };
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks

@@ -7,7 +7,7 @@
 
 #include "vigil/monitor/check.hpp"
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 /// Warn "not configured" while no TaskInfo arrived (alive components only).
 class InitializationCheck {
@@ -16,4 +16,4 @@ class InitializationCheck {
   void run(const CheckInput& in, Report& out) const;
 };
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks

@@ -14,7 +14,7 @@
 
 #include "vigil/monitor/check.hpp"
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 class LatchedCheck {
  public:
@@ -22,4 +22,4 @@ class LatchedCheck {
   void run(const CheckInput& in, Report& out) const;
 };
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks

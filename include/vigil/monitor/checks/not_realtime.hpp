@@ -8,7 +8,7 @@
 
 #include "vigil/monitor/check.hpp"
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 class NotRealtimeCheck {
  public:
@@ -16,4 +16,4 @@ class NotRealtimeCheck {
   void run(const CheckInput& in, Report& out) const;
 };
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks

@@ -18,7 +18,7 @@
 
 #include "vigil/monitor/check.hpp"
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 class OverrunCheck {
  public:
@@ -26,4 +26,4 @@ class OverrunCheck {
   void run(const CheckInput& in, Report& out) const;
 };
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks

@@ -10,7 +10,7 @@
 
 #include "vigil/monitor/check.hpp"
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 class RealTimeCheck {
  public:
@@ -18,4 +18,4 @@ class RealTimeCheck {
   void run(const CheckInput& in, Report& out) const;
 };
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks

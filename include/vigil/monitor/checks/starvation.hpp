@@ -15,7 +15,7 @@
 
 #include "vigil/monitor/check.hpp"
 
-namespace vigil::checks {
+namespace vigil::monitor::checks {
 
 /// The starvation limit in ns of a component with period `period_ns` (0: non-periodic) under
 /// thresholds `t`; 0 when the check never applies.
@@ -27,4 +27,4 @@ class StarvationCheck {
   void run(const CheckInput& in, Report& out) const;
 };
 
-}  // namespace vigil::checks
+}  // namespace vigil::monitor::checks
