@@ -12,10 +12,12 @@
 //   256 messages in the registry, a ManualActivity) that each ran 10 cycles, then one supervisor
 //   step (the aggregator's record) and one monitor step (the monitor's per-component state).
 //   Counter `sizeof_bytes`: the same computed from sizeof of what is public: the port
-//   (Port<Message, 256>), the aggregator record's four RunningStats (user, latency, period,
-//   overhead: a histogram each) and its ComponentSnapshot, the task and its activity; the
-//   measured value also has the record's exact total (no histogram), the allocator's rounding,
-//   the names, the registry entry and the monitor's state.
+//   (Port<Message, 256>), the aggregator record's four CompactRunningStats (user, latency,
+//   period, overhead: 120 bytes each, plus one 256-byte chunk of histogram counters each for
+//   these components' narrow distributions), its flight ring (1024 x 48 bytes) and its
+//   ComponentSnapshot, the task and its activity; the measured value also has the rest of the
+//   record (hot fields, the exact total), the allocator's rounding, the names, the registry
+//   entry and the monitor's state.
 // memory/port: sizeof(Port<Message, N>) for the default capacity (computed, not measured).
 // memory/can_sniffer: one Sniffer<1024> with default tables (1024 ids, 256 nodes), registered
 //   with a CanAggregator.
@@ -98,7 +100,9 @@ void supervised_component(benchmark::State& state) {
   }
   report(state, "bytes/component", per);
   const double sizeof_bytes = static_cast<double>(
-      sizeof(Port<task::Message, kDefaultPortCapacity>) + 4 * sizeof(supervisor::RunningStats) +
+      sizeof(Port<task::Message, kDefaultPortCapacity>) +
+      4 * (sizeof(supervisor::CompactRunningStats) + 256) +
+      supervisor::FlightRecorderOptions{}.cycles * sizeof(supervisor::CycleRecord) +
       sizeof(supervisor::ComponentSnapshot) + sizeof(Supervised));
   state.counters["sizeof_bytes"] = sizeof_bytes;
 }

@@ -8,7 +8,8 @@ namespace {
 
 using Histogram = supervisor::RunningStats::Histogram;
 
-BucketCounts reduce(const Histogram& h, std::size_t first, std::size_t last, Nanos shift,
+template <class H>
+BucketCounts reduce(const H& h, std::size_t first, std::size_t last, Nanos shift,
                     double sum_ns) noexcept {
   BucketCounts out;
   out.count = h.count();
@@ -32,10 +33,8 @@ BucketCounts reduce(const Histogram& h, std::size_t first, std::size_t last, Nan
   return out;
 }
 
-}  // namespace
-
-BucketCounts reduce_to_buckets(const supervisor::RunningStats& stats, Nanos shift_ns,
-                               double sum_ns) noexcept {
+template <class Stats>
+BucketCounts reduce_stats(const Stats& stats, Nanos shift_ns, double sum_ns) noexcept {
   if (stats.count() == 0) return BucketCounts{};
   const Nanos lo = std::max<Nanos>(stats.min(), 0);
   const Nanos hi = std::max<Nanos>(stats.max(), 0);
@@ -44,6 +43,18 @@ BucketCounts reduce_to_buckets(const supervisor::RunningStats& stats, Nanos shif
       hi > Histogram::kMaxTrackable ? Histogram::kBucketCount - 1 : Histogram::bucket_index(hi);
   const double sum = sum_ns >= 0 ? sum_ns : stats.mean() * static_cast<double>(stats.count());
   return reduce(stats.histogram(), first, last, shift_ns, sum);
+}
+
+}  // namespace
+
+BucketCounts reduce_to_buckets(const supervisor::RunningStats& stats, Nanos shift_ns,
+                               double sum_ns) noexcept {
+  return reduce_stats(stats, shift_ns, sum_ns);
+}
+
+BucketCounts reduce_to_buckets(const supervisor::CompactRunningStats& stats, Nanos shift_ns,
+                               double sum_ns) noexcept {
+  return reduce_stats(stats, shift_ns, sum_ns);
 }
 
 BucketCounts reduce_to_buckets(const Histogram& histogram, double sum_ns, Nanos shift_ns) noexcept {

@@ -1,6 +1,9 @@
 #include "vigil/supervisor/histogram.hpp"
 
+#include "vigil/supervisor/compact_histogram.hpp"
+
 #include <algorithm>
+#include <array>
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstdint>
@@ -11,6 +14,7 @@
 #include <type_traits>
 #include <vector>
 
+using vigil::supervisor::CompactHistogram;
 using vigil::supervisor::HistogramRange;
 using vigil::supervisor::LogLinearHistogram;
 
@@ -329,4 +333,125 @@ TEST_CASE("LogLinearHistogram reset forgets every sample", "[stats][histogram]")
   CHECK(h.value_at_quantile(0.5) == 0);
   h.add(17);
   CHECK(h.value_at_quantile(0.5) == 17);
+}
+
+// ---- CompactHistogram: the same buckets, allocated for the seen range only ----------------------
+
+using Compact = CompactHistogram<>;
+static_assert(Compact::kBucketCount == Default::kBucketCount);
+static_assert(Compact::kMaxRelativeError == Default::kMaxRelativeError);
+static_assert(Compact::kChunkBuckets == 32 && Compact::kChunks == 36);
+
+TEST_CASE(
+    "CompactHistogram quantiles are within 2^-S of the exact nearest-rank quantile and "
+    "equal LogLinearHistogram's",
+    "[stats][histogram][compact]") {
+  const std::string kind =
+      GENERATE(as<std::string>{}, "uniform", "exponential", "bimodal", "constant", "wide");
+  const std::size_t n = GENERATE(1, 2, 3, 10, 999, 1000, 100'000);
+  INFO(kind << ", n = " << n);
+  const auto data = make_data(kind, n, 42 + n);
+  Compact c;
+  const auto fixed = std::make_unique<Default>();
+  for (auto v : data) {
+    c.add(v);
+    fixed->add(v);
+  }
+  REQUIRE(c.count() == data.size());
+  check_quantiles(c, data);  // the documented bound against exact percentiles
+  for (std::size_t i = 0; i < Default::kBucketCount; ++i)
+    REQUIRE(c.count_at(i) == fixed->count_at(i));
+  for (double q : kQuantiles) {
+    CHECK(c.quantile(q) == fixed->quantile(q));
+    CHECK(c.value_at_quantile(q) == fixed->value_at_quantile(q));
+  }
+  constexpr std::array<double, 4> kQs{0.5, 0.9, 0.99, 0.999};
+  std::array<std::int64_t, 4> a{};
+  std::array<std::int64_t, 4> b{};
+  c.values_at_quantiles(kQs, a);
+  fixed->values_at_quantiles(kQs, b);
+  CHECK(a == b);
+  CHECK(c.heap_bytes() <= sizeof(std::uint64_t) * Default::kBucketCount);
+}
+
+TEST_CASE("CompactHistogram allocates the chunks of the seen range only, growing both ways",
+          "[stats][histogram][compact]") {
+  Compact h;
+  CHECK(h.allocated_buckets() == 0);
+  CHECK(h.heap_bytes() == 0);
+  CHECK(h.value_at_quantile(0.5) == 0);
+  CHECK(h.count_at(100) == 0);
+  // A cycle time of 50-62 us: one octave [32768, 65535], one chunk of 32 buckets (256 bytes).
+  for (std::int64_t v = 50'000; v <= 62'000; v += 100) h.add(v);
+  CHECK(h.allocated_buckets() == 32);
+  CHECK(h.heap_bytes() == 256);
+  CHECK(h.first_allocated() == Compact::bucket_index(32'768));
+  // Upwards: a 1 ms outlier extends the block to [32768, 2^20): five chunks.
+  h.add(1'000'000);
+  CHECK(h.allocated_buckets() == 5 * 32);
+  // Downwards: 3 ns is exact (chunk 0).
+  h.add(3);
+  CHECK(h.first_allocated() == 0);
+  CHECK(h.allocated_buckets() == Compact::bucket_index(1'000'000) / 32 * 32 + 32);
+  CHECK(h.count_at(3) == 1);
+  CHECK(h.count_at(Compact::bucket_index(1'000'000)) == 1);
+  CHECK(h.value_at_quantile(0.0) == 3);
+  CHECK(h.value_at_quantile(1.0) == Compact::bucket_highest(Compact::bucket_index(1'000'000)));
+  // Negative and overflowed samples need no bucket memory.
+  const auto before = h.allocated_buckets();
+  h.add(-5);
+  h.add(std::int64_t{1} << 45);
+  CHECK(h.allocated_buckets() == before);
+  CHECK(h.negative_count() == 1);
+  CHECK(h.overflow_count() == 1);
+  CHECK(h.count_at(0) == 1);  // the negative one counts as 0
+  CHECK(h.lost_count() == 0);
+  // The whole range: never more than the fixed layout.
+  h.add(Compact::kMaxTrackable);
+  CHECK(h.allocated_buckets() == Compact::kBucketCount);
+}
+
+TEST_CASE("CompactHistogram merge, reset, copy and move keep every count",
+          "[stats][histogram][compact]") {
+  auto a_data = make_data("exponential", 5000, 10);
+  auto b_data = make_data("bimodal", 3000, 11);
+  b_data.push_back(-4);
+  b_data.push_back(std::int64_t{1} << 45);
+  Compact a;
+  Compact b;
+  const auto all = std::make_unique<Default>();
+  for (auto v : a_data) {
+    a.add(v);
+    all->add(v);
+  }
+  for (auto v : b_data) {
+    b.add(v);
+    all->add(v);
+  }
+  a.merge(b);
+  CHECK(a.count() == all->count());
+  CHECK(a.negative_count() == 1);
+  CHECK(a.overflow_count() == 1);
+  for (std::size_t i = 0; i < Default::kBucketCount; ++i)
+    REQUIRE(a.count_at(i) == all->count_at(i));
+  for (double q : kQuantiles) CHECK(a.value_at_quantile(q) == all->value_at_quantile(q));
+  Compact empty;
+  empty.merge(a);
+  for (double q : kQuantiles) CHECK(empty.value_at_quantile(q) == all->value_at_quantile(q));
+
+  const Compact copy(a);  // deep
+  a.add(7);
+  CHECK(copy.count() == all->count());
+  CHECK(copy.count_at(7) == all->count_at(7));
+  Compact moved(std::move(a));
+  CHECK(moved.count() == all->count() + 1);
+  CHECK(a.count() == 0);              // NOLINT(bugprone-use-after-move): moved-from is empty
+  CHECK(a.allocated_buckets() == 0);  // NOLINT(bugprone-use-after-move)
+  const auto block = moved.allocated_buckets();
+  moved.reset();
+  CHECK(moved.count() == 0);
+  CHECK(moved.allocated_buckets() == block);  // the block is kept for the same range
+  for (std::size_t i = 0; i < Default::kBucketCount; ++i) REQUIRE(moved.count_at(i) == 0);
+  moved.add(17);
+  CHECK(moved.value_at_quantile(0.5) == 17);
 }

@@ -390,3 +390,49 @@ TEST_CASE("RunningStats add, summary and merge do not allocate", "[stats][runnin
   CHECK(sum.count == 1'000'001);
   CHECK(hist->count() == 1'000'000);
 }
+
+// ---- CompactRunningStats: what the supervisor keeps per component -------------------------------
+
+TEST_CASE(
+    "CompactRunningStats gives exactly RunningStats' values, within 1/32 of exact percentiles",
+    "[stats][running][compact]") {
+  const std::string kind =
+      GENERATE(as<std::string>{}, "uniform", "exponential", "bimodal", "constant");
+  const std::size_t n = GENERATE(1, 7, 1000, 50'000);
+  INFO(kind << ", n = " << n);
+  auto data = make_data(kind, n, 23 + n);
+  vigil::supervisor::CompactRunningStats c;
+  auto fixed = std::make_unique<RunningStats>();
+  for (Nanos v : data) {
+    c.add(v);
+    fixed->add(v);
+  }
+  const StatsSummary sum = c.summary();
+  CHECK(sum == fixed->summary());
+  std::sort(data.begin(), data.end());
+  check_percentile(sum.p50, data, 0.5);
+  check_percentile(sum.p90, data, 0.9);
+  check_percentile(sum.p99, data, 0.99);
+  check_percentile(sum.p999, data, 0.999);
+}
+
+TEST_CASE("CompactRunningStats allocates while its range grows, then never",
+          "[stats][running][compact][alloc]") {
+  vigil::supervisor::CompactRunningStats s;
+  std::mt19937_64 rng(78);
+  std::uniform_int_distribution<Nanos> cycle(40'000, 70'000);  // two octaves
+  g_allocations = 0;
+  g_counting = true;
+  for (int i = 0; i < 1000; ++i) s.add(cycle(rng));
+  g_counting = false;
+  CHECK(g_allocations.load() >= 1);
+  CHECK(g_allocations.load() <= 2);  // one chunk, then the second octave
+  g_allocations = 0;
+  g_counting = true;
+  for (int i = 0; i < 1'000'000; ++i) s.add(cycle(rng));
+  const StatsSummary sum = s.summary();
+  g_counting = false;
+  CHECK(g_allocations.load() == 0);
+  CHECK(sum.count == 1'001'000);
+  CHECK(s.histogram().heap_bytes() == 2 * 256);
+}

@@ -59,6 +59,7 @@ TEST_CASE("Components join and leave while everything runs", "[supervisor][pipel
   const auto late = agg.find("late");
   REQUIRE(late.has_value());
   CHECK_FALSE(late->alive);
+  INFO("missed " << late->counters.missed_cycles << " samples " << late->samples);
   CHECK(late->counters.cycles > 10);
   CHECK(late->state == TaskState::Stopped);
   const auto sa = agg.find("a");

@@ -61,6 +61,11 @@ struct BucketCounts {
 [[nodiscard]] BucketCounts reduce_to_buckets(const supervisor::RunningStats& stats,
                                              Nanos shift_ns = 0, double sum_ns = -1.0) noexcept;
 
+/// The same for the supervisor's per-component statistics (same buckets, allocated for the seen
+/// range only): identical results for identical samples.
+[[nodiscard]] BucketCounts reduce_to_buckets(const supervisor::CompactRunningStats& stats,
+                                             Nanos shift_ns = 0, double sum_ns = -1.0) noexcept;
+
 /// The same from a bare histogram with a known sum. O(histogram buckets).
 [[nodiscard]] BucketCounts reduce_to_buckets(const supervisor::RunningStats::Histogram& histogram,
                                              double sum_ns, Nanos shift_ns = 0) noexcept;

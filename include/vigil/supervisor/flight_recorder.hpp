@@ -47,7 +47,7 @@ static_assert(sizeof(CycleRecord) <= 48, "keep the flight recorder's slot at 48 
 class FlightRing {
  public:
   /// Allocates `capacity` slots (0: records nothing). Not RT-safe.
-  explicit FlightRing(std::size_t capacity = 0) : slots_(capacity) {}
+  explicit FlightRing(std::size_t capacity = 0) : slots_(capacity), capacity_(capacity) {}
   /// Records one cycle, overwriting the oldest when full. Never allocates.
   void push(const CycleRecord& r) noexcept {
     if (slots_.empty()) return;
@@ -66,6 +66,20 @@ class FlightRing {
   [[nodiscard]] std::size_t size() const noexcept { return size_; }
   [[nodiscard]] std::size_t capacity() const noexcept { return slots_.size(); }
   [[nodiscard]] bool empty() const noexcept { return size_ == 0; }
+  /// The slot for one more cycle, to be filled in place by the caller (every field: it holds an
+  /// old record), overwriting the oldest when full; null when the ring has no slots. Never
+  /// allocates.
+  [[nodiscard]] CycleRecord* emplace() noexcept {
+    if (capacity_ == 0) return nullptr;
+    CycleRecord* r = slots_.data() + next_;
+    next_ = next_ + 1 == capacity_ ? 0 : next_ + 1;
+    size_ += size_ < capacity_ ? 1 : 0;
+    return r;
+  }
+  /// The slot the next push writes (null when the ring has no slots): for prefetching.
+  [[nodiscard]] const CycleRecord* next_slot() const noexcept {
+    return slots_.empty() ? nullptr : &slots_[next_];
+  }
   /// The newest record; only when !empty().
   [[nodiscard]] const CycleRecord& back() const noexcept {
     return slots_[next_ == 0 ? slots_.size() - 1 : next_ - 1];
@@ -73,6 +87,7 @@ class FlightRing {
 
  private:
   std::vector<CycleRecord> slots_;
+  std::size_t capacity_ = 0;  // slots_.size(), kept: no division by 48 per record
   std::size_t next_ = 0;
   std::size_t size_ = 0;
 };

@@ -5,8 +5,11 @@
 ///
 /// Design: everything lives inline (a `LogLinearHistogram<>` plus a few scalars: 9312 bytes), so
 /// `add()` is a handful of instructions on memory the supervisor thread owns: no allocation,
-/// no lock, no virtual call. Readers in other threads get copies (`summary()` or the whole
-/// object, which is trivially copyable) through whatever hand-over the Registry uses.
+/// no lock, no virtual call. `CompactRunningStats` is the same with a `CompactHistogram` (the
+/// buckets of the seen range only, on the heap: 120 bytes inline), for the supervisor's
+/// per-component records, where thousands of 9 KiB histograms would not stay in the caches. Readers
+/// in other threads get copies (`summary()` or the whole object, which is trivially copyable)
+/// through whatever hand-over the Registry uses.
 
 #include <cmath>
 #include <cstdint>
@@ -14,6 +17,7 @@
 #include <type_traits>
 
 #include "vigil/platform/clock.hpp"
+#include "vigil/supervisor/compact_histogram.hpp"
 #include "vigil/supervisor/histogram.hpp"
 
 namespace vigil::supervisor {
@@ -197,16 +201,24 @@ static_assert(std::is_trivially_copyable_v<ScalarStats> && sizeof(ScalarStats) =
  * allocation-free, lock-free and noexcept; `add()` is O(1) (a few ns), `merge`, `reset` and
  * the percentile accessors are O(buckets) (~1k steps at worst).
  *
+ * `BasicRunningStats<H>` is this for any histogram type with LogLinearHistogram's interface:
+ * `RunningStats` (a fixed `LogLinearHistogram<5, 40>`, 9,312 bytes, trivially copyable, every
+ * member RT-safe) and `CompactRunningStats` (a `CompactHistogram<5, 40>`: the same buckets
+ * allocated for the seen range only, 120 bytes plus a few hundred on the heap; `add` allocates
+ * while the range grows, so not RT-safe: the supervisor's per-component statistics). Both give
+ * exactly the same values for the same samples.
+ *
  * @code
  * vigil::RunningStats cycle;
  * cycle.add(sample.end_ns - sample.start_ns);         // per message, in the supervisor
  * const vigil::StatsSummary s = cycle.summary();      // per report
  * @endcode
  */
-class RunningStats {
+template <class H>
+class BasicRunningStats {
  public:
   /// The histogram type: 5 sub-bucket bits, values up to 2^40 - 1 ns.
-  using Histogram = LogLinearHistogram<5, 40>;
+  using Histogram = H;
   /// Default EWMA weight (vigil::kDefaultEwmaWeight).
   static constexpr double kDefaultEwmaWeight = vigil::supervisor::kDefaultEwmaWeight;
 
@@ -224,7 +236,7 @@ class RunningStats {
    * combined stream (up to rounding) when both use the same weight; this object's weight is
    * kept and used. O(buckets), allocation-free.
    */
-  void merge(const RunningStats& other) noexcept {
+  void merge(const BasicRunningStats& other) noexcept {
     if (other.count() == 0) return;
     scalars_.merge(other.scalars_);
     histogram_.merge(other.histogram_);
@@ -299,9 +311,17 @@ class RunningStats {
   Histogram histogram_;
 };
 
+/// Running statistics with a fixed 1,152-bucket histogram: trivially copyable, RT-safe.
+using RunningStats = BasicRunningStats<LogLinearHistogram<5, 40>>;
+/// The same statistics with the buckets allocated for the seen range only (CompactHistogram):
+/// what the supervisor keeps per component. `add` may allocate while the range grows.
+using CompactRunningStats = BasicRunningStats<CompactHistogram<5, 40>>;
+
 static_assert(std::is_trivially_copyable_v<RunningStats>);
 static_assert(sizeof(RunningStats) == 72 + sizeof(RunningStats::Histogram),
               "RunningStats should be 9312 bytes: 72 bytes of scalars and the histogram");
+static_assert(sizeof(CompactRunningStats) == 72 + 48,
+              "CompactRunningStats should be 120 bytes: 72 bytes of scalars and the header");
 
 }  // namespace vigil::supervisor
 
