@@ -103,7 +103,8 @@ struct ComponentAggregator::Slot {
 #pragma GCC diagnostic ignored "-Winvalid-offsetof"
 constexpr std::size_t kSlotHotBytes = offsetof(ComponentAggregator::Slot, data);
 #pragma GCC diagnostic pop
-static_assert(kSlotHotBytes <= 16 * 64, "keep the record's hot part within 16 cache lines");
+static_assert(kSlotHotBytes <= std::size_t{16} * 64,
+              "keep the record's hot part within 16 cache lines");
 
 void ComponentAggregator::Slot::prefetch_hot() const noexcept {
   const auto* p = reinterpret_cast<const char*>(this);
