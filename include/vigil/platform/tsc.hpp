@@ -125,23 +125,37 @@ struct TscState {
 extern TscState g_tsc;
 /// The active clock source (a ClockSource), read by Clock::system_now once per read.
 extern std::atomic<std::uint8_t> g_clock_source;
+
+/// The published calibration, read through the sequence lock (retries while one is published).
+[[nodiscard]] [[gnu::always_inline]] inline TscCalibration read_calibration() noexcept {
+#if defined(__SANITIZE_THREAD__)
+  // ThreadSanitizer does not model fences (GCC refuses them): each field's load is an acquire
+  // instead, which keeps the sequence's re-read after it just as the fence does.
+  constexpr auto field_order = std::memory_order_acquire;
+#else
+  constexpr auto field_order = std::memory_order_relaxed;
+#endif
+  for (;;) {
+    const std::uint32_t s0 = g_tsc.seq.load(std::memory_order_acquire);
+    TscCalibration c;
+    c.base_ticks = g_tsc.base_ticks.load(field_order);
+    c.base_ns = g_tsc.base_ns.load(field_order);
+    c.mult = g_tsc.mult.load(field_order);
+#if !defined(__SANITIZE_THREAD__)
+    std::atomic_thread_fence(std::memory_order_acquire);
+#endif
+    if ((s0 & 1U) == 0 && g_tsc.seq.load(std::memory_order_relaxed) == s0) [[likely]]
+      return c;
+  }
+}
+
 }  // namespace detail
 
 /// The TSC, converted with the published calibration. RT-safe: wait-free (retries only across a
 /// re-calibration being published, once a second), no system call.
 [[nodiscard]] [[gnu::always_inline]] inline Nanos tsc_now_ns() noexcept {
   const std::uint64_t ticks = read_tsc();
-  for (;;) {
-    const std::uint32_t s0 = detail::g_tsc.seq.load(std::memory_order_acquire);
-    TscCalibration c;
-    c.base_ticks = detail::g_tsc.base_ticks.load(std::memory_order_relaxed);
-    c.base_ns = detail::g_tsc.base_ns.load(std::memory_order_relaxed);
-    c.mult = detail::g_tsc.mult.load(std::memory_order_relaxed);
-    std::atomic_thread_fence(std::memory_order_acquire);
-    if ((s0 & 1U) == 0 && detail::g_tsc.seq.load(std::memory_order_relaxed) == s0) [[likely]] {
-      return tsc_to_ns(c, ticks);
-    }
-  }
+  return tsc_to_ns(detail::read_calibration(), ticks);
 }
 
 /// The clock supervision reads: tsc_now_ns() when the TSC clock is selected, now_ns() otherwise.

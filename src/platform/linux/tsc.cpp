@@ -65,10 +65,17 @@ void publish(const TscCalibration& c) noexcept {
   auto& s = detail::g_tsc;
   const std::uint32_t seq = s.seq.load(std::memory_order_relaxed);
   s.seq.store(seq + 1, std::memory_order_relaxed);
+#if defined(__SANITIZE_THREAD__)
+  // ThreadSanitizer does not model fences (GCC refuses them): each field's store is a release
+  // instead, which orders it after the odd sequence just as the fence does.
+  constexpr auto field_order = std::memory_order_release;
+#else
   std::atomic_thread_fence(std::memory_order_release);
-  s.base_ticks.store(c.base_ticks, std::memory_order_relaxed);
-  s.base_ns.store(c.base_ns, std::memory_order_relaxed);
-  s.mult.store(c.mult, std::memory_order_relaxed);
+  constexpr auto field_order = std::memory_order_relaxed;
+#endif
+  s.base_ticks.store(c.base_ticks, field_order);
+  s.base_ns.store(c.base_ns, field_order);
+  s.mult.store(c.mult, field_order);
   s.seq.store(seq + 2, std::memory_order_release);
 }
 
@@ -157,17 +164,7 @@ TscCalibration calibrate_tsc(Nanos duration_ns) {
   return c;
 }
 
-TscCalibration tsc_calibration() noexcept {
-  for (;;) {
-    const std::uint32_t s0 = detail::g_tsc.seq.load(std::memory_order_acquire);
-    TscCalibration c;
-    c.base_ticks = detail::g_tsc.base_ticks.load(std::memory_order_relaxed);
-    c.base_ns = detail::g_tsc.base_ns.load(std::memory_order_relaxed);
-    c.mult = detail::g_tsc.mult.load(std::memory_order_relaxed);
-    std::atomic_thread_fence(std::memory_order_acquire);
-    if ((s0 & 1U) == 0 && detail::g_tsc.seq.load(std::memory_order_relaxed) == s0) return c;
-  }
-}
+TscCalibration tsc_calibration() noexcept { return detail::read_calibration(); }
 
 void recalibrate_tsc() {
   if (active_clock() != ClockSource::Tsc) return;
