@@ -55,20 +55,20 @@ TEST_CASE("A Port's slots start on a cache line, so a 128-byte message spans two
   struct alignas(8) Wide8 {  // 128 bytes with the index, aligned like task::Message
     char bytes[120];
   };
-  using Message = std::variant<Wide8, int>;
-  STATIC_REQUIRE(sizeof(Message) == 128);
-  STATIC_REQUIRE(alignof(Port<Message, 16>) >= 64);
-  auto heap = std::make_unique<Port<Message, 16>>();
-  Port<Message, 16> stack;
+  using Message128 = std::variant<Wide8, int>;
+  STATIC_REQUIRE(sizeof(Message128) == 128);
+  STATIC_REQUIRE(alignof(Port<Message128, 16>) >= 64);
+  auto heap = std::make_unique<Port<Message128, 16>>();
+  Port<Message128, 16> stack;
   Port<Small, 8> small;
   for (int round = 0; round < 3; ++round) {  // the wrap of the indexes does not move the slots
     for (auto* p : {heap.get(), &stack}) {
       CHECK(p->peek() == nullptr);
-      REQUIRE(p->try_push(Message{Wide8{}}));
-      REQUIRE(p->try_push(Message{round}));
+      REQUIRE(p->try_push(Message128{Wide8{}}));
+      REQUIRE(p->try_push(Message128{round}));
       const auto* first = p->peek();
       REQUIRE(first != nullptr);
-      Message out[2];
+      Message128 out[2];
       REQUIRE(p->pop(out, 1) == 1);
       const auto* second = p->peek();
       REQUIRE(second != nullptr);
@@ -76,8 +76,8 @@ TEST_CASE("A Port's slots start on a cache line, so a 128-byte message spans two
       CHECK(reinterpret_cast<std::uintptr_t>(first) % 64 == 0);
       CHECK(reinterpret_cast<std::uintptr_t>(second) % 64 == 0);
       REQUIRE(p->pop(out, 2) == 1);
-      for (int k = 0; k < 15; ++k) REQUIRE(p->try_push(Message{k}));  // wrap around
-      Message drain[16];
+      for (int k = 0; k < 15; ++k) REQUIRE(p->try_push(Message128{k}));  // wrap around
+      Message128 drain[16];
       REQUIRE(p->pop(drain, 16) == 15);
     }
   }
