@@ -541,7 +541,7 @@ struct ProcessSupervisor::Impl {
       }
     }
     // (2) New segments: when the directory changed, at every rescan, and the pending ones.
-    if (!dir_watch) {
+    if (!dir_watch && options.watch_directory) {
       if (auto w = platform::ShmDirectoryWatch::open()) dir_watch.emplace(std::move(*w));
     }
     // Only our segments' names count: other programs' files in /dev/shm (other daemons', test

@@ -131,6 +131,36 @@ TEST_CASE("A daemon started after the process gets its identity and exact counte
   CHECK(s->counters.dropped > 0);
 }
 
+TEST_CASE("A daemon without the inotify watch finds new segments at its full listings",
+          "[shm][port]") {
+  Placed p;
+  deploy::ProcessSupervisorOptions o;
+  o.name = p.name;
+  o.monitor.read_thread_stats = false;
+  o.watch_directory = false;
+  o.rescan_ns = 3600 * kNanosPerSecond;
+  auto d = deploy::ProcessSupervisor::create(o);
+  REQUIRE(d.has_value());
+  Running first("first", p.registry);
+  first.cycles(10);
+  (*d)->step();  // the first step lists the directory
+  REQUIRE((*d)->aggregator().find("first").has_value());
+  Running second("second", p.registry);
+  second.cycles(10);
+  for (int i = 0; i < 5; ++i) (*d)->step();
+  CHECK_FALSE((*d)->aggregator().find("second").has_value());  // no listing due, no watch
+
+  o.rescan_ns = 0;  // a listing at every step
+  auto e = deploy::ProcessSupervisor::create(o);
+  REQUIRE(e.has_value());
+  (*e)->step();
+  Running third("third", p.registry);
+  third.cycles(10);
+  (*e)->step();
+  CHECK((*e)->aggregator().find("third").has_value());
+  CHECK((*e)->aggregator().find("second").has_value());
+}
+
 TEST_CASE("A daemon restarted while the component runs keeps its counters exact", "[shm][port]") {
   Placed p;
   Running r("restarted", p.registry);

@@ -46,6 +46,12 @@ struct ProcessSupervisorOptions {
   Nanos period_ns = 10 * kNanosPerMilli;
   /// How often /dev/shm is listed in full (new segments are normally noticed through inotify).
   Nanos rescan_ns = kNanosPerSecond;
+  /// Notice new segments at once through an inotify watch of /dev/shm (one inotify instance per
+  /// daemon). false: only at the full listings, every `rescan_ns` (and at the first step), for
+  /// systems where inotify instances are scarce (fs.inotify.max_user_instances) and for
+  /// daemons made and destroyed often (closing an inotify instance waits for the kernel,
+  /// milliseconds: the shm_segment fuzzer makes one daemon per input).
+  bool watch_directory = true;
   /// Accept segments readable by this group (mode 0660); empty: owner-only segments (0600).
   std::string group;
   /// Remove the segments of dead processes and of components that left, once drained.
