@@ -63,6 +63,17 @@ if [[ "${VIGIL_FUZZ_CPU:-0}" == 1 ]]; then
 else
   "$bin" "${args[@]}" -max_total_time="$seconds" >"$work/fuzz.log" 2>&1 || rc=$?
 fi
+# shm_segment writes its input as /dev/shm/vigil.fuzz-<pid>.<pid>.0 and removes it after each
+# input; a stop in the middle of one (SIGINT, the CPU limit) leaves it. Without a finding, remove
+# those of fuzzers that are gone; with one, they stay for the post-mortem.
+if [[ $target == shm_segment && $rc -eq 0 ]]; then
+  for f in /dev/shm/vigil.fuzz-*; do
+    [[ -e $f ]] || continue
+    p=${f#/dev/shm/vigil.fuzz-}
+    p=${p%%.*}
+    kill -0 "$p" 2>/dev/null || rm -f "$f"
+  done
+fi
 grep -E "^#[0-9]+ +(INITED|DONE)|ERROR|SUMMARY|stat::number_of_executed_units|stat::peak_rss|Test unit written" \
   "$work/fuzz.log" | sed "s/^/$target: /" || true
 if [[ $rc -ne 0 ]]; then
