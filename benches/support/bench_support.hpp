@@ -31,7 +31,6 @@
 #include <thread>
 #include <vector>
 
-#include "vigil/bus/port.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/supervisor/supervisor.hpp"
 #include "vigil/task/messages.hpp"
@@ -167,8 +166,8 @@ class Poller {
 };
 
 /// The floor of per-cycle supervision: two reads of vigil's clock around the empty update and
-/// one push of a CycleSample `Message` into a `bus::PortRing` of the default port capacity (the
-/// boost spsc_queue behind every Port, with cache-line-aligned slots).
+/// one push of a CycleSample `Message` into a boost spsc_queue of the default port capacity,
+/// the queue type behind every Port.
 class Floor {
  public:
   [[gnu::noinline]] void cycle() noexcept {
@@ -179,16 +178,16 @@ class Floor {
     s.counters.cycles = ++cycles_;
     s.start_ns = t0;
     s.end_ns = t1;
-    pushed_ += ring_.queue.push(task::Message{s}) ? 1 : 0;
+    pushed_ += queue_.push(task::Message{s}) ? 1 : 0;
   }
   [[nodiscard]] Poller::Drain drain() {
-    return [this](task::Message* out, std::size_t n) { return ring_.queue.pop(out, n); };
+    return [this](task::Message* out, std::size_t n) { return queue_.pop(out, n); };
   }
   [[nodiscard]] std::uint64_t pushed() const noexcept { return pushed_; }
 
  private:
-  // The ring behind every Port (cache-line-aligned slots), with the same capacity.
-  bus::PortRing<task::Message, kDefaultPortCapacity> ring_;
+  boost::lockfree::spsc_queue<task::Message, boost::lockfree::capacity<kDefaultPortCapacity>>
+      queue_;
   std::uint64_t cycles_ = 0;
   std::uint64_t pushed_ = 0;
 };

@@ -2,8 +2,6 @@
 
 #include <atomic>
 #include <catch2/catch.hpp>
-#include <cstdint>
-#include <memory>
 #include <thread>
 #include <variant>
 #include <vector>
@@ -46,43 +44,6 @@ TEST_CASE("Port pushes are noexcept and never allocate by construction", "[bus][
   STATIC_REQUIRE(noexcept(p.try_push(std::declval<const Message&>())));
   STATIC_REQUIRE(noexcept(p.pop(nullptr, 0)));
   STATIC_REQUIRE(sizeof(Port<Message, 16>) >= 16 * sizeof(Message));  // storage is inline
-}
-
-TEST_CASE("A Port's slots start on a cache line, so a 128-byte message spans two lines",
-          "[bus][port]") {
-  // Wide messages (128 bytes, like task::Message) and small ones, in Ports on the heap and on
-  // the stack: the ring pads in front of Boost's queue so that its slots are 64-byte aligned.
-  struct alignas(8) Wide8 {  // 128 bytes with the index, aligned like task::Message
-    char bytes[120];
-  };
-  using Message128 = std::variant<Wide8, int>;
-  STATIC_REQUIRE(sizeof(Message128) == 128);
-  STATIC_REQUIRE(alignof(Port<Message128, 16>) >= 64);
-  auto heap = std::make_unique<Port<Message128, 16>>();
-  Port<Message128, 16> stack;
-  Port<Small, 8> small;
-  for (int round = 0; round < 3; ++round) {  // the wrap of the indexes does not move the slots
-    for (auto* p : {heap.get(), &stack}) {
-      CHECK(p->peek() == nullptr);
-      REQUIRE(p->try_push(Message128{Wide8{}}));
-      REQUIRE(p->try_push(Message128{round}));
-      const auto* first = p->peek();
-      REQUIRE(first != nullptr);
-      Message128 out[2];
-      REQUIRE(p->pop(out, 1) == 1);
-      const auto* second = p->peek();
-      REQUIRE(second != nullptr);
-      CHECK(std::get<int>(*second) == round);  // peek reads the message in place
-      CHECK(reinterpret_cast<std::uintptr_t>(first) % 64 == 0);
-      CHECK(reinterpret_cast<std::uintptr_t>(second) % 64 == 0);
-      REQUIRE(p->pop(out, 2) == 1);
-      for (int k = 0; k < 15; ++k) REQUIRE(p->try_push(Message128{k}));  // wrap around
-      Message128 drain[16];
-      REQUIRE(p->pop(drain, 16) == 15);
-    }
-  }
-  REQUIRE(small.try_push(Small{1}));
-  CHECK(reinterpret_cast<std::uintptr_t>(small.peek()) % 64 == 0);
 }
 
 TEST_CASE("Port delivers every message once, in order, across threads", "[bus][port]") {

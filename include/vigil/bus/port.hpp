@@ -15,7 +15,6 @@
 /// empty port. One predictable branch per push decides.
 
 #include <algorithm>
-#include <array>
 #include <atomic>
 #include <boost/lockfree/spsc_queue.hpp>
 #include <cstddef>
@@ -25,32 +24,6 @@
 #include "vigil/bus/shm_port.hpp"
 
 namespace vigil::bus {
-
-/**
- * The ring behind every Port: `boost::lockfree::spsc_queue<Variant, capacity<N>>`, placed so that
- * its slots start on a cache line.
- *
- * Boost's compile-time ring holds its write index, padding to a cache line, its read index, then
- * the slots, aligned only to `alignof(Variant)`. Inside a Port (after its vtable pointer, drop
- * counter and shared-memory pointer) the slots started at an arbitrary offset, so every 128-byte
- * `task::Message` spanned three cache lines instead of two, and the first slots shared a line
- * with the read index the consumer writes. This pads in front of the queue so that the slots
- * begin on a 64-byte boundary: a push writes two lines, a pop reads two. Tested
- * (`Port::peek()` of the first message is 64-byte aligned); the floor of the per-cycle
- * benchmark uses the same type, so the comparison stays fair.
- */
-template <class Variant, std::size_t N>
-struct alignas(64) PortRing {
-  using Queue = boost::lockfree::spsc_queue<Variant, boost::lockfree::capacity<N>>;
-  /// Where Boost's ring puts its slots: after its two indexes, at alignof(Variant).
-  static constexpr std::size_t kSlotsOffset =
-      (sizeof(boost::lockfree::detail::ringbuffer_base<Variant>) + alignof(Variant) - 1) /
-      alignof(Variant) * alignof(Variant);
-  static constexpr std::size_t kPad = (64 - kSlotsOffset % 64) % 64;
-
-  std::array<char, kPad> pad{};
-  Queue queue;
-};
 
 /// The consumer's view of a port (type-erased capacity). Supervisor side only.
 template <class Variant>
@@ -96,7 +69,7 @@ class Port final : public PortReader<Variant> {
 #endif
     if (shm_ != nullptr) [[unlikely]]
       return push_shm(m);
-    if (ring_.queue.push(m)) [[likely]]
+    if (queue_.push(m)) [[likely]]
       return true;
     this->dropped_.store(this->dropped_.load(std::memory_order_relaxed) + 1,
                          std::memory_order_relaxed);
@@ -114,7 +87,7 @@ class Port final : public PortReader<Variant> {
       shm_->keep(m);  // a daemon that drains meanwhile still learns it
       return false;
     }
-    return ring_.queue.push(m);
+    return queue_.push(m);
   }
 
   /// Sends every later push to shared-memory producer `p` (which must outlive the port's use)
@@ -124,24 +97,18 @@ class Port final : public PortReader<Variant> {
   [[nodiscard]] bus::ShmProducer<Variant>* shm() const noexcept { return shm_; }
 
   std::size_t pop(Variant* out, std::size_t max) noexcept override {
-    return shm_ != nullptr ? 0 : ring_.queue.pop(out, max);
+    return shm_ != nullptr ? 0 : queue_.pop(out, max);
   }
   [[nodiscard]] std::size_t read_available() const noexcept override {
-    return shm_ != nullptr ? 0 : ring_.queue.read_available();
+    return shm_ != nullptr ? 0 : queue_.read_available();
   }
   [[nodiscard]] std::size_t capacity() const noexcept override { return N; }
-  /// The oldest waiting message, in place in the ring, or null when there is none (or the port
-  /// sends to shared memory). Consumer only; valid until the next pop. Wait-free.
-  [[nodiscard]] const Variant* peek() const noexcept {
-    if (shm_ != nullptr || ring_.queue.read_available() == 0) return nullptr;
-    return &ring_.queue.front();
-  }
   void prefetch() const noexcept override {
     if (shm_ != nullptr) return;
     // Up to 8 messages (16 lines of 128-byte messages; past the ring's end is harmless: a hint).
-    const std::size_t n = std::min<std::size_t>(ring_.queue.read_available(), 8);
+    const std::size_t n = std::min<std::size_t>(queue_.read_available(), 8);
     if (n == 0) return;
-    const auto* p = reinterpret_cast<const char*>(&ring_.queue.front());
+    const auto* p = reinterpret_cast<const char*>(&queue_.front());
     for (std::size_t off = 0; off < n * sizeof(Variant); off += 64) __builtin_prefetch(p + off);
   }
 
@@ -169,7 +136,7 @@ class Port final : public PortReader<Variant> {
 #endif
   bus::ShmProducer<Variant>* shm_ = nullptr;
   // boost's compile-time ring reserves its spare slot itself: capacity<N> holds N (tested).
-  PortRing<Variant, N> ring_;
+  boost::lockfree::spsc_queue<Variant, boost::lockfree::capacity<N>> queue_;
 };
 
 }  // namespace vigil::bus
