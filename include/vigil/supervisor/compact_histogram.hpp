@@ -120,15 +120,7 @@ class CompactHistogram {
   /// kMaxTrackable only in `overflow_count`). O(1) and allocation-free when the value's chunk is
   /// within the block; else grows the block first (one allocation and copy, O(kBucketCount)).
   void add(std::int64_t value) noexcept {
-    ++count_;
-    if (value < 0) [[unlikely]] {
-      ++negative_;
-      value = 0;
-    }
-    if (value > kMaxTrackable) [[unlikely]] {
-      ++overflow_;
-      return;
-    }
+    if (!Layout::admit(value, count_, negative_, overflow_)) return;
     const auto i = static_cast<std::uint32_t>(Layout::bucket_index(value));
     const std::uint32_t off = i - first_;  // wraps for i < first_: one compare covers both ends
     if (off < size_) [[likely]] {

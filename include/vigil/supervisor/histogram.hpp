@@ -124,16 +124,24 @@ class LogLinearHistogram {
   /// Counts one sample. Negative values count as 0 (and in `negative_count`); values above
   /// kMaxTrackable count only in `overflow_count`. O(1), RT-safe, a few ns.
   constexpr void add(std::int64_t value) noexcept {
-    ++count_;
+    if (admit(value, count_, negative_, overflow_)) ++counts_[bucket_index(value)];
+  }
+
+  /// The rule `add` applies before a bucket, shared with CompactHistogram: counts the sample in
+  /// `count`; a negative one also in `negative`, and `value` becomes 0; one above kMaxTrackable
+  /// only in `overflow` (returns false: it goes in no bucket). O(1), RT-safe.
+  static constexpr bool admit(std::int64_t& value, std::uint64_t& count, std::uint64_t& negative,
+                              std::uint64_t& overflow) noexcept {
+    ++count;
     if (value < 0) [[unlikely]] {
-      ++negative_;
+      ++negative;
       value = 0;
     }
     if (value > kMaxTrackable) [[unlikely]] {
-      ++overflow_;
-      return;
+      ++overflow;
+      return false;
     }
-    ++counts_[bucket_index(value)];
+    return true;
   }
 
   /// Adds every count of `other` to this one: the result equals a histogram that was given
