@@ -14,7 +14,7 @@
 //   Counter `sizeof_bytes`: the same computed from sizeof of what is public: the port
 //   (Port<Message, 256>), the aggregator record's four CompactRunningStats (user, latency,
 //   period, overhead: 120 bytes each, plus one 256-byte chunk of histogram counters each for
-//   these components' narrow distributions), its flight ring (1024 x 48 bytes) and its
+//   these components' narrow distributions), its flight ring (1024 x 32 bytes) and its
 //   ComponentSnapshot, the task and its activity; the measured value also has the rest of the
 //   record (hot fields, the exact total), the allocator's rounding, the names, the registry
 //   entry and the monitor's state.
@@ -102,7 +102,7 @@ void supervised_component(benchmark::State& state) {
   const double sizeof_bytes = static_cast<double>(
       sizeof(Port<task::Message, kDefaultPortCapacity>) +
       4 * (sizeof(supervisor::CompactRunningStats) + 256) +
-      supervisor::FlightRecorderOptions{}.cycles * sizeof(supervisor::CycleRecord) +
+      supervisor::FlightRecorderOptions{}.cycles * sizeof(supervisor::PackedCycle) +
       sizeof(supervisor::ComponentSnapshot) + sizeof(Supervised));
   state.counters["sizeof_bytes"] = sizeof_bytes;
 }

@@ -100,6 +100,9 @@ std::string trace_event_json(const supervisor::FlightRecord& r) {
     w.field("overrun", overrun);
     w.field("missed_before", c.missed_before);
     w.field("warmup", (c.flags & supervisor::CycleRecord::kWarmup) != 0);
+    // Only on the rare records the flight ring could not keep to the nanosecond.
+    if ((c.flags & supervisor::CycleRecord::kCoarse) != 0) w.field("microsecond_precision", true);
+    if ((c.flags & supervisor::CycleRecord::kClipped) != 0) w.field("clipped", true);
     w.field("state", to_string(c.state));
     w.end_object();
     w.end_object();

@@ -86,8 +86,8 @@ struct ComponentAggregator::Slot {
   // samples.
   void prefetch_hot() const noexcept;
   void prefetch_targets() const noexcept {
-    if (const auto* r = reinterpret_cast<const char*>(ring.next_slot())) {
-      for (std::size_t off = 0; off < 8 * sizeof(CycleRecord); off += 64) {
+    if (const auto* r = static_cast<const char*>(ring.next_slot())) {
+      for (std::size_t off = 0; off < 8 * sizeof(PackedCycle); off += 64) {
         __builtin_prefetch(r + off, 1);
       }
     }
@@ -273,18 +273,16 @@ void ComponentAggregator::take_sample(Slot& s, const task::CycleSample& m) {
     ++s.data.warmup_cycles;
   }
   const bool gap = s.has_sample && m.cycle() != s.last_cycle + 1;
-  if (CycleRecord* r = s.ring.emplace()) {  // in place: no temporary record
-    r->cycle = m.cycle();
-    r->release_ns = m.release_ns;
-    r->start_ns = m.start_ns;
-    r->end_ns = m.end_ns;
-    r->overhead_ns = m.overhead_ns;
-    r->missed_before = m.missed_before;
-    r->flags = static_cast<std::uint8_t>((m.overrun ? CycleRecord::kOverrun : 0) |
-                                         (gap ? CycleRecord::kGap : 0) |
-                                         (warm ? CycleRecord::kWarmup : 0));
-    r->state = m.state;
-  }
+  s.ring.push(CycleRecord{.cycle = m.cycle(),
+                          .release_ns = m.release_ns,
+                          .start_ns = m.start_ns,
+                          .end_ns = m.end_ns,
+                          .overhead_ns = m.overhead_ns,
+                          .missed_before = m.missed_before,
+                          .flags = static_cast<std::uint8_t>(
+                              (m.overrun ? CycleRecord::kOverrun : 0) |
+                              (gap ? CycleRecord::kGap : 0) | (warm ? CycleRecord::kWarmup : 0)),
+                          .state = m.state});
   if (!warm) [[likely]] {
     if (s.has_sample && !gap) s.period.add(m.start_ns - s.last_start);
     if (m.overhead_ns > 0) {

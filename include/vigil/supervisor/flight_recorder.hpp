@@ -6,9 +6,11 @@
 /// that moment: the cycles up to and including the faulting one), which an exporter writes as a
 /// Chrome/Perfetto trace (vigil/export/trace_event.hpp).
 ///
-/// Memory: one ring of `capacity` records (48 bytes each: 48 KiB for the default 1024) per
+/// Memory: one ring of `capacity` slots (32 bytes each: 32 KiB for the default 1024) per
 /// component, allocated when the component joins; recording a cycle writes one slot and never
-/// allocates. Not RT-safe; one writer (the supervisor thread), readers copy under the
+/// allocates. A slot keeps a cycle packed (`PackedCycle`: times as offsets from the release,
+/// exact to the nanosecond up to 2.1 s, in microseconds beyond); readers get it unpacked as a
+/// `CycleRecord`. Not RT-safe; one writer (the supervisor thread), readers copy under the
 /// aggregator's per-component lock.
 
 #include <cstdint>
@@ -21,7 +23,7 @@
 
 namespace vigil::supervisor {
 
-/// One cycle as the flight recorder keeps it.
+/// One cycle as the flight recorder hands it out.
 struct CycleRecord {
   std::uint64_t cycle = 0;  ///< the component's 1-based cycle number
   Nanos release_ns = 0;     ///< scheduled release
@@ -29,65 +31,134 @@ struct CycleRecord {
   Nanos end_ns = 0;         ///< on_update() ended
   Nanos overhead_ns = 0;    ///< supervision's measured overhead carried by the sample (0: none)
   std::uint32_t missed_before = 0;  ///< releases skipped just before it
-  std::uint8_t flags = 0;           ///< kOverrun, kGap, kWarmup
+  std::uint8_t flags = 0;           ///< kOverrun, kGap, kWarmup, kCoarse, kClipped
   TaskState state = TaskState::Running;
 
   static constexpr std::uint8_t kOverrun = 1;  ///< ended after the next release
   static constexpr std::uint8_t kGap = 2;      ///< cycles before it are missing (port dropped)
   static constexpr std::uint8_t kWarmup = 4;   ///< inside the warm-up (kept out of statistics)
+  /// The wake-up latency or on_update()'s time was beyond 2.1 s: kept in microseconds (start
+  /// and end are exact to 1 us, not 1 ns).
+  static constexpr std::uint8_t kCoarse = 8;
+  /// A value beyond what a slot holds was saturated: latency or time beyond +-35 minutes,
+  /// overhead beyond 4.29 s, or more than 65,535 missed releases (the statistics and counters
+  /// have the exact values; only this record is clipped).
+  static constexpr std::uint8_t kClipped = 16;
 
   /// on_update()'s own time.
   [[nodiscard]] Nanos user_ns() const noexcept { return end_ns - start_ns; }
   /// Wake-up latency: start - release.
   [[nodiscard]] Nanos latency_ns() const noexcept { return start_ns - release_ns; }
 };
-static_assert(sizeof(CycleRecord) <= 48, "keep the flight recorder's slot at 48 bytes");
 
-/// A fixed-capacity ring of cycle records. Not thread-safe (the owner locks).
+/// A cycle as a ring slot keeps it: 32 bytes, two to a cache line (the supervisor writes one
+/// per message drained, so a slot's size is most of what the recorder costs it). The release
+/// and the cycle number are kept whole; the start as an offset from the release and the end as
+/// an offset from the start, each exact in nanoseconds within +-2.1 s and in microseconds
+/// beyond (`kCoarse`), saturated beyond +-35 minutes (`kClipped`); the overhead saturates at
+/// 4.29 s, the missed releases at 65,535 (`kClipped`).
+class PackedCycle {
+ public:
+  PackedCycle() noexcept = default;
+  /// Packs `r` (its kCoarse and kClipped flags are recomputed).
+  explicit PackedCycle(const CycleRecord& r) noexcept
+      : cycle_(r.cycle),
+        release_ns_(r.release_ns),
+        missed_(r.missed_before > 0xFFFFU ? std::uint16_t{0xFFFF}
+                                          : static_cast<std::uint16_t>(r.missed_before)),
+        state_(r.state) {
+    std::uint8_t flags = r.flags & ~(CycleRecord::kCoarse | CycleRecord::kClipped);
+    if (r.missed_before > 0xFFFFU) flags |= CycleRecord::kClipped;
+    const Nanos latency = r.start_ns - r.release_ns;
+    const Nanos user = r.end_ns - r.start_ns;
+    if (!fits_ns(latency) || !fits_ns(user)) {
+      flags |= CycleRecord::kCoarse;
+      flags |= to_us(latency, latency_) | to_us(user, user_);
+    } else {
+      latency_ = static_cast<std::int32_t>(latency);
+      user_ = static_cast<std::int32_t>(user);
+    }
+    if (r.overhead_ns < 0 || r.overhead_ns > 0xFFFF'FFFFLL) {
+      flags |= CycleRecord::kClipped;
+      overhead_ = r.overhead_ns < 0 ? 0U : 0xFFFF'FFFFU;
+    } else {
+      overhead_ = static_cast<std::uint32_t>(r.overhead_ns);
+    }
+    flags_ = flags;
+  }
+
+  [[nodiscard]] CycleRecord unpack() const noexcept {
+    CycleRecord r;
+    r.cycle = cycle_;
+    r.release_ns = release_ns_;
+    const Nanos unit = (flags_ & CycleRecord::kCoarse) != 0 ? 1000 : 1;
+    r.start_ns = release_ns_ + latency_ * unit;
+    r.end_ns = r.start_ns + user_ * unit;
+    r.overhead_ns = overhead_;
+    r.missed_before = missed_;
+    r.flags = flags_;
+    r.state = state_;
+    return r;
+  }
+
+  [[nodiscard]] std::uint64_t cycle() const noexcept { return cycle_; }
+
+ private:
+  static constexpr Nanos kMax32 = 0x7FFF'FFFF;
+  static constexpr bool fits_ns(Nanos v) noexcept { return v >= -kMax32 && v <= kMax32; }
+  // v in microseconds (rounded toward zero), saturated: kClipped when it did not fit.
+  static std::uint8_t to_us(Nanos v, std::int32_t& out) noexcept {
+    const Nanos us = v / 1000;
+    out = static_cast<std::int32_t>(us < -kMax32 ? -kMax32 : us > kMax32 ? kMax32 : us);
+    return fits_ns(us) ? 0 : CycleRecord::kClipped;
+  }
+
+  std::uint64_t cycle_ = 0;
+  Nanos release_ns_ = 0;
+  std::int32_t latency_ = 0;  // start - release (ns, or us with kCoarse)
+  std::int32_t user_ = 0;     // end - start (ns, or us with kCoarse)
+  std::uint32_t overhead_ = 0;
+  std::uint16_t missed_ = 0;
+  std::uint8_t flags_ = 0;
+  TaskState state_ = TaskState::Running;
+};
+static_assert(sizeof(PackedCycle) == 32, "keep the flight recorder's slot at 32 bytes");
+
+/// A fixed-capacity ring of cycles. Not thread-safe (the owner locks).
 class FlightRing {
  public:
   /// Allocates `capacity` slots (0: records nothing). Not RT-safe.
   explicit FlightRing(std::size_t capacity = 0) : slots_(capacity), capacity_(capacity) {}
   /// Records one cycle, overwriting the oldest when full. Never allocates.
   void push(const CycleRecord& r) noexcept {
-    if (slots_.empty()) return;
-    slots_[next_] = r;
-    next_ = next_ + 1 == slots_.size() ? 0 : next_ + 1;
-    if (size_ < slots_.size()) ++size_;
+    if (capacity_ == 0) return;
+    slots_[next_] = PackedCycle(r);
+    next_ = next_ + 1 == capacity_ ? 0 : next_ + 1;
+    size_ += size_ < capacity_ ? 1 : 0;
   }
-  /// The records, oldest first (a copy).
+  /// The records, oldest first (a copy, unpacked).
   [[nodiscard]] std::vector<CycleRecord> ordered() const {
     std::vector<CycleRecord> out;
     out.reserve(size_);
-    const std::size_t first = size_ < slots_.size() ? 0 : next_;
-    for (std::size_t i = 0; i < size_; ++i) out.push_back(slots_[(first + i) % slots_.size()]);
+    const std::size_t first = size_ < capacity_ ? 0 : next_;
+    for (std::size_t i = 0; i < size_; ++i) out.push_back(slots_[(first + i) % capacity_].unpack());
     return out;
   }
   [[nodiscard]] std::size_t size() const noexcept { return size_; }
-  [[nodiscard]] std::size_t capacity() const noexcept { return slots_.size(); }
+  [[nodiscard]] std::size_t capacity() const noexcept { return capacity_; }
   [[nodiscard]] bool empty() const noexcept { return size_ == 0; }
-  /// The slot for one more cycle, to be filled in place by the caller (every field: it holds an
-  /// old record), overwriting the oldest when full; null when the ring has no slots. Never
-  /// allocates.
-  [[nodiscard]] CycleRecord* emplace() noexcept {
-    if (capacity_ == 0) return nullptr;
-    CycleRecord* r = slots_.data() + next_;
-    next_ = next_ + 1 == capacity_ ? 0 : next_ + 1;
-    size_ += size_ < capacity_ ? 1 : 0;
-    return r;
-  }
   /// The slot the next push writes (null when the ring has no slots): for prefetching.
-  [[nodiscard]] const CycleRecord* next_slot() const noexcept {
-    return slots_.empty() ? nullptr : &slots_[next_];
+  [[nodiscard]] const void* next_slot() const noexcept {
+    return capacity_ == 0 ? nullptr : &slots_[next_];
   }
   /// The newest record; only when !empty().
-  [[nodiscard]] const CycleRecord& back() const noexcept {
-    return slots_[next_ == 0 ? slots_.size() - 1 : next_ - 1];
+  [[nodiscard]] CycleRecord back() const noexcept {
+    return slots_[next_ == 0 ? capacity_ - 1 : next_ - 1].unpack();
   }
 
  private:
-  std::vector<CycleRecord> slots_;
-  std::size_t capacity_ = 0;  // slots_.size(), kept: no division by 48 per record
+  std::vector<PackedCycle> slots_;
+  std::size_t capacity_ = 0;  // slots_.size(), kept: no division per record
   std::size_t next_ = 0;
   std::size_t size_ = 0;
 };

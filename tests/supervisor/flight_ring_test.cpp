@@ -1,0 +1,120 @@
+// The flight ring's 32-byte slots: what goes in comes out, to the nanosecond where it fits and
+// to the microsecond (flagged) where it does not; nothing wraps silently.
+#include <catch2/catch.hpp>
+#include <cstdint>
+#include <limits>
+
+#include "vigil/supervisor/flight_recorder.hpp"
+
+using namespace vigil;
+using namespace vigil::supervisor;
+
+namespace {
+
+CycleRecord record(std::uint64_t cycle, Nanos release, Nanos latency, Nanos user) {
+  CycleRecord r;
+  r.cycle = cycle;
+  r.release_ns = release;
+  r.start_ns = release + latency;
+  r.end_ns = r.start_ns + user;
+  r.overhead_ns = 140;
+  r.missed_before = 3;
+  r.flags = CycleRecord::kOverrun | CycleRecord::kWarmup;
+  r.state = TaskState::Running;
+  return r;
+}
+
+void check_same(const CycleRecord& a, const CycleRecord& b) {
+  CHECK(a.cycle == b.cycle);
+  CHECK(a.release_ns == b.release_ns);
+  CHECK(a.start_ns == b.start_ns);
+  CHECK(a.end_ns == b.end_ns);
+  CHECK(a.overhead_ns == b.overhead_ns);
+  CHECK(a.missed_before == b.missed_before);
+  CHECK(a.flags == b.flags);
+  CHECK(a.state == b.state);
+}
+
+}  // namespace
+
+TEST_CASE("A flight ring slot keeps a cycle exactly within +-2.1 s", "[supervisor][recorder]") {
+  const Nanos big_release = std::int64_t{1} << 62;  // monotonic clocks count from boot, TSC high
+  for (const CycleRecord& r :
+       {record(1, 1'000'000, 2'000, 50'000), record(~std::uint64_t{0}, big_release, 0, 0),
+        record(7, -5'000, -300, 1),  // a release after the start: a clock's calibration error
+        record(9, 0, 0x7FFF'FFFF, 0x7FFF'FFFF), record(10, 0, -0x7FFF'FFFF, 0)}) {
+    check_same(PackedCycle(r).unpack(), r);
+  }
+  CycleRecord r = record(2, 10, 20, 30);
+  r.overhead_ns = 0xFFFF'FFFF;
+  r.missed_before = 0xFFFF;
+  r.state = TaskState::Exception;
+  r.flags = CycleRecord::kGap;
+  check_same(PackedCycle(r).unpack(), r);
+}
+
+TEST_CASE("A flight ring slot keeps longer times to the microsecond, flagged",
+          "[supervisor][recorder]") {
+  const CycleRecord r = record(5, 1'000'000'000, 3'000'123, 5'000'000'999LL);  // 5 s update
+  const CycleRecord u = PackedCycle(r).unpack();
+  CHECK((u.flags & CycleRecord::kCoarse) != 0);
+  CHECK((u.flags & CycleRecord::kClipped) == 0);
+  CHECK(u.release_ns == r.release_ns);
+  CHECK(u.latency_ns() == 3'000'000);
+  CHECK(u.user_ns() == 5'000'000'000LL);
+  CHECK(u.cycle == 5);
+
+  const CycleRecord late = record(6, 0, -3'000'000'000LL, 100);  // negative, beyond 2.1 s
+  const CycleRecord l = PackedCycle(late).unpack();
+  CHECK((l.flags & CycleRecord::kCoarse) != 0);
+  CHECK(l.latency_ns() == -3'000'000'000LL);
+  CHECK(l.user_ns() == 0);  // 100 ns in microseconds
+}
+
+TEST_CASE("A flight ring slot saturates what it cannot hold and says so",
+          "[supervisor][recorder]") {
+  CycleRecord r = record(1, 0, 100, 100);
+  r.missed_before = 70'000;
+  CycleRecord u = PackedCycle(r).unpack();
+  CHECK(u.missed_before == 0xFFFF);
+  CHECK((u.flags & CycleRecord::kClipped) != 0);
+  CHECK(u.user_ns() == 100);  // the rest stays exact
+
+  r = record(1, 0, 100, 100);
+  r.overhead_ns = Nanos{5} * kNanosPerSecond;
+  u = PackedCycle(r).unpack();
+  CHECK(u.overhead_ns == 0xFFFF'FFFF);
+  CHECK((u.flags & CycleRecord::kClipped) != 0);
+
+  r = record(1, 0, 100, std::numeric_limits<std::int32_t>::max() * Nanos{1000} * 2);  // 50 days
+  u = PackedCycle(r).unpack();
+  CHECK((u.flags & (CycleRecord::kClipped | CycleRecord::kCoarse)) ==
+        (CycleRecord::kClipped | CycleRecord::kCoarse));
+  CHECK(u.user_ns() == Nanos{0x7FFF'FFFF} * 1000);
+
+  // Flags a caller passes in are recomputed, not trusted.
+  r = record(1, 0, 100, 100);
+  r.flags = CycleRecord::kClipped | CycleRecord::kCoarse;
+  u = PackedCycle(r).unpack();
+  CHECK(u.flags == 0);
+  CHECK(u.user_ns() == 100);
+}
+
+TEST_CASE("A flight ring keeps the newest cycles, oldest first", "[supervisor][recorder]") {
+  FlightRing ring(4);
+  CHECK(ring.empty());
+  CHECK(ring.capacity() == 4);
+  for (std::uint64_t c = 1; c <= 6; ++c) ring.push(record(c, Nanos(c) * 1'000'000, 1'000, 2'000));
+  CHECK(ring.size() == 4);
+  CHECK(ring.back().cycle == 6);
+  const auto cycles = ring.ordered();
+  REQUIRE(cycles.size() == 4);
+  for (std::size_t i = 0; i < 4; ++i)
+    check_same(cycles[i], record(3 + i, Nanos(3 + i) * 1'000'000, 1'000, 2'000));
+
+  FlightRing none(0);
+  none.push(record(1, 0, 0, 0));
+  CHECK(none.empty());
+  CHECK(none.next_slot() == nullptr);
+  CHECK(none.ordered().empty());
+}
