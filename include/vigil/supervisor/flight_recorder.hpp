@@ -101,8 +101,6 @@ class PackedCycle {
     return r;
   }
 
-  [[nodiscard]] std::uint64_t cycle() const noexcept { return cycle_; }
-
  private:
   static constexpr Nanos kMax32 = 0x7FFF'FFFF;
   static constexpr bool fits_ns(Nanos v) noexcept { return v >= -kMax32 && v <= kMax32; }
