@@ -1,6 +1,7 @@
 #include "vigil/supervisor/supervisor.hpp"
 
 #include <atomic>
+#include <chrono>
 #include <catch2/catch.hpp>
 #include <thread>
 
@@ -33,7 +34,23 @@ TEST_CASE("A component started before the supervisor exists is supervised from t
   CHECK(s->samples == 10);
 }
 
+namespace {
+// Waits (up to 10 s) until `done()`: what a test needs to have happened, not a time that a loaded
+// machine may not give its threads.
+template <class F>
+bool eventually(F done) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return true;
+}
+}  // namespace
+
 TEST_CASE("Components join and leave while everything runs", "[supervisor][pipeline]") {
+  // Each phase lasts until it has happened (cycles run, drains made), not a fixed time: under a
+  // loaded machine a 1 ms component may run only a few cycles in 30 ms.
   Registry<task::Message> reg;
   ComponentAggregator agg;
   TaskSupervisor sup(reg, agg, {.period_ns = kNanosPerMilli});
@@ -42,17 +59,19 @@ TEST_CASE("Components join and leave while everything runs", "[supervisor][pipel
   PeriodicActivity aa(*a, {.name = "a", .period_ns = kNanosPerMilli});
   REQUIRE(a->configure());
   REQUIRE(aa.start().has_value());
-  std::this_thread::sleep_for(std::chrono::milliseconds(30));
+  REQUIRE(eventually([&] { return a->cycles() >= 20 && sup.stats().cycles >= 5; }));
   {
     Probe late("late", {}, reg);  // joins while a and the supervisor run
     PeriodicActivity al(late, {.name = "late", .period_ns = kNanosPerMilli});
     REQUIRE(late.configure());
     REQUIRE(al.start().has_value());
-    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    const auto drains = sup.stats().cycles;
+    REQUIRE(eventually([&] { return late.cycles() >= 20 && sup.stats().cycles >= drains + 6; }));
     al.stop();
     // `late` leaves here, while a still runs.
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  const auto before = a->cycles();
+  REQUIRE(eventually([&] { return a->cycles() >= before + 10; }));  // a runs on alone
   aa.stop();
   const auto a_cycles = a->cycles();
   sup.stop();  // a last full drain
