@@ -1,8 +1,8 @@
 #include "vigil/supervisor/supervisor.hpp"
 
 #include <atomic>
-#include <chrono>
 #include <catch2/catch.hpp>
+#include <chrono>
 #include <thread>
 
 #include "support/fake_clock.hpp"
