@@ -102,98 +102,49 @@ Counted sum(const std::vector<Contribution>& from) {
   return c;
 }
 
-// Count, min, max, exact sum, last and EWMA of a stream: RunningStats without the histogram
-// (exact mode keeps the samples themselves for percentiles).
-struct Scalars {
-  std::uint64_t count = 0;
-  Nanos first = 0;
-  Nanos last = 0;
-  Nanos min = 0;
-  Nanos max = 0;
-  vigil::supervisor::detail::WideSum sum;
-  double ewma = 0;
-
-  void add(Nanos v, double weight) {
-    if (count == 0) {
-      first = min = max = v;
-      ewma = static_cast<double>(v);
-    } else {
-      min = std::min(min, v);
-      max = std::max(max, v);
-      ewma += weight * (static_cast<double>(v) - ewma);
-    }
-    ++count;
-    last = v;
-    sum.add(v);
-  }
-  // As RunningStats::merge: `other`'s samples after ours.
-  void merge(const Scalars& other, double weight) {
-    if (other.count == 0) return;
-    if (count == 0) {
-      *this = other;
-      return;
-    }
-    const double decay = std::pow(1.0 - weight, static_cast<double>(other.count));
-    ewma = other.ewma + decay * (ewma - static_cast<double>(other.first));
-    count += other.count;
-    last = other.last;
-    min = std::min(min, other.min);
-    max = std::max(max, other.max);
-    sum.add(other.sum);
-  }
-  [[nodiscard]] StatsSummary summary() const {
-    StatsSummary s;
-    if (count == 0) return s;
-    s.count = count;
-    s.last = last;
-    s.min = min;
-    s.max = max;
-    s.mean = sum.to_double() / static_cast<double>(count);
-    s.ewma = ewma;
-    return s;
-  }
-};
-
-// Timing of one key, fed by records: histograms (live) or every gap (exact mode).
+// Timing of one key, fed by records: histograms (live) or every gap (exact mode). Live, the
+// histograms are CompactRunningStats (the buckets of the seen range only: a few hundred bytes a
+// distribution instead of RunningStats' 9 KB; the same quantiles).
 struct Timing {
   std::uint64_t records = 0;
   Nanos first_record = 0;
   Nanos last_record = 0;
-  std::unique_ptr<supervisor::RunningStats> io;   // live mode
-  std::unique_ptr<supervisor::RunningStats> gap;  // live mode
-  Scalars io_exact;                               // exact mode
-  Scalars gap_exact;                              // exact mode
-  std::vector<Nanos> gaps;                        // exact mode: every gap
+  bool live = true;
+  supervisor::CompactRunningStats io;   // live mode
+  supervisor::CompactRunningStats gap;  // live mode
+  supervisor::ScalarStats io_exact;     // exact mode
+  supervisor::ScalarStats gap_exact;    // exact mode
+  std::vector<Nanos> gaps;              // exact mode: every gap
 
   void init(bool exact, double weight) {
-    if (exact) return;
-    io = std::make_unique<supervisor::RunningStats>();
-    gap = std::make_unique<supervisor::RunningStats>();
-    static_cast<void>(io->set_ewma_weight(weight));
-    static_cast<void>(gap->set_ewma_weight(weight));
+    live = !exact;
+    static_cast<void>(io.set_ewma_weight(weight));
+    static_cast<void>(gap.set_ewma_weight(weight));
+    static_cast<void>(io_exact.set_ewma_weight(weight));
+    static_cast<void>(gap_exact.set_ewma_weight(weight));
   }
 
-  void add(const FrameRecord& r, Nanos gap_ns, double weight) {
+  void add(const FrameRecord& r, Nanos gap_ns) {
     if (records == 0) first_record = r.end_ns;
     ++records;
     last_record = std::max(last_record, r.end_ns);
-    if (io) {
-      io->add(r.io_ns());
-      if (gap_ns >= 0) gap->add(gap_ns);
+    if (live) {
+      io.add(r.io_ns());
+      if (gap_ns >= 0) gap.add(gap_ns);
       return;
     }
-    io_exact.add(r.io_ns(), weight);
+    io_exact.add(r.io_ns());
     if (gap_ns >= 0) {
-      gap_exact.add(gap_ns, weight);
+      gap_exact.add(gap_ns);
       gaps.push_back(gap_ns);
     }
   }
 
-  [[nodiscard]] StatsSummary io_summary() const { return io ? io->summary() : io_exact.summary(); }
+  [[nodiscard]] StatsSummary io_summary() const { return live ? io.summary() : io_exact.summary(); }
 
   [[nodiscard]] StatsSummary gap_summary(bool& is_exact) {
     is_exact = false;
-    if (gap) return gap->summary();
+    if (live) return gap.summary();
     StatsSummary s = gap_exact.summary();
     if (!gaps.empty()) {
       const StatsSummary e = exact_summary(gaps);
@@ -442,7 +393,7 @@ void CanAggregator::on(const Entry& /*e*/, const FrameRecord& r) {
         IdKey{r.bus, r.id, r.extended, r.rtr, false, r.direction, r.node, r.function, kNoNode, 0});
   }
   if (id != nullptr) {
-    id->timing.add(r, r.id_gap_ns, m.options.ewma_weight);
+    id->timing.add(r, r.id_gap_ns);
     id->last_length = r.length;
     id->last_data = r.data;
   } else {
@@ -451,7 +402,7 @@ void CanAggregator::on(const Entry& /*e*/, const FrameRecord& r) {
   NodeAccumulator* node =
       r.node_untracked ? nullptr : m.node_acc(NodeKey{r.bus, r.node, r.direction});
   if (node != nullptr) {
-    node->timing.add(r, r.node_gap_ns, m.options.ewma_weight);
+    node->timing.add(r, r.node_gap_ns);
   } else {
     ++m.unaggregated_node_records;
   }
@@ -496,12 +447,15 @@ void CanAggregator::visit_gap_distributions(
     d.bus = a->key.bus;
     d.node = a->key.node;
     d.direction = a->key.direction;
-    d.stats = a->timing.gap.get();
-    if (d.stats == nullptr) d.samples = a->timing.gaps;
+    if (a->timing.live) {
+      d.stats = &a->timing.gap;
+    } else {
+      d.samples = a->timing.gaps;
+    }
     visit(d);
   }
   const bool exact = m.options.exact_percentiles;
-  supervisor::RunningStats merged;  // 9 KB: reused for every group (reset() clears the histogram)
+  supervisor::CompactRunningStats merged;  // reused for every group (reset() keeps its buckets)
   std::vector<Nanos> gaps;
   for (const GroupSpec& g : groups) {
     for (const Direction dir : {Direction::Rx, Direction::Tx}) {
@@ -515,7 +469,7 @@ void CanAggregator::visit_gap_distributions(
         if (exact) {
           gaps.insert(gaps.end(), a->timing.gaps.begin(), a->timing.gaps.end());
         } else {
-          merged.merge(*a->timing.gap);
+          merged.merge(a->timing.gap);
         }
       }
       if (!any) continue;
@@ -617,12 +571,12 @@ CanSnapshot CanAggregator::snapshot(std::span<const GroupSpec> groups) const {
     c.name = std::move(name);
     c.group = group;
     c.direction = d;
-    supervisor::RunningStats io;
-    supervisor::RunningStats gap;
-    static_cast<void>(io.set_ewma_weight(weight));
-    static_cast<void>(gap.set_ewma_weight(weight));
-    Scalars io_exact;
-    Scalars gap_exact;
+    supervisor::CompactRunningStats io;
+    supervisor::CompactRunningStats gap;
+    supervisor::ScalarStats io_exact;
+    supervisor::ScalarStats gap_exact;
+    for (auto* r : {&io, &gap}) static_cast<void>(r->set_ewma_weight(weight));
+    for (auto* r : {&io_exact, &gap_exact}) static_cast<void>(r->set_ewma_weight(weight));
     std::vector<Nanos> gaps;
     for (const NodeAccumulator* a : members) {
       if (a->key.direction != d || !member(a->key)) continue;
@@ -635,12 +589,12 @@ CanSnapshot CanAggregator::snapshot(std::span<const GroupSpec> groups) const {
       c.records += a->timing.records;
       c.last_ns = std::max(c.last_ns, counted.any ? counted.last : a->timing.last_record);
       if (exact) {
-        io_exact.merge(a->timing.io_exact, weight);
-        gap_exact.merge(a->timing.gap_exact, weight);
+        io_exact.merge(a->timing.io_exact);
+        gap_exact.merge(a->timing.gap_exact);
         gaps.insert(gaps.end(), a->timing.gaps.begin(), a->timing.gaps.end());
       } else {
-        io.merge(*a->timing.io);
-        gap.merge(*a->timing.gap);
+        io.merge(a->timing.io);
+        gap.merge(a->timing.gap);
       }
     }
     if (exact) {

@@ -7,12 +7,14 @@
 /// Where each figure comes from:
 ///  - frames, first and last time seen (liveness): the sniffers' RT-side tables, read once per
 ///    supervisor cycle: exact whatever the port dropped;
-///  - timing (`RunningStats`: count, min, max, mean, EWMA, percentiles) of the time spent in the
+///  - timing (`CompactRunningStats`: count, min, max, mean, EWMA, percentiles) of the time spent in
+///  the
 ///    read/write call and of the gaps between consecutive frames: the records drained from the
 ///    ports. Each gap is measured exactly on the RT side (from the table's last-seen time), so a
 ///    dropped record removes a sample but never distorts one; `records` says how many samples
 ///    arrived, and `frames - records` how many were lost to a full port;
-///  - categories and groups: the node statistics of their members merged (`RunningStats::merge`):
+///  - categories and groups: the node statistics of their members merged
+///  (`CompactRunningStats::merge`):
 ///    a group's gap distribution is that of its nodes' gaps, not the gap between any two frames.
 ///
 /// Percentiles have `RunningStats`' bounded error (< 2^-5, upper bound). For offline replay,
@@ -21,8 +23,10 @@
 ///
 /// Memory is bounded: at most `max_ids` id keys and `max_nodes` node keys are aggregated (a
 /// record whose key the sniffer's table could not hold, or that finds the aggregator full, is
-/// counted, not aggregated). A key costs about 19 KB with histograms (live), about 200 bytes
-/// in exact mode, plus 8 bytes per gap (16 per frame: its id's and its node's) in exact mode.
+/// counted, not aggregated). A key costs about 1 KB live (its two distributions keep the buckets
+/// of the range seen only, `CompactRunningStats`: ~0.5 KB inline, 256 bytes of counters per
+/// power of two of values seen), about 0.5 KB in exact mode plus 8 bytes per gap (16 per frame:
+/// its id's and its node's).
 ///
 /// Design: the supervisor thread is the only writer. One mutex guards the statistics; the
 /// supervisor holds it while it applies one port's batch (begin .. end) and a reader while it
@@ -173,7 +177,7 @@ struct GapDistribution {
   std::uint32_t node = 0;  ///< a node's number (`kNoNode`: the frames of no node; 0 for a group)
   Direction direction = Direction::Rx;
   /// Live: the gaps' statistics with their histogram. Null in exact mode.
-  const supervisor::RunningStats* stats = nullptr;
+  const supervisor::CompactRunningStats* stats = nullptr;
   /// Exact mode: every gap, in no particular order (min, max, sum are exact). Empty live.
   std::span<const Nanos> samples{};
 
