@@ -7,15 +7,14 @@
 /// Where each figure comes from:
 ///  - frames, first and last time seen (liveness): the sniffers' RT-side tables, read once per
 ///    supervisor cycle: exact whatever the port dropped;
-///  - timing (`CompactRunningStats`: count, min, max, mean, EWMA, percentiles) of the time spent in
-///  the
-///    read/write call and of the gaps between consecutive frames: the records drained from the
-///    ports. Each gap is measured exactly on the RT side (from the table's last-seen time), so a
-///    dropped record removes a sample but never distorts one; `records` says how many samples
-///    arrived, and `frames - records` how many were lost to a full port;
+///  - timing (`CompactRunningStats`: count, min, max, mean, EWMA, percentiles) of the time
+///    spent in the read/write call and of the gaps between consecutive frames: the records
+///    drained from the ports. Each gap is measured exactly on the RT side (from the table's
+///    last-seen time), so a dropped record removes a sample but never distorts one; `records`
+///    says how many samples arrived, and `frames - records` how many were lost to a full port;
 ///  - categories and groups: the node statistics of their members merged
-///  (`CompactRunningStats::merge`):
-///    a group's gap distribution is that of its nodes' gaps, not the gap between any two frames.
+///    (`CompactRunningStats::merge`): a group's gap distribution is that of its nodes' gaps, not
+///    the gap between any two frames.
 ///
 /// Percentiles have `RunningStats`' bounded error (< 2^-5, upper bound). For offline replay,
 /// `CanAggregatorOptions::exact_percentiles` keeps every gap instead of histograms, so that the
