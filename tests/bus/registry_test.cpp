@@ -1,7 +1,10 @@
 #include "vigil/bus/registry.hpp"
 
+#include <algorithm>
 #include <catch2/catch.hpp>
+#include <string>
 #include <variant>
+#include <vector>
 
 using namespace vigil;
 using namespace vigil::bus;
@@ -53,4 +56,45 @@ TEST_CASE("Membership moves keep the port", "[bus][registry]") {
   CHECK(b.port() == port);
   CHECK_FALSE(a.joined());  // NOLINT(bugprone-use-after-move): moved-from is empty by contract
   CHECK(reg.size() == 1);
+}
+
+TEST_CASE("Members leave in any order: the rest are collected by id, each leaver once",
+          "[bus][registry]") {
+  Registry<V> reg;
+  constexpr int kMembers = 200;
+  std::vector<Membership<V, 2>> members;
+  members.reserve(kMembers);
+  for (int i = 0; i < kMembers; ++i) members.push_back(reg.join<2>("m" + std::to_string(i)));
+  std::vector<std::shared_ptr<RegistryEntry<V>>> out;
+  reg.collect(out);
+  REQUIRE(out.size() == kMembers);
+
+  // Leave in a scrambled order (a stride coprime with the count), collecting between leaves.
+  std::vector<std::uint32_t> alive;
+  for (const auto& m : members) alive.push_back(m.id());
+  std::vector<std::uint32_t> seen_leaving;
+  for (int k = 0; k < kMembers; ++k) {
+    auto& m = members[static_cast<std::size_t>((k * 73) % kMembers)];
+    const std::uint32_t id = m.id();
+    m.leave();
+    std::erase(alive, id);
+    CHECK(reg.size() == alive.size());
+    if (k % 7 == 0 || k == kMembers - 1) {
+      reg.collect(out);
+      std::vector<std::uint32_t> open;
+      for (std::size_t i = 0; i < out.size(); ++i) {
+        if (i > 0) CHECK(out[i - 1]->id < out[i]->id);  // ordered by id
+        if (out[i]->closed.load()) {
+          seen_leaving.push_back(out[i]->id);
+        } else {
+          open.push_back(out[i]->id);
+        }
+      }
+      CHECK(open == alive);  // `alive` is in id order: erase keeps it so
+    }
+  }
+  std::sort(seen_leaving.begin(), seen_leaving.end());
+  CHECK(std::adjacent_find(seen_leaving.begin(), seen_leaving.end()) == seen_leaving.end());
+  CHECK(seen_leaving.size() == kMembers);  // each leaver handed over exactly once
+  CHECK(reg.size() == 0);
 }

@@ -13,12 +13,14 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "vigil/assert.hpp"
 #include "vigil/bus/port.hpp"
 #include "vigil/bus/shm_session.hpp"
 
@@ -39,6 +41,9 @@ struct RegistryEntry {
   /// Set when the port lives in shared memory: a `vigil supervise` daemon drains it, and this
   /// registry's supervisor never sees the entry.
   std::shared_ptr<bus::ShmPort<Variant>> shm;
+  /// Where the entry sits in its registry's list of members (the registry's, under its lock):
+  /// leaving is O(1), not a search of every member.
+  std::size_t slot = 0;
 };
 
 template <class Variant>
@@ -119,6 +124,7 @@ class Registry {
       std::lock_guard lock(mutex_);
       entry->id = next_id_++;
       if (!entry->shm) {
+        entry->slot = entries_.size();
         entries_.push_back(entry);
         generation_.fetch_add(1, std::memory_order_release);
       }
@@ -133,7 +139,8 @@ class Registry {
   }
 
   /// Copies the current entries, and those that left since the last call, into `out`
-  /// (ordered by id). Takes the lock briefly. Meant for the registry's one supervisor: a member
+  /// (ordered by id; O(n log n) for n entries: the member list itself is kept in no order, so
+  /// that leaving is O(1)). Takes the lock briefly. Meant for the registry's one supervisor: a member
   /// that joins and leaves between two supervisor cycles is still handed over once, so its
   /// messages are drained. At most kMaxDeparted departed entries are kept for a supervisor that
   /// has not collected yet (the oldest go first).
@@ -178,8 +185,16 @@ class Registry {
     }
     std::lock_guard lock(mutex_);
     entry->last_words = std::move(last_words);
-    std::erase(entries_, entry);
-    if (departed_.size() == kMaxDeparted) departed_.erase(departed_.begin());
+    // O(1): the last member takes the leaving one's place (collect() sorts by id).
+    const std::size_t i = entry->slot;
+    VIGIL_ASSERT(i < entries_.size() && entries_[i] == entry,
+                 "Registry::remove: the entry is not a member of this registry");
+    if (i + 1 != entries_.size()) {
+      entries_[i] = std::move(entries_.back());
+      entries_[i]->slot = i;
+    }
+    entries_.pop_back();
+    if (departed_.size() == kMaxDeparted) departed_.pop_front();
     departed_.push_back(entry);
     generation_.fetch_add(1, std::memory_order_release);
     // Last, under the lock: a supervisor that sees `closed` finds the entry among the departed
@@ -189,8 +204,8 @@ class Registry {
 
  private:
   mutable std::mutex mutex_;
-  std::vector<std::shared_ptr<Entry>> entries_;
-  std::vector<std::shared_ptr<Entry>> departed_;
+  std::vector<std::shared_ptr<Entry>> entries_;  // in no order; each entry knows its slot
+  std::deque<std::shared_ptr<Entry>> departed_;
   std::uint32_t next_id_ = 1;
   std::atomic<std::uint64_t> generation_{0};
   std::shared_ptr<ShmPortsType> shm_;
