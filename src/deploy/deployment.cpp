@@ -92,11 +92,9 @@ ComponentSpec parse_component(const config::Node& n, const ComponentFactory& fac
     }
   }
   c.supervision.detectors = d;
-  c.supervision.overhead_sample_every = n.optional<std::uint32_t>(
-      "overhead_sample_every", 64, [](std::uint32_t v) -> std::optional<std::string> {
-        if (v == 0 || (v & (v - 1)) == 0) return std::nullopt;
-        return "must be 0 (never) or a power of two";
-      });
+  // Any count: the recorder counts cycles down (0: never).
+  c.supervision.overhead_sample_every =
+      n.optional<std::uint32_t>("overhead_sample_every", 64);
   c.parameters = n["parameters"];
   if (c.parameters.defined() && !c.parameters.is_mapping() && !c.parameters.is_null()) {
     c.parameters.error("expected a mapping of parameters");

@@ -10,6 +10,8 @@ ManualActivity::ManualActivity(TaskCore& task, ManualConfig config)
   info_.period_ns = config_.period_ns;
   info_.overrun_policy = config_.overrun_policy;
   info_.threaded = false;
+  context_.clock = &config_.clock;
+  context_.period_ns = config_.period_ns > 0 ? config_.period_ns : 0;
   task_.attach(&info_);
 }
 
@@ -24,24 +26,33 @@ bool ManualActivity::start(Nanos first_release_ns) {
 bool ManualActivity::stop() { return task_.stop(); }
 
 bool ManualActivity::step() noexcept {
-  if (task_.state() != TaskState::Running) return false;
-  CycleContext c;
-  c.clock = &config_.clock;
-  if (config_.period_ns > 0) {
+  if (task_.state() != TaskState::Running) [[unlikely]]
+    return false;
+  CycleContext& c = context_;
+  const bool periodic = c.period_ns > 0;
+  if (periodic) {
     c.release_ns = schedule_.release();
-    c.period_ns = config_.period_ns;
     c.missed_before = missed_carry_;
   }
+  c.end_ns = 0;
   const bool ok = task_.update(c);
-  if (config_.period_ns > 0) {
+  if (periodic) {
     const Nanos end = c.end_ns != 0 ? c.end_ns : config_.clock.now();
-    const auto o = schedule_.advance(end);
-    missed_carry_ = o.missed;
-    if (o.limit_reached) {
-      task_.raise_exception(Hook::Update, "vigil::OverrunLimit", "overrun limit reached");
+    if (schedule_.advance_on_time(end)) [[likely]] {
+      missed_carry_ = 0;
+    } else {
+      late(end);
     }
   }
   return ok;
+}
+
+void ManualActivity::late(Nanos end) noexcept {
+  const auto o = schedule_.advance(end);
+  missed_carry_ = o.missed;
+  if (o.limit_reached) {
+    task_.raise_exception(Hook::Update, "vigil::OverrunLimit", "overrun limit reached");
+  }
 }
 
 }  // namespace vigil::exec

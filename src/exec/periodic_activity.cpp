@@ -162,6 +162,10 @@ class PeriodicThread {
         end = c.end_ns != 0 ? c.end_ns : clock.now();
       }
       if (end == 0) end = clock.now();
+      if (schedule_.advance_on_time(end)) [[likely]] {
+        missed = 0;
+        continue;
+      }
       const auto o = schedule_.advance(end);
       missed = o.missed;
       if (o.limit_reached) {

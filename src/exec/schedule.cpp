@@ -6,6 +6,7 @@ Schedule::Schedule(Nanos period_ns, OverrunPolicy policy, OverrunLimit limit)
     : period_(period_ns), policy_(policy), limit_(limit) {
   if (limit_.max_overruns > 0 && limit_.window_cycles > 0) {
     window_.assign((limit_.window_cycles + 63) / 64, 0);
+    limited_ = true;
   }
 }
 

@@ -136,3 +136,17 @@ components: [{name: x, type: test.dummy, activity: a}]
   CHECK_THAT(e, Catch::Contains("d.yaml:3:22: supervision.clock"));
   CHECK_THAT(e, Catch::Contains("rdtsc"));
 }
+
+TEST_CASE("overhead_sample_every takes any count, and a bad one is an error naming the field",
+          "[deploy][deployment]") {
+  auto d = load_deployment_string(R"(activities: [{name: a, period: 1ms}]
+components: [{name: x, type: test.dummy, activity: a, overhead_sample_every: 48}]
+)",
+                                  "d.yaml", test_factory());
+  REQUIRE(d.has_value());
+  CHECK(d->components[0].supervision.overhead_sample_every == 48);
+  const std::string e = errors_of(R"(activities: [{name: a, period: 1ms}]
+components: [{name: x, type: test.dummy, activity: a, overhead_sample_every: -3}]
+)");
+  CHECK_THAT(e, Catch::Contains("d.yaml:2:78: components[0].overhead_sample_every"));
+}

@@ -70,3 +70,24 @@ TEST_CASE("The overrun limit fires at N overruns within M cycles", "[exec][sched
   CHECK_FALSE(step(true).limit_reached);  // the first overrun left the window
   CHECK(step(true).limit_reached);        // cycles 3, 6, 7 within 5 cycles
 }
+
+TEST_CASE("advance_on_time takes only the on-time cycle of a schedule without a limit",
+          "[exec][schedule]") {
+  Schedule s(100, OverrunPolicy::Skip);
+  s.start(1000);
+  CHECK(s.advance_on_time(1100));  // ending exactly at the next release is on time
+  CHECK(s.release() == 1100);
+  CHECK_FALSE(s.advance_on_time(1250));  // late: nothing changes, advance() decides
+  CHECK(s.release() == 1100);
+  CHECK(s.overruns() == 0);
+  const auto o = s.advance(1250);
+  CHECK(o.overrun);
+  CHECK(o.missed == 1);
+  CHECK(s.release() == 1300);
+
+  // With an overrun limit every cycle goes through advance(), which keeps the window.
+  Schedule limited(100, OverrunPolicy::CatchUp, {.max_overruns = 2, .window_cycles = 4});
+  limited.start(0);
+  CHECK_FALSE(limited.advance_on_time(50));
+  CHECK(limited.release() == 0);
+}

@@ -46,11 +46,17 @@ class ManualActivity {
   [[nodiscard]] TaskCore& task() const noexcept { return task_; }
 
  private:
+  // A cycle that ended late, or an overrun limit to keep: out of the per-cycle path.
+  [[gnu::noinline]] void late(Nanos end) noexcept;
+
   TaskCore& task_;
   ManualConfig config_;
   ActivityInfo info_;
   Schedule schedule_;
   std::uint32_t missed_carry_ = 0;
+  // The cycle's context lives with the activity: its clock and period are set once, so a cycle
+  // writes only what changes (release, missed releases, end).
+  CycleContext context_;
 };
 
 }  // namespace vigil::exec

@@ -48,13 +48,22 @@ class Schedule {
   /// Skip: next = the first release at or after `end`, the ones before it are missed;
   /// Reanchor: next = end + period, the releases that passed are missed.
   Outcome advance(Nanos end) noexcept {
-    // The common case inline: on time, no overrun limit to keep.
-    if (end <= release_ + period_ && window_.empty()) [[likely]] {
+    if (advance_on_time(end)) [[likely]]
+      return {};
+    return advance_slow(end);
+  }
+  /// The common case of advance(), for a caller that handles the rest apart: when the cycle
+  /// ended on time and no overrun limit is kept, advances (nothing missed) and returns true;
+  /// otherwise changes nothing and returns false (call advance()). RT-safe, inline.
+  [[nodiscard]] bool advance_on_time(Nanos end) noexcept {
+    // The common case inline: on time, no overrun limit to keep (one flag, not the window's
+    // two pointers: this runs on every cycle of every periodic task).
+    if (end <= release_ + period_ && !limited_) [[likely]] {
       release_ += period_;
       ++cycle_;
-      return {};
+      return true;
     }
-    return advance_slow(end);
+    return false;
   }
 
   [[nodiscard]] std::uint64_t overruns() const noexcept { return overruns_; }
@@ -67,6 +76,7 @@ class Schedule {
   OverrunPolicy policy_;
   OverrunLimit limit_;
   Nanos release_ = 0;
+  bool limited_ = false;  // an overrun limit is kept: window_ is not empty
   std::uint64_t cycle_ = 0;
   std::uint64_t overruns_ = 0;
   std::uint64_t missed_ = 0;

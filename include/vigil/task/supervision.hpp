@@ -39,7 +39,8 @@ struct SupervisionOptions {
   /// Real-time-loss detectors to run around on_update(). None by default: the cheapest.
   Detectors detectors = Detectors::None;
   /// Measure supervision's own overhead (two more clock reads) on one cycle in this many
-  /// (a power of two); 1 = every cycle, 0 = never. User time is measured on every cycle.
+  /// (any count: the first cycle, then one in this many); 1 = every cycle, 0 = never. User time
+  /// is measured on every cycle.
   std::uint32_t overhead_sample_every = 64;
 };
 
@@ -78,11 +79,10 @@ class CycleRecorder {
   /// Changes options; call before the component runs (not while it runs). Not RT-safe.
   void set_options(SupervisionOptions options) noexcept {
     options_ = options;
-    const std::uint32_t every = options.overhead_sample_every;
-    // Cycles measured: those begun after a multiple of `every` cycles (the first one, then one
-    // in `every`): (cycles & mask) == phase. Never: a phase the masked count cannot reach.
-    measure_mask_ = every == 0 ? 0 : std::uint64_t{every} - 1;
-    measure_phase_ = every == 0 ? 1 : 0;
+    // Cycles measured: the next one, then one in `every`, counted down (one decrement and one
+    // test per cycle). Never: a count down from 2^64 - 1, which no component reaches.
+    measure_every_ = options.overhead_sample_every;
+    measure_countdown_ = measure_every_ == 0 ? ~std::uint64_t{0} : 1;
   }
   [[nodiscard]] const SupervisionOptions& options() const noexcept { return options_; }
   [[nodiscard]] const std::string& name() const noexcept { return name_; }
@@ -159,7 +159,7 @@ class CycleRecorder {
                     : platform::active_clock() == platform::ClockSource::Tsc ? kTscClock
                                                                              : kMonotonicClock;
     }
-    if ((counters().cycles & measure_mask_) == measure_phase_) [[unlikely]]
+    if (--measure_countdown_ == 0) [[unlikely]]
       pre_begin_ = now();
     if (const Detectors d = options_.detectors; d != Detectors::None) [[unlikely]] {
       // The common detector inline (one thread-local load); the others out of line.
@@ -195,7 +195,6 @@ class CycleRecorder {
     const Nanos release = c.release_ns != 0 ? c.release_ns : start;
     const bool overrun = c.period_ns > 0 && end > release + c.period_ns;
     const std::uint64_t cycles = counters().cycles + 1;
-    const bool measured = ((cycles - 1) & measure_mask_) == measure_phase_;
     // What rarely changes is stored only when it does.
     if (overrun) [[unlikely]]
       ++counters().overruns;
@@ -228,7 +227,12 @@ class CycleRecorder {
     (void)port->try_push(sample_);
     published_cycles_.store(cycles, std::memory_order_relaxed);
     // A measured overhead travels with the next cycle's sample, once.
-    overhead_ = measured ? (start - pre_begin_) + (now() - end) : 0;
+    if (measure_countdown_ == 0) [[unlikely]] {
+      overhead_ = (start - pre_begin_) + (now() - end);
+      measure_countdown_ = measure_every_;
+    } else {
+      overhead_ = 0;
+    }
   }
 
   /// Cycles run so far. Any thread (relaxed atomic).
@@ -367,8 +371,8 @@ class CycleRecorder {
   static constexpr std::uint8_t kReplacedClock = 2;   // through the Clock's function pointer
   const Clock* clock_ = &kUnknownClock;
   std::uint8_t clock_mode_ = kMonotonicClock;
-  std::uint64_t measure_mask_ = 63;
-  std::uint64_t measure_phase_ = 0;
+  std::uint64_t measure_every_ = 64;
+  std::uint64_t measure_countdown_ = 1;  // cycles until the next measured one
   Nanos pre_begin_ = 0;
   Nanos overhead_ = 0;  // measured on the latest cycle, sent with the next sample
   std::atomic<std::uint64_t> published_cycles_{0};  // single writer: a plain store on x86

@@ -102,7 +102,8 @@ class TaskCore {
  protected:
   virtual bool configure_hook() { return true; }
   virtual bool start_hook() { return true; }
-  virtual void update_hook() {}
+  // Pure: an activity's call is then one indirect call, with no speculative test of a default.
+  virtual void update_hook() = 0;
   virtual bool stop_hook() { return true; }
   virtual bool cleanup_hook() { return true; }
 
