@@ -25,28 +25,6 @@ bool ManualActivity::start(Nanos first_release_ns) {
 
 bool ManualActivity::stop() { return task_.stop(); }
 
-bool ManualActivity::step() noexcept {
-  if (task_.state() != TaskState::Running) [[unlikely]]
-    return false;
-  CycleContext& c = context_;
-  const bool periodic = c.period_ns > 0;
-  if (periodic) {
-    c.release_ns = schedule_.release();
-    c.missed_before = missed_carry_;
-  }
-  c.end_ns = 0;
-  const bool ok = task_.update(c);
-  if (periodic) {
-    const Nanos end = c.end_ns != 0 ? c.end_ns : config_.clock.now();
-    if (schedule_.advance_on_time(end)) [[likely]] {
-      missed_carry_ = 0;
-    } else {
-      late(end);
-    }
-  }
-  return ok;
-}
-
 void ManualActivity::late(Nanos end) noexcept {
   const auto o = schedule_.advance(end);
   missed_carry_ = o.missed;

@@ -37,7 +37,28 @@ class ManualActivity {
   bool stop();
   /// Runs one cycle (the release of the cycle is the schedule's, or now when not periodic).
   /// Returns false when the task is not Running. RT-safe when the task's hooks are.
-  bool step() noexcept;
+  /// Inline: the per-cycle path is the task's own update and the schedule's on-time case.
+  bool step() noexcept {
+    if (task_.state() != TaskState::Running) [[unlikely]]
+      return false;
+    CycleContext& c = context_;
+    const bool periodic = c.period_ns > 0;
+    if (periodic) {
+      c.release_ns = schedule_.release();
+      c.missed_before = missed_carry_;
+    }
+    c.end_ns = 0;
+    const bool ok = task_.update(c);
+    if (periodic) {
+      const Nanos end = c.end_ns != 0 ? c.end_ns : config_.clock.now();
+      if (schedule_.advance_on_time(end)) [[likely]] {
+        missed_carry_ = 0;
+      } else {
+        late(end);
+      }
+    }
+    return ok;
+  }
 
   /// The release of the next cycle (periodic only).
   [[nodiscard]] Nanos next_release() const noexcept { return schedule_.release(); }
@@ -47,7 +68,7 @@ class ManualActivity {
 
  private:
   // A cycle that ended late, or an overrun limit to keep: out of the per-cycle path.
-  [[gnu::noinline]] void late(Nanos end) noexcept;
+  void late(Nanos end) noexcept;
 
   TaskCore& task_;
   ManualConfig config_;
