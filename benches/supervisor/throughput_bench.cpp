@@ -212,7 +212,8 @@ void registry_leave(benchmark::State& state) {
     Registry<task::Message> registry;
     std::vector<bus::Membership<task::Message, 2>> members;
     members.reserve(n);
-    for (std::size_t i = 0; i < n; ++i) members.push_back(registry.join<2>("c" + std::to_string(i)));
+    for (std::size_t i = 0; i < n; ++i)
+      members.push_back(registry.join<2>("c" + std::to_string(i)));
     const Nanos t0 = platform::now_ns();
     for (auto& m : members) m.leave();
     const Nanos t1 = platform::now_ns();

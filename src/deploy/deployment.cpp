@@ -93,8 +93,7 @@ ComponentSpec parse_component(const config::Node& n, const ComponentFactory& fac
   }
   c.supervision.detectors = d;
   // Any count: the recorder counts cycles down (0: never).
-  c.supervision.overhead_sample_every =
-      n.optional<std::uint32_t>("overhead_sample_every", 64);
+  c.supervision.overhead_sample_every = n.optional<std::uint32_t>("overhead_sample_every", 64);
   c.parameters = n["parameters"];
   if (c.parameters.defined() && !c.parameters.is_mapping() && !c.parameters.is_null()) {
     c.parameters.error("expected a mapping of parameters");

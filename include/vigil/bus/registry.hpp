@@ -140,8 +140,8 @@ class Registry {
 
   /// Copies the current entries, and those that left since the last call, into `out`
   /// (ordered by id; O(n log n) for n entries: the member list itself is kept in no order, so
-  /// that leaving is O(1)). Takes the lock briefly. Meant for the registry's one supervisor: a member
-  /// that joins and leaves between two supervisor cycles is still handed over once, so its
+  /// that leaving is O(1)). Takes the lock briefly. Meant for the registry's one supervisor: a
+  /// member that joins and leaves between two supervisor cycles is still handed over once, so its
   /// messages are drained. At most kMaxDeparted departed entries are kept for a supervisor that
   /// has not collected yet (the oldest go first).
   void collect(std::vector<std::shared_ptr<Entry>>& out) {
