@@ -158,7 +158,7 @@ class PeriodicThread {
         c.period_ns = config_.period_ns;
         c.missed_before = missed;
         c.clock = &clock;
-        t->update(c);
+        t->update_running(c);
         end = c.end_ns != 0 ? c.end_ns : clock.now();
       }
       if (end == 0) end = clock.now();

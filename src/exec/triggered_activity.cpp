@@ -99,7 +99,7 @@ void TriggeredActivity::run() {
         CycleContext c;
         c.release_ns = last_trigger_.load(std::memory_order_relaxed);
         c.clock = &clock;
-        task_.update(c);
+        task_.update_running(c);
         cycles_.fetch_add(1, std::memory_order_relaxed);
       }
       continue;

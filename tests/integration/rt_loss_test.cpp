@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "support/drain.hpp"
+#include "support/fake_clock.hpp"
 #include "support/probe.hpp"
 #include "support/proc_reader.hpp"
 #include "vigil/exec/manual_activity.hpp"
@@ -68,6 +69,34 @@ TEST_CASE("Allocating on every 100th cycle of 10,000 gives exactly 100 allocatio
     CHECK(l.count == 1);
     CHECK(l.cycle % 100 == 0);  // attributed to the cycle that allocated
   }
+}
+#endif
+
+#if !defined(VIGIL_ALLOC_GUARD_DISABLED)
+TEST_CASE("The allocation detector counts on across restarts, whatever the activity's clock",
+          "[rt_loss][allocation]") {
+  // Supervision looks at the clock on the first cycle of each run; the detector is set apart
+  // from it and must stay on.
+  Registry<task::Message> reg;
+  vigil::test::FakeClock fake;
+  Probe p("alloc", {.detectors = Detectors::Allocation}, reg);
+  p.script.allocate_every = 2;
+  REQUIRE(p.configure());
+  std::uint64_t losses = 0;
+  std::uint64_t cycles = 0;
+  for (int run = 0; run < 3; ++run) {  // the process's clock, a replaced one, the process's
+    ManualActivity act(
+        p, run == 1 ? ManualConfig{.name = "m", .clock = fake.clock()} : ManualConfig{.name = "m"});
+    REQUIRE(act.start());
+    for (int i = 0; i < 10; ++i) REQUIRE(act.step());
+    REQUIRE(act.stop());
+    for (const auto& s : vigil::test::cycles_of(vigil::test::drain(*p.port()))) {
+      losses = s.counters.loss(platform::LossCause::Allocation);
+      cycles = s.cycle();
+    }
+  }
+  CHECK(cycles == 30);
+  CHECK(losses == 15);
 }
 #endif
 

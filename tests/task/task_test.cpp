@@ -164,6 +164,42 @@ Nanos ticking_now(const void* ctx) noexcept {
 }
 }  // namespace
 
+TEST_CASE("A task reads the clock of its run, looked at again when it restarts", "[task][task]") {
+  // Supervision looks at the cycle's clock once per run (its first cycle), not every cycle: a
+  // task moved to an activity with another clock reads that clock from its next start.
+  Registry<Message> reg;
+  vigil::test::FakeClock a;
+  vigil::test::FakeClock b;
+  b.set(5'000'000'000);
+  Probe p("motor", {}, reg);
+  REQUIRE(p.configure());
+  for (auto* fc : {&a, &b, &a}) {
+    ManualActivity act(p, {.name = "m", .clock = fc->clock()});
+    REQUIRE(act.start());
+    for (int i = 0; i < 2; ++i) {
+      fc->advance(100);
+      REQUIRE(act.step());
+    }
+    REQUIRE(act.stop());
+  }
+  // The process's clock, on an activity that passes no Clock: TaskCore::update().
+  REQUIRE(p.start());
+  const Nanos before = platform::now_ns();
+  REQUIRE(p.update());
+  const Nanos after = platform::now_ns();
+  const auto samples = vigil::test::cycles_of(drain(*p.port()));
+  REQUIRE(samples.size() == 7);
+  const Nanos expected[] = {1'000'000'100, 1'000'000'200, 5'000'000'100,
+                            5'000'000'200, 1'000'000'300, 1'000'000'400};
+  for (std::size_t i = 0; i < 6; ++i) {
+    INFO("cycle " << samples[i].cycle());
+    CHECK(samples[i].start_ns == expected[i]);
+    CHECK(samples[i].end_ns == expected[i]);
+  }
+  CHECK(samples[6].start_ns >= before);
+  CHECK(samples[6].end_ns <= after);
+}
+
 TEST_CASE("Supervision's overhead is measured on one cycle in N and sent with the next sample",
           "[task][task]") {
   for (const std::uint32_t every : {0U, 1U, 3U, 4U}) {  // any N, not only powers of two

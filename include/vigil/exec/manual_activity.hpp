@@ -48,7 +48,7 @@ class ManualActivity {
       c.missed_before = missed_carry_;
     }
     c.end_ns = 0;
-    const bool ok = task_.update(c);
+    const bool ok = task_.update_running(c);
     if (periodic) {
       const Nanos end = c.end_ns != 0 ? c.end_ns : config_.clock.now();
       if (schedule_.advance_on_time(end)) [[likely]] {

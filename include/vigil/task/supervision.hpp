@@ -79,6 +79,11 @@ class CycleRecorder {
   /// Changes options; call before the component runs (not while it runs). Not RT-safe.
   void set_options(SupervisionOptions options) noexcept {
     options_ = options;
+    const Detectors d = options.detectors;
+    mode_ = static_cast<std::uint8_t>((mode_ & (kLookAtClock | kTscClock | kReplacedClock)) |
+                                      (d == Detectors::None         ? 0
+                                       : d == Detectors::Allocation ? kAllocationDetector
+                                                                    : kOtherDetectors));
     // Cycles measured: the next one, then one in `every`, counted down (one decrement and one
     // test per cycle). Never: a count down from 2^64 - 1, which no component reaches.
     measure_every_ = options.overhead_sample_every;
@@ -127,7 +132,9 @@ class CycleRecorder {
     change_ = StateChange{now, from, to, hook, refused, {}};
     change_.reason.assign(reason);
     state_ = refused ? from : to;
-    if (state_ == TaskState::Running) clock_ = &kUnknownClock;  // (re)started: look again
+    // (Re)started: the first cycle looks at the clock again (an activity passes the same Clock
+    // on every cycle of a run).
+    if (state_ == TaskState::Running) mode_ |= kLookAtClock;
     pending_ |= kChange;
     // Leaving Running: send the totals again, in case the latest samples were dropped.
     if (!refused && from == TaskState::Running && counters().cycles > 0) pending_ |= kTotals;
@@ -148,28 +155,15 @@ class CycleRecorder {
 
   /// Before on_update(). RT-safe.
   [[gnu::always_inline]] void pre(CycleContext& c) noexcept {
-    // The process's clock is read directly (monotonic, or the TSC when selected), not through
-    // the Clock's function pointer; a replaced clock (tests, replay) through it.
-    // Looked at once per start (an activity passes the same Clock every cycle): a running task
-    // keeps the process's clock it started with (select_clock() is called before tasks run).
-    if (const Clock* clock = c.clock; clock != clock_) [[unlikely]] {
-      clock_ = clock;
-      const bool direct = clock == nullptr || clock->fn == &Clock::system_now;
-      clock_mode_ = !direct                                                  ? kReplacedClock
-                    : platform::active_clock() == platform::ClockSource::Tsc ? kTscClock
-                                                                             : kMonotonicClock;
+    // The common case (the process's monotonic clock, read directly; no detector) tests one
+    // byte; the rest is in pre_special().
+    if (mode_ != 0) [[unlikely]] {
+      pre_special(c);
+      return;
     }
     if (--measure_countdown_ == 0) [[unlikely]]
-      pre_begin_ = now();
-    if (const Detectors d = options_.detectors; d != Detectors::None) [[unlikely]] {
-      // The common detector inline (one thread-local load); the others out of line.
-      if (d == Detectors::Allocation) {
-        alloc0_ = platform::thread_allocations();
-      } else {
-        arm();
-      }
-    }
-    const Nanos start = now();
+      pre_begin_ = platform::now_ns();
+    const Nanos start = platform::now_ns();
     c.start_ns = start;
     log_.enter(counters().cycles + 1, start);
   }
@@ -177,17 +171,8 @@ class CycleRecorder {
   /// After on_update(). `state` is what the sample reports. RT-safe.
   [[gnu::always_inline]] void post(CycleContext& c, TaskState state) noexcept {
     log_.leave();
-    const Nanos end = now();
+    const Nanos end = mode_ == 0 ? platform::now_ns() : post_special();
     c.end_ns = end;
-    if (const Detectors d = options_.detectors; d != Detectors::None) [[unlikely]] {
-      if (d == Detectors::Allocation) {
-        if (const std::uint64_t n = platform::thread_allocations() - alloc0_; n != 0) [[unlikely]] {
-          record_loss(LossCause::Allocation, n);
-        }
-      } else {
-        collect();
-      }
-    }
     // The sample is built in place inside a Message, and it holds the counters themselves: the
     // push is the cycle's only copy.
     CycleSample& s = sample();
@@ -250,10 +235,54 @@ class CycleRecorder {
   static constexpr std::uint8_t kTotals = 8;
 
   [[nodiscard]] [[gnu::always_inline]] Nanos now() const noexcept {
-    if (clock_mode_ == kMonotonicClock) [[likely]]
+    if ((mode_ & (kTscClock | kReplacedClock)) == 0) [[likely]]
       return platform::now_ns();
-    if (clock_mode_ == kTscClock) return platform::tsc_now_ns();
+    if ((mode_ & kTscClock) != 0) return platform::tsc_now_ns();
     return clock_->now();
+  }
+
+  /// pre() beyond the common case: the first cycle of a run, another clock, a detector.
+  /// Inline (the allocation detector's path stays without a call), out of the common path.
+  [[gnu::always_inline]] void pre_special(CycleContext& c) noexcept {
+    // The process's clock is read directly (monotonic, or the TSC when selected), not through
+    // the Clock's function pointer; a replaced clock (tests, replay) through it. Looked at once
+    // per start: a running task keeps the clock it started with (select_clock() is called
+    // before tasks run).
+    if ((mode_ & kLookAtClock) != 0) [[unlikely]]
+      look_at_clock(c.clock);
+    if (--measure_countdown_ == 0) [[unlikely]]
+      pre_begin_ = now();
+    // The common detector inline (one thread-local load); the others out of line.
+    if ((mode_ & kAllocationDetector) != 0) {
+      alloc0_ = platform::thread_allocations();
+    } else if ((mode_ & kOtherDetectors) != 0) {
+      arm();
+    }
+    const Nanos start = now();
+    c.start_ns = start;
+    log_.enter(counters().cycles + 1, start);
+  }
+
+  /// post()'s clock read and detectors beyond the common case; returns the end of the cycle.
+  [[gnu::always_inline]] Nanos post_special() noexcept {
+    const Nanos end = now();
+    if ((mode_ & kAllocationDetector) != 0) {
+      if (const std::uint64_t n = platform::thread_allocations() - alloc0_; n != 0) [[unlikely]] {
+        record_loss(LossCause::Allocation, n);
+      }
+    } else if ((mode_ & kOtherDetectors) != 0) {
+      collect();
+    }
+    return end;
+  }
+
+  [[gnu::noinline]] void look_at_clock(const Clock* clock) noexcept {
+    clock_ = clock;
+    const bool direct = clock == nullptr || clock->fn == &Clock::system_now;
+    const std::uint8_t source = !direct ? kReplacedClock
+                                : platform::active_clock() == platform::ClockSource::Tsc ? kTscClock
+                                                                                         : 0;
+    mode_ = static_cast<std::uint8_t>((mode_ & (kAllocationDetector | kOtherDetectors)) | source);
   }
 
   // sample_ always holds a CycleSample: saying so spares the variant's index check.
@@ -363,14 +392,16 @@ class CycleRecorder {
   SupervisionOptions options_;
   bus::Membership<Message, N> membership_;
   log::PortSource<Message, N> log_{name_, membership_.port()};
-  // The clock of the latest cycle (null: the process's). An activity passes the same Clock
-  // object every cycle; only a new one is looked at.
-  static constexpr Clock kUnknownClock{};  // no cycle passes it: the first one is looked at
-  static constexpr std::uint8_t kMonotonicClock = 0;  // read platform::now_ns() directly
-  static constexpr std::uint8_t kTscClock = 1;        // read the TSC directly
-  static constexpr std::uint8_t kReplacedClock = 2;   // through the Clock's function pointer
-  const Clock* clock_ = &kUnknownClock;
-  std::uint8_t clock_mode_ = kMonotonicClock;
+  // What a cycle does beyond the common case (the process's monotonic clock read directly, no
+  // detector), one bit each; 0 is the common case, which pre() and post() test with one load.
+  static constexpr std::uint8_t kLookAtClock = 1;         // first cycle of a run
+  static constexpr std::uint8_t kTscClock = 2;            // read the TSC directly
+  static constexpr std::uint8_t kReplacedClock = 4;       // through the Clock's function pointer
+  static constexpr std::uint8_t kAllocationDetector = 8;  // Detectors::Allocation alone
+  static constexpr std::uint8_t kOtherDetectors = 16;     // any other set: arm() and collect()
+  // The clock of the run (null: the process's), looked at on its first cycle.
+  const Clock* clock_ = nullptr;
+  std::uint8_t mode_ = kLookAtClock;
   std::uint64_t measure_every_ = 64;
   std::uint64_t measure_countdown_ = 1;  // cycles until the next measured one
   Nanos pre_begin_ = 0;

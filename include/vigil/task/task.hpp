@@ -120,9 +120,12 @@ class Task : public TaskCore {
     }
     return true;
   }
-  void update_hook() noexcept final {
+  // Reached only through TaskCore::update(CycleContext&), i.e. cycle_hook(); kept for
+  // completeness (a direct call runs a cycle with the task's own context).
+  void update_hook() noexcept final { cycle_hook(cycle()); }
+  void cycle_hook(CycleContext& c) noexcept final {
     check_author();
-    CycleContext& c = cycle();
+    enter_cycle(c);  // for cycle() in on_update() and in the transition below
     recorder_.pre(c);
     bool threw = false;
     try {
@@ -138,6 +141,7 @@ class Task : public TaskCore {
     recorder_.post(c, threw ? TaskState::Exception : TaskState::Running);
     // After the sample: whoever sees Exception also sees every message of this cycle.
     if (threw) transition(TaskState::Exception, Hook::Update, "exception");
+    leave_cycle();
   }
   bool stop_hook() final {
     if constexpr (requires(Derived & d) { d.on_stop(); }) {
@@ -256,6 +260,12 @@ class Task : public TaskCore {
           requires std::same_as<decltype(&Derived::update_hook), decltype(&Task::update_hook)>;
         },
         "vigil::Task<Derived>: your class declares `update_hook`, a framework hook "
+        "name; rename it: write `on_update()` for the cycle's work");
+    static_assert(
+        requires {
+          requires std::same_as<decltype(&Derived::cycle_hook), decltype(&Task::cycle_hook)>;
+        },
+        "vigil::Task<Derived>: your class declares `cycle_hook`, a framework hook "
         "name; rename it: write `on_update()` for the cycle's work");
     static_assert(
         requires {

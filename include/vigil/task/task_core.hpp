@@ -64,18 +64,16 @@ class TaskCore {
   /// the cycle moved the task to Exception. RT-safe when the hooks are.
   bool update() noexcept;
   /// The same with the activity's timing (activities call this one). Inline: the per-cycle
-  /// path is one state check and one virtual call, whose exception frame costs nothing unless a
-  /// hook throws (then update_threw(), out of line, reports it).
+  /// path is one state check and one virtual call (cycle_hook()).
   bool update(CycleContext& context) noexcept {
     if (state() != TaskState::Running) [[unlikely]]
       return false;
-    context_ = &context;
-    try {
-      update_hook();
-    } catch (...) {
-      update_threw();
-    }
-    context_ = &own_context_;
+    return update_running(context);
+  }
+  /// The same for an activity that has just seen state() == TaskState::Running in this thread
+  /// (as its loop must, to skip a stopped task): no second check.
+  bool update_running(CycleContext& context) noexcept {
+    cycle_hook(context);
     return state() == TaskState::Running;
   }
   /// Running -> Stopped (or Running when refused).
@@ -102,8 +100,21 @@ class TaskCore {
  protected:
   virtual bool configure_hook() { return true; }
   virtual bool start_hook() { return true; }
-  // Pure: an activity's call is then one indirect call, with no speculative test of a default.
+  /// The cycle's work. Pure: every task has one.
   virtual void update_hook() = 0;
+  /// Runs one cycle with the activity's timing: what update(CycleContext&) calls. The default
+  /// makes cycle() return `context` while update_hook() runs, and reports an exception that
+  /// escapes it (update_threw()). Task<Derived> overrides it to hand `context` to supervision
+  /// directly: the cycle then reads its timing from a register, not back through context_.
+  virtual void cycle_hook(CycleContext& context) noexcept {
+    context_ = &context;
+    try {
+      update_hook();
+    } catch (...) {
+      update_threw();
+    }
+    context_ = &own_context_;
+  }
   virtual bool stop_hook() { return true; }
   virtual bool cleanup_hook() { return true; }
 
@@ -115,6 +126,10 @@ class TaskCore {
 
   /// The timing of the cycle being run (valid inside update_hook()).
   [[nodiscard]] CycleContext& cycle() noexcept { return *context_; }
+  /// For an override of cycle_hook(): what cycle() returns from now on (the cycle being run),
+  /// and back to the task's own context once it is over.
+  void enter_cycle(CycleContext& context) noexcept { context_ = &context; }
+  void leave_cycle() noexcept { context_ = &own_context_; }
   /// Sets the state and reports the transition.
   void transition(TaskState to, Hook hook, std::string_view reason = {}) noexcept;
   /// Reports a refused transition (with the reason set by set_refusal_reason, if any).
