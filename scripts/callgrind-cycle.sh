@@ -10,7 +10,7 @@
 #   FILTER             a Google Benchmark filter selecting ONE row, e.g.
 #                      '^task/overhead/detectors:none/iter'
 #   SUBJECT_FUNCTION   the subject's cycle function (callgrind --toggle-collect pattern); default
-#                      '*Subject::cycle()'; use '*TscTaskSubject::cycle()' for the tsc_clock rows
+#                      '*Subject*::cycle()'; use '*TscTaskSubject::cycle()' for the tsc_clock rows
 #                      (their cycle() calls TaskSubject::cycle(), which would toggle collection off)
 #
 # One repetition is 3 warm-up batches + 50 timed batches of 200 cycles = 10,600 cycles of each side.
@@ -19,7 +19,7 @@
 set -euo pipefail
 bin=${1:?usage: $0 BENCH_BINARY FILTER [SUBJECT_FUNCTION]}
 filter=${2:?usage: $0 BENCH_BINARY FILTER [SUBJECT_FUNCTION]}
-subject=${3:-'*Subject::cycle()'}
+subject=${3:-'*Subject*::cycle()'}
 cycles=10600
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT

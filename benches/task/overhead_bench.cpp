@@ -1,13 +1,14 @@
 // Per-cycle cost of supervision next to its floor, measured in the same repetition.
 //
-// Subjects: Task<Derived> with an empty on_update() stepped by a ManualActivity, for each
-// real-time-loss detector setting (goals: none <= 1.2x, allocation <= 1.25x); the same on the
-// TSC clock (vigil/platform/tsc.hpp; goal <= 1.0x, against the same vDSO floor; "not
-// available" with the reason where the TSC cannot be used); the Instrumentation + UpdateGuard
-// path; and, for scale,
-// the same activity driving an unsupervised TaskCore. The floor (bench_support.hpp): two reads
-// of vigil's clock around the same empty call and one push of the same Message into the queue
-// type behind every Port, with the same capacity.
+// Subjects: Task<Derived> with an empty on_update() stepped by a ManualActivity (through
+// TaskCore's virtual hook, as every activity reaches a task whose type it does not know), for
+// each real-time-loss detector setting (goals: none <= 1.2x, allocation <= 1.25x); the same
+// stepped by a TypedManualActivity (`typed_activity`: no virtual call, the cycle inlined into the
+// caller's loop; the same goals); the same on the TSC clock (vigil/platform/tsc.hpp; goal <= 1.0x,
+// against the same vDSO floor; "not available" with the reason where the TSC cannot be used); the
+// Instrumentation + UpdateGuard path; and, for scale, the same activity driving an unsupervised
+// TaskCore. The floor (bench_support.hpp): two reads of vigil's clock around the same empty call
+// and one push of the same Message into the queue type behind every Port, with the same capacity.
 //
 // Method. The measuring thread is pinned (VIGIL_BENCH_CPU, default 1); one consumer thread,
 // pinned to another CPU, pops the floor's queue and the subject's port once every 10 ms (the
@@ -69,14 +70,15 @@ class BareTask : public TaskCore {
   void update_hook() override { empty_update(); }
 };
 
-struct TaskSubject {
-  TaskSubject(Detectors d, Nanos period)
+template <class Activity>
+struct BasicTaskSubject {
+  BasicTaskSubject(Detectors d, Nanos period)
       : task(registry, SupervisionOptions{.detectors = d}),
         activity(task, ManualConfig{.name = "bench", .period_ns = period}) {
     (void)task.configure();
     (void)activity.start();
   }
-  ~TaskSubject() { (void)activity.stop(); }
+  ~BasicTaskSubject() { (void)activity.stop(); }
   [[gnu::noinline]] void cycle() noexcept { (void)activity.step(); }
   Poller::Drain drain() {
     return [p = task.port()](task::Message* out, std::size_t n) { return p->pop(out, n); };
@@ -85,8 +87,12 @@ struct TaskSubject {
 
   Registry<task::Message> registry;
   EmptyTask task;
-  ManualActivity activity;
+  Activity activity;
 };
+// Through TaskCore's virtual hook, as every activity reaches a task it does not know the type of.
+using TaskSubject = BasicTaskSubject<ManualActivity>;
+// Through TypedManualActivity: the cycle inlined into the caller's loop, no virtual call.
+using TypedTaskSubject = BasicTaskSubject<TypedManualActivity<EmptyTask>>;
 
 // The same Task on the TSC clock (vigil/platform/tsc.hpp), selected for the process while the
 // subject lives; the floor keeps reading CLOCK_MONOTONIC (the vDSO), as before.
@@ -272,6 +278,12 @@ void register_all() {
             return;
           }
           paired<TscTaskSubject>(st, false, s.detectors == Detectors::None ? 1.0 : 0, s.detectors);
+        });
+  }
+  for (const auto& s : {settings[0], settings[1]}) {
+    add(std::string("task/overhead/typed_activity/detectors:") + s.name, kBatchesPerRep,
+        [s](benchmark::State& st) {
+          paired<TypedTaskSubject>(st, false, s.goal, s.detectors, kPeriod);
         });
   }
   add("task/overhead/detectors:none/not_periodic", kBatchesPerRep,

@@ -84,3 +84,89 @@ TEST_CASE("The overrun limit moves the task to Exception with a report", "[exec]
   REQUIRE(ex.size() == 1);
   CHECK(ex[0].type == std::string_view("vigil::OverrunLimit"));
 }
+
+namespace {
+// Runs 40 cycles of a probe on activity type A with a fake clock: every 10th cycle overruns,
+// cycle 35 throws. Returns everything the port received.
+template <template <class> class A>
+std::vector<task::Message> scripted_run() {
+  Registry<task::Message> reg;
+  vigil::test::FakeClock fc;
+  vigil::test::Probe p("p", {.overhead_sample_every = 4}, reg);
+  p.script.throw_update_at = 35;
+  Nanos work = 100;
+  p.work = [&] { fc.advance(work); };
+  A<vigil::test::Probe> act(p, {.name = "m", .period_ns = 1000, .clock = fc.clock()});
+  REQUIRE(p.configure());
+  REQUIRE(act.start(fc.now()));
+  for (int i = 1; i <= 40; ++i) {
+    fc.set(act.next_release() + 7);
+    work = i % 10 == 0 ? 2500 : 100;
+    CHECK(act.step() == (i < 35));
+  }
+  CHECK(p.state() == TaskState::Exception);
+  return drain(*p.port());
+}
+template <class T>
+using Erased = ManualActivity;
+}  // namespace
+
+TEST_CASE("TypedManualActivity sends what ManualActivity sends, message by message",
+          "[exec][manual]") {
+  const auto erased = scripted_run<Erased>();
+  const auto typed = scripted_run<TypedManualActivity>();
+  REQUIRE(typed.size() == erased.size());
+  REQUIRE(vigil::test::cycles_of(typed).size() == 35);
+  REQUIRE(only<task::ExceptionReport>(typed).size() == 1);
+  for (std::size_t i = 0; i < typed.size(); ++i) {
+    INFO("message " << i);
+    REQUIRE(typed[i].index() == erased[i].index());
+    if (const auto* a = std::get_if<task::CycleSample>(&typed[i])) {
+      const auto& b = std::get<task::CycleSample>(erased[i]);
+      CHECK(a->cycle() == b.cycle());
+      CHECK(a->release_ns == b.release_ns);
+      CHECK(a->start_ns == b.start_ns);
+      CHECK(a->end_ns == b.end_ns);
+      CHECK(a->overhead_ns == b.overhead_ns);
+      CHECK(a->overrun == b.overrun);
+      CHECK(a->missed_before == b.missed_before);
+      CHECK(a->state == b.state);
+      CHECK(a->counters.overruns == b.counters.overruns);
+      CHECK(a->counters.missed_cycles == b.counters.missed_cycles);
+      CHECK(a->counters.exceptions == b.counters.exceptions);
+    }
+  }
+}
+
+namespace {
+class Bare : public TaskCore {
+ public:
+  Bare() : TaskCore("bare") {}
+  int updates = 0;
+  Nanos release = 0;
+
+ protected:
+  void update_hook() override {
+    ++updates;
+    release = cycle().release_ns;
+  }
+};
+}  // namespace
+
+TEST_CASE("TypedManualActivity steps a plain TaskCore through its virtual hook", "[exec][manual]") {
+  vigil::test::FakeClock fc;
+  Bare task;
+  TypedManualActivity act(task, {.name = "m", .period_ns = 1000, .clock = fc.clock()});
+  REQUIRE(task.configure());
+  REQUIRE(act.start(fc.now()));
+  for (int i = 0; i < 3; ++i) {
+    fc.set(act.next_release());
+    REQUIRE(act.step());
+  }
+  CHECK(task.updates == 3);
+  CHECK(task.release == fc.now());  // cycle() was the activity's context
+  CHECK(&act.task() == &task);
+  REQUIRE(act.stop());
+  CHECK_FALSE(act.step());
+  CHECK(task.updates == 3);
+}

@@ -21,8 +21,16 @@ TEST_CASE("Allocation counting is unavailable under sanitizers", "[supervisor][a
   CHECK_FALSE(platform::allocation_counting_available());
 }
 #else
-TEST_CASE("1,000,000 supervised cycles allocate nothing on the component's thread",
-          "[supervisor][alloc]") {
+namespace {
+template <class Probe>
+using Typed = TypedManualActivity<Probe>;
+template <class Probe>
+using Erased = ManualActivity;
+}  // namespace
+
+// Through TaskCore's virtual hook (ManualActivity) and inlined (TypedManualActivity).
+TEMPLATE_TEST_CASE("1,000,000 supervised cycles allocate nothing on the component's thread",
+                   "[supervisor][alloc]", Erased<vigil::test::Probe>, Typed<vigil::test::Probe>) {
   REQUIRE(platform::allocation_counting_available());
   Registry<task::Message> reg;
   ComponentAggregator agg;
@@ -33,7 +41,7 @@ TEST_CASE("1,000,000 supervised cycles allocate nothing on the component's threa
   std::uint64_t cycles = 0;
   std::thread component([&] {
     vigil::test::Probe p("clean", {.detectors = Detectors::Allocation}, reg);
-    ManualActivity act(p, {.name = "m", .period_ns = kNanosPerMilli});
+    TestType act(p, {.name = "m", .period_ns = kNanosPerMilli});
     p.configure();
     act.start();
     act.step();  // the first cycle may touch lazily initialised state

@@ -84,10 +84,10 @@ class CycleRecorder {
                                       (d == Detectors::None         ? 0
                                        : d == Detectors::Allocation ? kAllocationDetector
                                                                     : kOtherDetectors));
-    // Cycles measured: the next one, then one in `every`, counted down (one decrement and one
-    // test per cycle). Never: a count down from 2^64 - 1, which no component reaches.
+    // Cycles measured: the next one, then one in `every`, by number (a comparison per cycle, no
+    // store). Never: cycle 0, which no cycle is.
     measure_every_ = options.overhead_sample_every;
-    measure_countdown_ = measure_every_ == 0 ? ~std::uint64_t{0} : 1;
+    measured_cycle_ = measure_every_ == 0 ? 0 : counters().cycles + 1;
   }
   [[nodiscard]] const SupervisionOptions& options() const noexcept { return options_; }
   [[nodiscard]] const std::string& name() const noexcept { return name_; }
@@ -161,11 +161,12 @@ class CycleRecorder {
       pre_special(c);
       return;
     }
-    if (--measure_countdown_ == 0) [[unlikely]]
+    const std::uint64_t cycle = counters().cycles + 1;
+    if (cycle == measured_cycle_) [[unlikely]]
       pre_begin_ = platform::now_ns();
     const Nanos start = platform::now_ns();
     c.start_ns = start;
-    log_.enter(counters().cycles + 1, start);
+    log_.enter(cycle, start);
   }
 
   /// After on_update(). `state` is what the sample reports. RT-safe.
@@ -211,11 +212,12 @@ class CycleRecorder {
       flush();
     (void)port->try_push(sample_);
     published_cycles_.store(cycles, std::memory_order_relaxed);
-    // A measured overhead travels with the next cycle's sample, once.
-    if (measure_countdown_ == 0) [[unlikely]] {
+    // A measured overhead travels with the next cycle's sample, once. (Stores only when
+    // something changes: a store costs as much as several other instructions here.)
+    if (cycles == measured_cycle_) [[unlikely]] {
       overhead_ = (start - pre_begin_) + (now() - end);
-      measure_countdown_ = measure_every_;
-    } else {
+      measured_cycle_ += measure_every_;
+    } else if (overhead_ != 0) [[unlikely]] {
       overhead_ = 0;
     }
   }
@@ -250,7 +252,8 @@ class CycleRecorder {
     // before tasks run).
     if ((mode_ & kLookAtClock) != 0) [[unlikely]]
       look_at_clock(c.clock);
-    if (--measure_countdown_ == 0) [[unlikely]]
+    const std::uint64_t cycle = counters().cycles + 1;
+    if (cycle == measured_cycle_) [[unlikely]]
       pre_begin_ = now();
     // The common detector inline (one thread-local load); the others out of line.
     if ((mode_ & kAllocationDetector) != 0) {
@@ -260,7 +263,7 @@ class CycleRecorder {
     }
     const Nanos start = now();
     c.start_ns = start;
-    log_.enter(counters().cycles + 1, start);
+    log_.enter(cycle, start);
   }
 
   /// post()'s clock read and detectors beyond the common case; returns the end of the cycle.
@@ -403,7 +406,7 @@ class CycleRecorder {
   const Clock* clock_ = nullptr;
   std::uint8_t mode_ = kLookAtClock;
   std::uint64_t measure_every_ = 64;
-  std::uint64_t measure_countdown_ = 1;  // cycles until the next measured one
+  std::uint64_t measured_cycle_ = 1;  // the number of the next measured cycle (0: none)
   Nanos pre_begin_ = 0;
   Nanos overhead_ = 0;  // measured on the latest cycle, sent with the next sample
   std::atomic<std::uint64_t> published_cycles_{0};  // single writer: a plain store on x86
