@@ -53,6 +53,29 @@ TEST_CASE("Instrumentation produces the same samples as Task<Derived>", "[task][
   }
 }
 
+TEST_CASE("Missed releases given to pre_update are in that cycle's sample only",
+          "[task][instrumentation]") {
+  Registry<Message> reg;
+  vigil::test::FakeClock fc;
+  Instrumentation sup("manual", {}, reg);
+  sup.init({.activity = "m", .period_ns = 1000}, fc.clock());
+  const std::uint32_t missed[] = {0, 3, 0, 0, 2, 2, 0};
+  for (const std::uint32_t m : missed) {
+    sup.pre_update(fc.now(), m);
+    fc.advance(100);
+    sup.post_update();
+  }
+  const auto samples = vigil::test::cycles_of(drain(*sup.port()));
+  REQUIRE(samples.size() == std::size(missed));
+  std::uint64_t total = 0;
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    INFO("cycle " << samples[i].cycle());
+    total += missed[i];
+    CHECK(samples[i].missed_before == missed[i]);
+    CHECK(samples[i].counters.missed_cycles == total);
+  }
+}
+
 TEST_CASE("Instrumentation reads its thread's identity in init", "[task][instrumentation]") {
   Registry<Message> reg;
   Instrumentation sup("legacy", {}, reg);
