@@ -127,8 +127,9 @@ class Task : public TaskCore {
     }
     return true;
   }
-  // Reached only through TaskCore::update(CycleContext&), i.e. cycle_hook(); kept for
-  // completeness (a direct call runs a cycle with the task's own context).
+  // Not called by the framework: activities run a cycle through cycle_hook() (TaskCore's
+  // update()/update_running()) or Task::update_running(). Required by TaskCore; a direct call
+  // runs a cycle with the task's own context.
   void update_hook() noexcept final { run_cycle(cycle()); }
   void cycle_hook(CycleContext& c) noexcept final { run_cycle(c); }
   /// One supervised cycle: the body of cycle_hook() and of update_running().
