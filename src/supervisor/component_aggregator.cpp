@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cstddef>
 #include <cstdlib>
 
@@ -34,22 +35,22 @@ struct TotalStats {
 };
 }  // namespace
 
-// A component's record. Hot/cold split: what the per-message work (take_sample) touches comes
-// first and is contiguous (the mutex, counters, the fields it tests, the flight ring's header,
-// the five statistics' scalars and histogram headers: ~15 cache lines on 1-2 pages, the
-// histograms' counters a few hundred bytes on the heap); `data`, the cold part (names, info,
-// latest reports, latch), is touched once per drain at most. Fields of ComponentSnapshot kept in
-// the hot part (counters, state, samples...) are stale in `data`: copy_of() fills them in.
+// A component's record, in three parts by how often they are touched. Per drain (take_sample,
+// end): the mutex, counters, the fields it tests and the flight ring's header, ~5 cache lines,
+// the only ones a drain loads besides the ring's next slots. Per catch-up, every few hundred
+// cycles of the component: the five statistics (scalars and histogram headers, and the
+// histograms' counters, a few hundred bytes on the heap). Cold: `data` (names, info, latest
+// reports, latch), touched by the drain only when a message other than a sample arrives. Fields
+// of ComponentSnapshot kept in the hot parts (counters, state, samples...) are stale in `data`:
+// copy_of() fills them in.
 struct ComponentAggregator::Slot {
-  // --- hot: per message ---
+  // --- per drain ---
   mutable std::mutex mutex;
   task::Counters counters;           // cumulative (ComponentSnapshot::counters)
   std::uint64_t samples = 0;         // ComponentSnapshot::samples
   std::uint64_t last_cycle = 0;      // cycle of the latest sample (when has_sample)
-  Nanos last_start = 0;              // its start (component clock), for the period
   Nanos last_sample_at = 0;          // ComponentSnapshot::last_sample_at
   Nanos warm_until = 0;              // component clock
-  Nanos last_overhead = 0;           // latest measured supervision overhead
   std::uint64_t drain_overruns = 0;  // overrun samples in this drain (one coalesced event)
   std::uint64_t overrun_cycle = 0;
   Nanos overrun_end = 0;
@@ -61,7 +62,14 @@ struct ComponentAggregator::Slot {
   bool watched = false;             // a cycle arrived since the component entered Running
   std::size_t port_high_water = 0;  // ComponentSnapshot::port_high_water
   Nanos deadline_ns = 0;            // data.deadline_ns, for the watchdog's walk
-  FlightRing ring;                  // allocated at join
+  // The flight ring doubles as the queue of cycles not yet in the statistics: a drain only
+  // packs each sample into it (pending); the statistics take the pending cycles in bulk,
+  // `catch_up()`, when enough have gathered (`catch_up_at`), before the ring would overwrite
+  // one, and before anyone reads them. Their lines are then loaded once per few hundred cycles
+  // instead of once per drain. The ring, the statistics and their cursor are mutable: brought
+  // up to date under the mutex by whoever reads (copy_of is const).
+  mutable FlightRing ring;  // allocated at join
+  std::size_t catch_up_at = 0;
 
   // An exception or loss report waiting for the sample of its cycle (which carries its time).
   struct Pending {
@@ -73,17 +81,86 @@ struct ComponentAggregator::Slot {
     int drains = 0;  // drains it has waited through
   };
   std::vector<Pending> pending;
-  CompactRunningStats user, latency, period, overhead;
-  TotalStats total;
+
+  // --- per catch-up ---
+  mutable CompactRunningStats user, latency, period, overhead;
+  mutable TotalStats total;
+  mutable Nanos last_overhead = 0;     // latest measured supervision overhead (statistics' order)
+  mutable Nanos stats_last_start = 0;  // start of the latest cycle in the statistics
+  mutable bool stats_has_prev = false;
+
+  // Takes one cycle into the statistics (cycles in order: the period is from the previous one).
+  void aggregate(const CycleRecord& r) const noexcept {
+    const bool has_prev = stats_has_prev;
+    const Nanos prev_start = stats_last_start;
+    stats_last_start = r.start_ns;
+    stats_has_prev = true;
+    if ((r.flags & CycleRecord::kWarmup) != 0) [[unlikely]]
+      return;
+    if (has_prev && (r.flags & CycleRecord::kGap) == 0) period.add(r.start_ns - prev_start);
+    if (r.overhead_ns > 0) {
+      last_overhead = r.overhead_ns;
+      overhead.add(r.overhead_ns);
+    }
+    const Nanos u = r.end_ns - r.start_ns;
+    user.add(u);
+    total.add(u + last_overhead);
+    latency.add(r.start_ns - r.release_ns);
+  }
+  // Takes every pending cycle into the statistics, as aggregate() on each would (each
+  // statistic gets the same values in the same order), staged: the values of a run of cycles
+  // first, then each statistic takes its run at once. Under the mutex.
+  void catch_up() const noexcept {
+    if (ring.pending() == 0) return;
+    constexpr std::size_t kRun = 64;
+    std::array<Nanos, kRun> u;
+    std::array<Nanos, kRun> tot;
+    std::array<Nanos, kRun> lat;
+    std::array<Nanos, kRun> per;
+    std::array<Nanos, kRun> ovh;
+    std::size_t n = 0;
+    std::size_t np = 0;
+    std::size_t no = 0;
+    const auto flush = [&] {
+      CompactRunningStats::add_all<3, 1>({&user, &latency, &period}, {&total.stats},
+                                         {u.data(), lat.data(), per.data(), tot.data()},
+                                         {n, n, np, n});
+      overhead.add_all(ovh.data(), no);
+      n = np = no = 0;
+    };
+    bool has_prev = stats_has_prev;
+    Nanos prev_start = stats_last_start;
+    Nanos last_ovh = last_overhead;
+    ring.take_pending([&](const CycleRecord& r) {
+      const bool had_prev = has_prev;
+      const Nanos before = prev_start;
+      has_prev = true;
+      prev_start = r.start_ns;
+      if ((r.flags & CycleRecord::kWarmup) != 0) [[unlikely]]
+        return;
+      if (had_prev && (r.flags & CycleRecord::kGap) == 0) per[np++] = r.start_ns - before;
+      if (r.overhead_ns > 0) {
+        last_ovh = r.overhead_ns;
+        ovh[no++] = r.overhead_ns;
+      }
+      u[n] = r.end_ns - r.start_ns;
+      tot[n] = u[n] + last_ovh;
+      lat[n] = r.start_ns - r.release_ns;
+      if (++n == kRun) flush();
+    });
+    flush();
+    stats_has_prev = has_prev;
+    stats_last_start = prev_start;
+    last_overhead = last_ovh;
+  }
 
   // --- cold ---
   ComponentSnapshot data;  // see above; summaries are filled only in copies handed to readers
   Nanos last_frozen = 0;
 
   // Hints for the records of the ports to come, in two stages so that neither waits for memory:
-  // two ports ahead, the hot lines themselves; one port ahead (its hot lines are in by then),
-  // what they point to: the flight ring's next slots and the histogram counters of its latest
-  // samples.
+  // two ports ahead, the lines a drain touches; one port ahead (they are in by then), what they
+  // point to: the flight ring's next slots.
   void prefetch_hot() const noexcept;
   void prefetch_targets() const noexcept {
     if (const auto* r = static_cast<const char*>(ring.next_slot())) {
@@ -91,20 +168,17 @@ struct ComponentAggregator::Slot {
         __builtin_prefetch(r + off, 1);
       }
     }
-    for (const CompactRunningStats* r : {&user, &latency, &period}) {
-      if (const auto* c = r->histogram().counter_of(r->last())) __builtin_prefetch(c, 1);
-    }
   }
 };
 
-// The hot part: everything before `data` (offsetof on a non-standard-layout type is
-// conditionally supported; GCC and Clang support it).
+// The part a drain touches: everything before the statistics (offsetof on a non-standard-layout
+// type is conditionally supported; GCC and Clang support it).
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Winvalid-offsetof"
-constexpr std::size_t kSlotHotBytes = offsetof(ComponentAggregator::Slot, data);
+constexpr std::size_t kSlotHotBytes = offsetof(ComponentAggregator::Slot, user);
 #pragma GCC diagnostic pop
-static_assert(kSlotHotBytes <= std::size_t{16} * 64,
-              "keep the record's hot part within 16 cache lines");
+static_assert(kSlotHotBytes <= std::size_t{6} * 64,
+              "keep the part of a record a drain touches within 6 cache lines");
 
 void ComponentAggregator::Slot::prefetch_hot() const noexcept {
   const auto* p = reinterpret_cast<const char*>(this);
@@ -151,6 +225,11 @@ ComponentAggregator::Slot* ComponentAggregator::slot_for(const Entry& e) {
 void ComponentAggregator::on_join(const Entry& e) {
   auto slot = std::make_unique<Slot>();
   slot->ring = FlightRing(options_.recorder.cycles);
+  // Catch up every quarter to half ring, spread by id so that components gathered in step do
+  // not all catch up in the same drain.
+  const std::size_t quarter = options_.recorder.cycles / 4;
+  slot->catch_up_at =
+      quarter == 0 ? options_.recorder.cycles : quarter + static_cast<std::size_t>(e.id) % quarter;
   slot->data.id = e.id;
   slot->data.name = e.name;
   slot->data.joined_at = options_.clock.now();
@@ -203,6 +282,7 @@ void ComponentAggregator::end(const Entry& /*e*/, const PortDrain& d) {
   if (!s.pending.empty()) resolve_pending(s, nullptr);
   s.port_high_water = std::max(s.port_high_water, d.occupancy);
   s.counters.dropped = std::max(s.counters.dropped, d.dropped);
+  if (s.ring.pending() >= s.catch_up_at) s.catch_up();
   current_->mutex.unlock();
   current_ = nullptr;
 }
@@ -273,31 +353,31 @@ void ComponentAggregator::take_sample(Slot& s, const task::CycleSample& m) {
     ++s.data.warmup_cycles;
   }
   const bool gap = s.has_sample && m.cycle() != s.last_cycle + 1;
-  s.ring.push(CycleRecord{.cycle = m.cycle(),
-                          .release_ns = m.release_ns,
-                          .start_ns = m.start_ns,
-                          .end_ns = m.end_ns,
-                          .overhead_ns = m.overhead_ns,
-                          .missed_before = m.missed_before,
-                          .flags = static_cast<std::uint8_t>(
-                              (m.overrun ? CycleRecord::kOverrun : 0) |
-                              (gap ? CycleRecord::kGap : 0) | (warm ? CycleRecord::kWarmup : 0)),
-                          .state = m.state});
-  if (!warm) [[likely]] {
-    if (s.has_sample && !gap) s.period.add(m.start_ns - s.last_start);
-    if (m.overhead_ns > 0) {
-      s.last_overhead = m.overhead_ns;
-      s.overhead.add(m.overhead_ns);
-    }
-    const Nanos user = m.end_ns - m.start_ns;
-    s.user.add(user);
-    s.total.add(user + s.last_overhead);
-    s.latency.add(m.start_ns - m.release_ns);
-    if (m.overrun) [[unlikely]] {
-      if (s.drain_overruns++ == 0) {
-        s.overrun_cycle = m.cycle();
-        s.overrun_end = m.end_ns;
-      }
+  const CycleRecord r{.cycle = m.cycle(),
+                      .release_ns = m.release_ns,
+                      .start_ns = m.start_ns,
+                      .end_ns = m.end_ns,
+                      .overhead_ns = m.overhead_ns,
+                      .missed_before = m.missed_before,
+                      .flags = static_cast<std::uint8_t>((m.overrun ? CycleRecord::kOverrun : 0) |
+                                                         (gap ? CycleRecord::kGap : 0) |
+                                                         (warm ? CycleRecord::kWarmup : 0)),
+                      .state = m.state};
+  if (s.ring.capacity() > 0 && PackedCycle::packs_exactly(r)) [[likely]] {
+    // Into the statistics later, from the ring (Slot::catch_up), in the same order.
+    if (s.ring.pending() == s.ring.capacity()) [[unlikely]]
+      s.catch_up();
+    s.ring.push_pending(r);
+  } else {
+    // No ring, or a cycle the ring keeps inexactly (beyond 2.1 s): now, after the pending ones.
+    s.catch_up();
+    s.ring.push(r);
+    s.aggregate(r);
+  }
+  if (m.overrun && !warm) [[unlikely]] {
+    if (s.drain_overruns++ == 0) {
+      s.overrun_cycle = m.cycle();
+      s.overrun_end = m.end_ns;
     }
   }
   if (s.silent) [[unlikely]] {
@@ -314,7 +394,6 @@ void ComponentAggregator::take_sample(Slot& s, const task::CycleSample& m) {
   s.watched = true;
   s.has_sample = true;
   s.last_cycle = m.cycle();
-  s.last_start = m.start_ns;
   ++s.samples;
   s.last_sample_at = drain_time_;
   if (!s.pending.empty()) [[unlikely]]
@@ -612,6 +691,7 @@ std::optional<FlightRecord> ComponentAggregator::flight_record(std::string_view 
 namespace {
 ComponentSnapshot copy_of(const ComponentAggregator::Slot& s) {
   std::lock_guard lock(s.mutex);
+  s.catch_up();
   ComponentSnapshot out = s.data;
   out.counters = s.counters;
   out.samples = s.samples;
@@ -655,6 +735,7 @@ void ComponentAggregator::visit_distributions(
   std::shared_lock lock(list_mutex_);
   for (const auto& s : slots_) {
     std::lock_guard slot_lock(s->mutex);
+    s->catch_up();
     ComponentDistributions d;
     d.id = s->data.id;
     d.name = s->data.name;
@@ -677,6 +758,7 @@ void ComponentAggregator::set_ewma_weight(double w) {
   std::shared_lock lock(list_mutex_);
   for (const auto& s : slots_) {
     std::lock_guard slot_lock(s->mutex);
+    s->catch_up();  // the cycles before the change keep the weight they came under
     for (CompactRunningStats* r : {&s->user, &s->latency, &s->period, &s->overhead}) {
       (void)r->set_ewma_weight(w);
     }

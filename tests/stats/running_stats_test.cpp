@@ -1,6 +1,7 @@
 #include "vigil/supervisor/running_stats.hpp"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <catch2/catch.hpp>
 #include <cmath>
@@ -435,4 +436,41 @@ TEST_CASE("CompactRunningStats allocates while its range grows, then never",
   CHECK(g_allocations.load() == 0);
   CHECK(sum.count == 1'001'000);
   CHECK(s.histogram().heap_bytes() == 2 * 256);
+}
+
+TEST_CASE("Statistics given runs of samples, several at once, equal those given each sample",
+          "[stats][running]") {
+  // add_all interleaves the statistics' EWMA chains and histograms: the result must be the
+  // same bit for bit (same operations, same order per statistic), from empty or not, whatever
+  // the lengths of the runs.
+  std::mt19937_64 rng(21);
+  std::uniform_int_distribution<vigil::Nanos> value(-1'000, 5'000'000);
+  for (int round = 0; round < 50; ++round) {
+    std::array<vigil::supervisor::CompactRunningStats, 3> one_by_one;
+    std::array<vigil::supervisor::CompactRunningStats, 3> in_runs;
+    vigil::supervisor::ScalarStats scalar_one_by_one;
+    vigil::supervisor::ScalarStats scalar_in_runs;
+    for (auto* s : {&one_by_one[1], &in_runs[1]}) REQUIRE(s->set_ewma_weight(0.2));
+    for (int run = 0; run < 4; ++run) {
+      std::array<std::vector<vigil::Nanos>, 4> v;
+      for (auto& x : v) {
+        x.resize(static_cast<std::size_t>(rng() % 70));  // 0 included: an empty run
+        for (auto& e : x) e = value(rng);
+      }
+      for (std::size_t k = 0; k < 3; ++k) {
+        for (vigil::Nanos e : v[k]) one_by_one[k].add(e);
+      }
+      for (vigil::Nanos e : v[3]) scalar_one_by_one.add(e);
+      vigil::supervisor::CompactRunningStats::add_all<3, 1>(
+          {&in_runs[0], &in_runs[1], &in_runs[2]}, {&scalar_in_runs},
+          {v[0].data(), v[1].data(), v[2].data(), v[3].data()},
+          {v[0].size(), v[1].size(), v[2].size(), v[3].size()});
+    }
+    for (std::size_t k = 0; k < 3; ++k) {
+      CHECK(in_runs[k].summary() == one_by_one[k].summary());
+      CHECK(in_runs[k].histogram().count() == one_by_one[k].histogram().count());
+      CHECK(in_runs[k].histogram().negative_count() == one_by_one[k].histogram().negative_count());
+    }
+    CHECK(scalar_in_runs.summary() == scalar_one_by_one.summary());
+  }
 }

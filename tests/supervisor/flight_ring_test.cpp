@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 #include <cstdint>
 #include <limits>
+#include <vector>
 
 #include "vigil/supervisor/flight_recorder.hpp"
 
@@ -117,4 +118,48 @@ TEST_CASE("A flight ring keeps the newest cycles, oldest first", "[supervisor][r
   CHECK(none.empty());
   CHECK(none.next_slot() == nullptr);
   CHECK(none.ordered().empty());
+}
+
+TEST_CASE("A flight ring hands out its pending cycles once, oldest first, across wrap-around",
+          "[supervisor][recorder]") {
+  FlightRing ring(4);
+  std::vector<std::uint64_t> taken;
+  const auto take = [&] {
+    ring.take_pending([&](const CycleRecord& r) { taken.push_back(r.cycle); });
+  };
+  ring.push(record(1, 1'000'000, 1'000, 2'000));  // not pending
+  ring.push_pending(record(2, 2'000'000, 1'000, 2'000));
+  ring.push_pending(record(3, 3'000'000, 1'000, 2'000));
+  CHECK(ring.pending() == 2);
+  take();
+  CHECK(taken == std::vector<std::uint64_t>{2, 3});
+  CHECK(ring.pending() == 0);
+  take();  // nothing twice
+  CHECK(taken.size() == 2);
+  taken.clear();
+  for (std::uint64_t c = 4; c <= 7; ++c) ring.push_pending(record(c, Nanos(c) * 1'000'000, 1, 2));
+  CHECK(ring.pending() == 4);  // the whole ring, wrapped: slots 3, 0, 1, 2
+  take();
+  CHECK(taken == std::vector<std::uint64_t>{4, 5, 6, 7});
+  CHECK(ring.ordered().front().cycle == 4);
+}
+
+TEST_CASE("A flight ring slot says which cycles it keeps exactly", "[supervisor][recorder]") {
+  CHECK(PackedCycle::packs_exactly(record(1, 0, 2'147'483'647, 2'147'483'647)));
+  CHECK_FALSE(PackedCycle::packs_exactly(record(1, 0, 2'147'483'648, 1)));
+  CHECK_FALSE(PackedCycle::packs_exactly(record(1, 0, 1, -2'147'483'648)));
+  CycleRecord r = record(1, 0, 1, 1);
+  r.overhead_ns = -1;
+  CHECK_FALSE(PackedCycle::packs_exactly(r));
+  r.overhead_ns = 0x1'0000'0000LL;
+  CHECK_FALSE(PackedCycle::packs_exactly(r));
+  r.overhead_ns = 0;
+  r.missed_before = 70'000;
+  CHECK_FALSE(PackedCycle::packs_exactly(r));
+  // What packs_exactly accepts comes back unchanged, what it refuses does not.
+  for (const CycleRecord& c : {record(9, 5, -7, 2'000'000'000), record(9, 5, 3'000'000'000, 1)}) {
+    const CycleRecord back = PackedCycle(c).unpack();
+    const bool same = back.start_ns == c.start_ns && back.end_ns == c.end_ns;
+    CHECK(same == PackedCycle::packs_exactly(c));
+  }
 }

@@ -12,8 +12,12 @@
 /// exact to the nanosecond up to 2.1 s, in microseconds beyond); readers get it unpacked as a
 /// `CycleRecord`. Not RT-safe; one writer (the supervisor thread), readers copy under the
 /// aggregator's per-component lock.
+///
+/// The ring doubles as the aggregator's queue of cycles not yet in the statistics: the newest
+/// `pending()` slots (`push_pending`, `take_pending`), which it takes in bulk.
 
 #include <cstdint>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -87,6 +91,12 @@ class PackedCycle {
     flags_ = flags;
   }
 
+  /// True when a slot keeps `r` exactly (unpack() gives it back: nothing coarse or clipped).
+  [[nodiscard]] static bool packs_exactly(const CycleRecord& r) noexcept {
+    return fits_ns(r.start_ns - r.release_ns) && fits_ns(r.end_ns - r.start_ns) &&
+           r.overhead_ns >= 0 && r.overhead_ns <= 0xFFFF'FFFFLL && r.missed_before <= 0xFFFFU;
+  }
+
   [[nodiscard]] CycleRecord unpack() const noexcept {
     CycleRecord r;
     r.cycle = cycle_;
@@ -127,12 +137,33 @@ class FlightRing {
  public:
   /// Allocates `capacity` slots (0: records nothing). Not RT-safe.
   explicit FlightRing(std::size_t capacity = 0) : slots_(capacity), capacity_(capacity) {}
-  /// Records one cycle, overwriting the oldest when full. Never allocates.
+  /// Records one cycle, overwriting the oldest when full. Never allocates. Only when nothing is
+  /// pending (see push_pending).
   void push(const CycleRecord& r) noexcept {
     if (capacity_ == 0) return;
-    slots_[next_] = PackedCycle(r);
+    // Packed in place: a slot built elsewhere and copied would be read back with wider loads
+    // than it was written with, which stalls (no store forwarding).
+    ::new (static_cast<void*>(&slots_[next_])) PackedCycle(r);
     next_ = next_ + 1 == capacity_ ? 0 : next_ + 1;
     size_ += size_ < capacity_ ? 1 : 0;
+  }
+  /// Records one cycle as pending: the newest `pending()` records are cycles their owner has not
+  /// yet taken into its statistics (`take_pending`). Only when pending() < capacity() (a pending
+  /// record is never overwritten) and PackedCycle::packs_exactly(r). Never allocates.
+  void push_pending(const CycleRecord& r) noexcept {
+    push(r);
+    ++pending_;
+  }
+  /// Records pushed by push_pending() and not yet taken.
+  [[nodiscard]] std::size_t pending() const noexcept { return pending_; }
+  /// Hands every pending record to `f(const CycleRecord&)`, oldest first; none is pending after.
+  template <class F>
+  void take_pending(F&& f) noexcept {
+    std::size_t i = next_ >= pending_ ? next_ - pending_ : next_ + capacity_ - pending_;
+    for (; pending_ > 0; --pending_) {
+      f(slots_[i].unpack());
+      i = i + 1 == capacity_ ? 0 : i + 1;
+    }
   }
   /// The records, oldest first (a copy, unpacked).
   [[nodiscard]] std::vector<CycleRecord> ordered() const {
@@ -159,6 +190,7 @@ class FlightRing {
   std::size_t capacity_ = 0;  // slots_.size(), kept: no division per record
   std::size_t next_ = 0;
   std::size_t size_ = 0;
+  std::size_t pending_ = 0;
 };
 
 /// A frozen ring and what it is about: the input of the trace writer.
@@ -177,7 +209,8 @@ struct FlightRecord {
 
 /// Options of the flight recorder (part of `AggregatorOptions`).
 struct FlightRecorderOptions {
-  /// Cycles kept per component (0: no recorder, no memory).
+  /// Cycles kept per component (0: no recorder, no memory). The ring also holds the cycles the
+  /// statistics take in bulk; with 0, each cycle is taken at once (more supervisor CPU).
   std::size_t cycles = 1024;
   /// At most one frozen record per component per this interval (the events keep counting).
   Nanos min_interval_ns = 10 * kNanosPerSecond;

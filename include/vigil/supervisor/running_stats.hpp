@@ -11,7 +11,10 @@
 /// in other threads get copies (`summary()` or the whole object, which is trivially copyable)
 /// through whatever hand-over the Registry uses.
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <type_traits>
@@ -104,6 +107,92 @@ class ScalarStats {
     min_ = value < min_ ? value : min_;
     max_ = value > max_ ? value : max_;
     sum_.add(value);
+  }
+
+  /// Counts `n` samples, oldest first: the same result as add() on each, bit for bit (the same
+  /// operations in the same order), with the state in registers across the run. O(n),
+  /// allocation-free, RT-safe.
+  constexpr void add_all(const Nanos* values, std::size_t n) noexcept {
+    if (n == 0) return;
+    std::size_t i = 0;
+    if (count_ == 0) {
+      add(values[0]);
+      i = 1;
+    }
+    const std::size_t rest = n - i;  // add() counted the first one
+    double e = ewma_;
+    const double w = ewma_weight_;
+    Nanos lo = min_;
+    Nanos hi = max_;
+    detail::WideSum sum = sum_;
+    for (; i < n; ++i) {
+      const Nanos v = values[i];
+      e += w * (static_cast<double>(v) - e);
+      lo = v < lo ? v : lo;
+      hi = v > hi ? v : hi;
+      sum.add(v);
+    }
+    count_ += rest;
+    ewma_ = e;
+    min_ = lo;
+    max_ = hi;
+    sum_ = sum;
+    last_ = values[n - 1];
+  }
+
+  /// Counts runs of samples into K statistics at once: stats[k] gets values[k][0 .. n[k]), as
+  /// add_all() on each would (bit for bit), with their EWMA chains interleaved, so that each
+  /// addition waits only for the previous one of its own statistic. O(sum of n), RT-safe.
+  template <std::size_t K>
+  static void add_all(const std::array<ScalarStats*, K>& stats,
+                      const std::array<const Nanos*, K>& values,
+                      const std::array<std::size_t, K>& n) noexcept {
+    std::array<std::size_t, K> at{};
+    std::size_t common = std::numeric_limits<std::size_t>::max();
+    for (std::size_t k = 0; k < K; ++k) {
+      if (n[k] > 0 && stats[k]->count_ == 0) {
+        stats[k]->add(values[k][0]);
+        at[k] = 1;
+      }
+      common = std::min(common, n[k] - at[k]);
+    }
+    if (common > 0) {
+      std::array<double, K> e;
+      std::array<double, K> w;
+      std::array<Nanos, K> lo;
+      std::array<Nanos, K> hi;
+      std::array<detail::WideSum, K> sum;
+      for (std::size_t k = 0; k < K; ++k) {
+        e[k] = stats[k]->ewma_;
+        w[k] = stats[k]->ewma_weight_;
+        lo[k] = stats[k]->min_;
+        hi[k] = stats[k]->max_;
+        sum[k] = stats[k]->sum_;
+      }
+      for (std::size_t j = 0; j < common; ++j) {
+#pragma GCC unroll 8
+        for (std::size_t k = 0; k < K; ++k) {
+          const Nanos v = values[k][at[k] + j];
+          e[k] += w[k] * (static_cast<double>(v) - e[k]);
+          lo[k] = v < lo[k] ? v : lo[k];
+          hi[k] = v > hi[k] ? v : hi[k];
+          sum[k].add(v);
+        }
+      }
+      for (std::size_t k = 0; k < K; ++k) {
+        ScalarStats& t = *stats[k];
+        t.count_ += common;
+        t.ewma_ = e[k];
+        t.min_ = lo[k];
+        t.max_ = hi[k];
+        t.sum_ = sum[k];
+        t.last_ = values[k][at[k] + common - 1];
+      }
+    }
+    for (std::size_t k = 0; k < K; ++k) {
+      const std::size_t done = at[k] + common;
+      stats[k]->add_all(values[k] + done, n[k] - done);
+    }
   }
 
   /// Merges `other` as if its samples had been added after this one's (see RunningStats::merge).
@@ -226,6 +315,35 @@ class BasicRunningStats {
   constexpr void add(Nanos value) noexcept {
     scalars_.add(value);
     histogram_.add(value);
+  }
+  /// Counts `n` samples, oldest first: the same result as add() on each. O(n); may allocate
+  /// as add() may (CompactHistogram).
+  constexpr void add_all(const Nanos* values, std::size_t n) noexcept {
+    scalars_.add_all(values, n);
+    for (std::size_t i = 0; i < n; ++i) histogram_.add(values[i]);
+  }
+  /// Counts runs of samples into K statistics and L histogram-free ones at once: as add_all()
+  /// on each, the K + L EWMA chains interleaved (ScalarStats::add_all). values and n: the K
+  /// statistics' runs, then the L others'.
+  template <std::size_t K, std::size_t L>
+  static void add_all(const std::array<BasicRunningStats*, K>& stats,
+                      const std::array<ScalarStats*, L>& scalars,
+                      const std::array<const Nanos*, K + L>& values,
+                      const std::array<std::size_t, K + L>& n) noexcept {
+    std::array<ScalarStats*, K + L> all;
+    for (std::size_t k = 0; k < K; ++k) all[k] = &stats[k]->scalars_;
+    for (std::size_t l = 0; l < L; ++l) all[K + l] = scalars[l];
+    ScalarStats::add_all<K + L>(all, values, n);
+    // The histograms interleaved too: a run of samples in one bucket is a chain of increments
+    // of one counter, which overlaps with the other histograms' chains.
+    std::size_t longest = 0;
+    for (std::size_t k = 0; k < K; ++k) longest = std::max(longest, n[k]);
+    for (std::size_t j = 0; j < longest; ++j) {
+#pragma GCC unroll 8
+      for (std::size_t k = 0; k < K; ++k) {
+        if (j < n[k]) stats[k]->histogram_.add(values[k][j]);
+      }
+    }
   }
 
   /**
