@@ -89,70 +89,67 @@ struct ComponentAggregator::Slot {
   mutable Nanos stats_last_start = 0;  // start of the latest cycle in the statistics
   mutable bool stats_has_prev = false;
 
-  // Takes one cycle into the statistics (cycles in order: the period is from the previous one).
-  void aggregate(const CycleRecord& r) const noexcept {
-    const bool has_prev = stats_has_prev;
-    const Nanos prev_start = stats_last_start;
-    stats_last_start = r.start_ns;
-    stats_has_prev = true;
+  // Cycles on their way into the statistics: the values of a run of cycles, staged, then each
+  // statistic takes its run at once (its EWMA chain and histogram increments interleaved with
+  // the others'). The one place the rule lives: what a cycle gives each statistic.
+  struct Staging {
+    static constexpr std::size_t kRun = 64;
+    std::array<Nanos, kRun> user, total, latency, period, overhead;
+    std::size_t n = 0, np = 0, no = 0;
+    bool has_prev = false;
+    Nanos prev_start = 0;
+    Nanos last_overhead = 0;
+  };
+  void stage(Staging& st, const CycleRecord& r) const noexcept {
+    const bool had_prev = st.has_prev;
+    const Nanos before = st.prev_start;
+    st.has_prev = true;
+    st.prev_start = r.start_ns;
     if ((r.flags & CycleRecord::kWarmup) != 0) [[unlikely]]
-      return;
-    if (has_prev && (r.flags & CycleRecord::kGap) == 0) period.add(r.start_ns - prev_start);
-    if (r.overhead_ns > 0) {
-      last_overhead = r.overhead_ns;
-      overhead.add(r.overhead_ns);
+      return;  // kept out of the statistics; still the start of the next period
+    if (had_prev && (r.flags & CycleRecord::kGap) == 0) {
+      st.period[st.np++] = r.start_ns - before;
     }
-    const Nanos u = r.end_ns - r.start_ns;
-    user.add(u);
-    total.add(u + last_overhead);
-    latency.add(r.start_ns - r.release_ns);
+    if (r.overhead_ns > 0) {
+      st.last_overhead = r.overhead_ns;
+      st.overhead[st.no++] = r.overhead_ns;
+    }
+    st.user[st.n] = r.end_ns - r.start_ns;
+    st.total[st.n] = st.user[st.n] + st.last_overhead;
+    st.latency[st.n] = r.start_ns - r.release_ns;
+    if (++st.n == Staging::kRun) flush(st);
   }
-  // Takes every pending cycle into the statistics, as aggregate() on each would (each
-  // statistic gets the same values in the same order), staged: the values of a run of cycles
-  // first, then each statistic takes its run at once. Under the mutex. Out of line: a drain
-  // calls it once per few hundred cycles, and inline its buffers would weigh on every call.
-  [[gnu::noinline]] void catch_up() const noexcept {
+  void flush(Staging& st) const noexcept {
+    CompactRunningStats::add_all<3, 1>(
+        {&user, &latency, &period}, {&total.stats},
+        {st.user.data(), st.latency.data(), st.period.data(), st.total.data()},
+        {st.n, st.n, st.np, st.n});
+    overhead.add_all(st.overhead.data(), st.no);
+    st.n = st.np = st.no = 0;
+  }
+  // Takes cycles into the statistics, in order (the period is from the previous one): `feed`
+  // hands them to the given function. Under the mutex. Out of line: a drain calls it once per
+  // few hundred cycles, and inline its buffers would weigh on every call.
+  template <class Feed>
+  [[gnu::noinline]] void take(Feed&& feed) const noexcept {
+    Staging st;
+    st.has_prev = stats_has_prev;
+    st.prev_start = stats_last_start;
+    st.last_overhead = last_overhead;
+    feed([&](const CycleRecord& r) { stage(st, r); });
+    flush(st);
+    stats_has_prev = st.has_prev;
+    stats_last_start = st.prev_start;
+    last_overhead = st.last_overhead;
+  }
+  // Takes one cycle into the statistics at once.
+  void aggregate(const CycleRecord& r) const noexcept {
+    take([&](auto&& to) { to(r); });
+  }
+  // Takes every pending cycle of the ring into the statistics.
+  void catch_up() const noexcept {
     if (ring.pending() == 0) return;
-    constexpr std::size_t kRun = 64;
-    std::array<Nanos, kRun> u;
-    std::array<Nanos, kRun> tot;
-    std::array<Nanos, kRun> lat;
-    std::array<Nanos, kRun> per;
-    std::array<Nanos, kRun> ovh;
-    std::size_t n = 0;
-    std::size_t np = 0;
-    std::size_t no = 0;
-    const auto flush = [&] {
-      CompactRunningStats::add_all<3, 1>({&user, &latency, &period}, {&total.stats},
-                                         {u.data(), lat.data(), per.data(), tot.data()},
-                                         {n, n, np, n});
-      overhead.add_all(ovh.data(), no);
-      n = np = no = 0;
-    };
-    bool has_prev = stats_has_prev;
-    Nanos prev_start = stats_last_start;
-    Nanos last_ovh = last_overhead;
-    ring.take_pending([&](const CycleRecord& r) {
-      const bool had_prev = has_prev;
-      const Nanos before = prev_start;
-      has_prev = true;
-      prev_start = r.start_ns;
-      if ((r.flags & CycleRecord::kWarmup) != 0) [[unlikely]]
-        return;
-      if (had_prev && (r.flags & CycleRecord::kGap) == 0) per[np++] = r.start_ns - before;
-      if (r.overhead_ns > 0) {
-        last_ovh = r.overhead_ns;
-        ovh[no++] = r.overhead_ns;
-      }
-      u[n] = r.end_ns - r.start_ns;
-      tot[n] = u[n] + last_ovh;
-      lat[n] = r.start_ns - r.release_ns;
-      if (++n == kRun) flush();
-    });
-    flush();
-    stats_has_prev = has_prev;
-    stats_last_start = prev_start;
-    last_overhead = last_ovh;
+    take([&](auto&& to) { ring.take_pending(to); });
   }
 
   // --- cold ---
