@@ -162,7 +162,7 @@ struct ComponentAggregator::Slot {
   void prefetch_hot() const noexcept;
   void prefetch_targets() const noexcept {
     if (const auto* r = static_cast<const char*>(ring.next_slot())) {
-      for (std::size_t off = 0; off < 8 * sizeof(PackedCycle); off += 64) {
+      for (std::size_t off = 0; off < 16 * sizeof(PackedCycle); off += 64) {
         __builtin_prefetch(r + off, 1);
       }
     }
@@ -311,6 +311,35 @@ void ComponentAggregator::on(const Entry& /*e*/, const task::CycleSample& m) {
   if (!m.totals_only) current_->data.last = m;
 }
 
+namespace {
+// take_sample() of the common sample, inline: a component past its warm-up, with a sample before,
+// no event to raise or report waiting, a cycle that is not an overrun and that a ring slot keeps
+// exactly, and room in the ring. The same effect as take_sample() then (tested by running every
+// stream both ways). False, having changed nothing, for any other sample.
+[[gnu::always_inline]] inline bool take_steady(ComponentAggregator::Slot& s,
+                                               const task::CycleSample& m,
+                                               Nanos drain_time) noexcept {
+  const bool plain = (static_cast<int>(s.warm_armed) | static_cast<int>(s.warming_up) |
+                      static_cast<int>(s.silent) | static_cast<int>(!s.has_sample) |
+                      static_cast<int>(m.totals_only) | static_cast<int>(m.overrun)) == 0;
+  const Nanos latency = m.start_ns - m.release_ns;
+  const Nanos user = m.end_ns - m.start_ns;
+  if (!plain || !s.pending.empty() || !s.ring.has_room_pending() ||
+      !PackedCycle::fits_exactly(latency, user, m.overhead_ns, m.missed_before)) [[unlikely]]
+    return false;
+  const std::uint64_t cycle = m.cycle();
+  const auto flags = static_cast<std::uint8_t>(cycle != s.last_cycle + 1 ? CycleRecord::kGap : 0);
+  s.ring.push_pending_exact(cycle, m.release_ns, latency, user, m.overhead_ns, m.missed_before,
+                            flags, m.state);
+  s.state = m.state;
+  s.watched = true;
+  s.last_cycle = cycle;
+  ++s.samples;
+  s.last_sample_at = drain_time;
+  return true;
+}
+}  // namespace
+
 void ComponentAggregator::on_batch(const Entry& e, const task::Message* messages, std::size_t n) {
   if (current_ == nullptr) return;
   Slot& s = *current_;
@@ -333,7 +362,8 @@ void ComponentAggregator::on_batch(const Entry& e, const task::Message* messages
       } else {
         counted = m;
       }
-      take_sample(s, *m);
+      if (!take_steady(s, *m, drain_time_)) [[unlikely]]
+        take_sample(s, *m);
       if (!m->totals_only) latest = m;
       continue;
     }

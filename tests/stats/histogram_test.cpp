@@ -453,3 +453,45 @@ TEST_CASE("CompactHistogram merge, reset, copy and move keep every count",
   moved.add(17);
   CHECK(moved.value_at_quantile(0.5) == 17);
 }
+
+TEMPLATE_TEST_CASE("Histograms given runs of samples, several at once, count as given each sample",
+                   "[stats][histogram]", (LogLinearHistogram<5, 40>), (CompactHistogram<5, 40>)) {
+  // add_all keeps each histogram's totals and block in registers over its run and interleaves
+  // the runs: every count, and the compact block's growth, must equal add()'s, with negative,
+  // overflowed and growing samples among them.
+  std::mt19937_64 rng(2111);
+  const std::array<std::int64_t, 6> scale{100, 70'000, 5'000'000, 1LL << 39, 1LL << 41, 40};
+  for (int round = 0; round < 40; ++round) {
+    auto one_by_one = std::make_unique<std::array<TestType, 3>>();
+    auto in_runs = std::make_unique<std::array<TestType, 3>>();
+    for (int run = 0; run < 5; ++run) {
+      std::array<std::vector<std::int64_t>, 3> v;
+      for (auto& x : v) {
+        x.resize(static_cast<std::size_t>(rng() % 70));  // 0 included: an empty run
+        const std::int64_t top = scale[rng() % scale.size()];
+        std::uniform_int_distribution<std::int64_t> value(-top / 10 - 1, top);
+        for (auto& e : x) e = value(rng);
+      }
+      for (std::size_t k = 0; k < 3; ++k) {
+        for (std::int64_t e : v[k]) (*one_by_one)[k].add(e);
+      }
+      TestType::template add_all<3>({&(*in_runs)[0], &(*in_runs)[1], &(*in_runs)[2]},
+                                    {v[0].data(), v[1].data(), v[2].data()},
+                                    {v[0].size(), v[1].size(), v[2].size()});
+    }
+    for (std::size_t k = 0; k < 3; ++k) {
+      const TestType& a = (*in_runs)[k];
+      const TestType& b = (*one_by_one)[k];
+      REQUIRE(a.count() == b.count());
+      REQUIRE(a.negative_count() == b.negative_count());
+      REQUIRE(a.overflow_count() == b.overflow_count());
+      if constexpr (requires { a.allocated_buckets(); }) {
+        REQUIRE(a.first_allocated() == b.first_allocated());
+        REQUIRE(a.allocated_buckets() == b.allocated_buckets());
+        REQUIRE(a.lost_count() == b.lost_count());
+      }
+      for (std::size_t i = 0; i < TestType::kBucketCount; ++i)
+        REQUIRE(a.count_at(i) == b.count_at(i));
+    }
+  }
+}

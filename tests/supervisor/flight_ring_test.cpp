@@ -156,10 +156,67 @@ TEST_CASE("A flight ring slot says which cycles it keeps exactly", "[supervisor]
   r.overhead_ns = 0;
   r.missed_before = 70'000;
   CHECK_FALSE(PackedCycle::packs_exactly(r));
+  CHECK(PackedCycle::packs_exactly(record(1, 0, -2'147'483'647, -2'147'483'647)));
+  CHECK_FALSE(PackedCycle::packs_exactly(record(1, 0, -2'147'483'648, 1)));
+  // The checks cannot overflow: the extremes of a 64-bit time are refused, not wrapped.
+  constexpr Nanos kMin = std::numeric_limits<Nanos>::min();
+  constexpr Nanos kMax = std::numeric_limits<Nanos>::max();
+  CHECK_FALSE(PackedCycle::fits_exactly(kMax, 0, 0, 0));
+  CHECK_FALSE(PackedCycle::fits_exactly(kMin, 0, 0, 0));
+  CHECK_FALSE(PackedCycle::fits_exactly(0, kMin, 0, 0));
+  CHECK_FALSE(PackedCycle::fits_exactly(0, 0, kMin, 0));
+  CHECK(PackedCycle::fits_exactly(0, 0, 0xFFFF'FFFFLL, 0xFFFFU));
   // What packs_exactly accepts comes back unchanged, what it refuses does not.
   for (const CycleRecord& c : {record(9, 5, -7, 2'000'000'000), record(9, 5, 3'000'000'000, 1)}) {
     const CycleRecord back = PackedCycle(c).unpack();
     const bool same = back.start_ns == c.start_ns && back.end_ns == c.end_ns;
     CHECK(same == PackedCycle::packs_exactly(c));
   }
+}
+
+TEST_CASE("A cycle pushed from its exact parts reads back as the same cycle pushed whole",
+          "[supervisor][recorder]") {
+  // The supervisor's common case packs a slot from a sample's parts; a reader must not tell it
+  // from a record pushed whole (every field, each flag, each state, the extremes that fit).
+  FlightRing whole(8);
+  FlightRing parts(8);
+  std::vector<CycleRecord> pushed;
+  for (std::uint64_t c = 1; c <= 20; ++c) {
+    CycleRecord r = record(c, static_cast<Nanos>(c) * 1'000'000 - 5'000,
+                           c % 3 == 0 ? -2'147'483'647 : static_cast<Nanos>(c) * 17,
+                           c % 4 == 0 ? 2'147'483'647 : static_cast<Nanos>(c) * 1'001);
+    r.overhead_ns = c % 5 == 0 ? 0xFFFF'FFFFLL : static_cast<Nanos>(c);
+    r.missed_before = c % 6 == 0 ? 0xFFFFU : static_cast<std::uint32_t>(c);
+    r.flags = static_cast<std::uint8_t>(c % 8);  // kOverrun, kGap, kWarmup in every combination
+    r.state = static_cast<TaskState>(c % 5);     // PreOperational .. FatalError
+    REQUIRE(PackedCycle::packs_exactly(r));
+    if (whole.pending() == whole.capacity()) {
+      whole.take_pending([](const CycleRecord&) {});
+      parts.take_pending([](const CycleRecord&) {});
+    }
+    REQUIRE(parts.has_room_pending());
+    whole.push_pending(r);
+    parts.push_pending_exact(r.cycle, r.release_ns, r.latency_ns(), r.user_ns(), r.overhead_ns,
+                             r.missed_before, r.flags, r.state);
+    pushed.push_back(r);
+  }
+  const auto a = whole.ordered();
+  const auto b = parts.ordered();
+  REQUIRE(a.size() == 8);
+  REQUIRE(b.size() == 8);
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const CycleRecord& want = pushed[pushed.size() - 8 + i];
+    for (const CycleRecord* got : {&a[i], &b[i]}) {
+      CHECK(got->cycle == want.cycle);
+      CHECK(got->release_ns == want.release_ns);
+      CHECK(got->start_ns == want.start_ns);
+      CHECK(got->end_ns == want.end_ns);
+      CHECK(got->overhead_ns == want.overhead_ns);
+      CHECK(got->missed_before == want.missed_before);
+      CHECK(got->flags == want.flags);
+      CHECK(got->state == want.state);
+    }
+  }
+  FlightRing none(0);
+  CHECK_FALSE(none.has_room_pending());
 }

@@ -68,9 +68,7 @@ class PackedCycle {
   explicit PackedCycle(const CycleRecord& r) noexcept
       : cycle_(r.cycle),
         release_ns_(r.release_ns),
-        missed_(r.missed_before > 0xFFFFU ? std::uint16_t{0xFFFF}
-                                          : static_cast<std::uint16_t>(r.missed_before)),
-        state_(r.state) {
+        tail_(tail(r.missed_before > 0xFFFFU ? 0xFFFFU : r.missed_before, 0, r.state)) {
     std::uint8_t flags = r.flags & ~(CycleRecord::kCoarse | CycleRecord::kClipped);
     if (r.missed_before > 0xFFFFU) flags |= CycleRecord::kClipped;
     const Nanos latency = r.start_ns - r.release_ns;
@@ -88,32 +86,57 @@ class PackedCycle {
     } else {
       overhead_ = static_cast<std::uint32_t>(r.overhead_ns);
     }
-    flags_ = flags;
+    tail_ |= std::uint32_t{flags} << 16;
   }
 
   /// True when a slot keeps `r` exactly (unpack() gives it back: nothing coarse or clipped).
   [[nodiscard]] static bool packs_exactly(const CycleRecord& r) noexcept {
-    return fits_ns(r.start_ns - r.release_ns) && fits_ns(r.end_ns - r.start_ns) &&
-           r.overhead_ns >= 0 && r.overhead_ns <= 0xFFFF'FFFFLL && r.missed_before <= 0xFFFFU;
+    return fits_exactly(r.start_ns - r.release_ns, r.end_ns - r.start_ns, r.overhead_ns,
+                        r.missed_before);
   }
+  /// The same from a cycle's parts: its wake-up latency (start - release), on_update()'s time
+  /// (end - start), the overhead it carries and its missed releases. Branch-free.
+  [[nodiscard]] static bool fits_exactly(Nanos latency, Nanos user, Nanos overhead,
+                                         std::uint32_t missed) noexcept {
+    return (static_cast<int>(fits_ns(latency)) & static_cast<int>(fits_ns(user)) &
+            static_cast<int>(static_cast<std::uint64_t>(overhead) <= 0xFFFF'FFFFULL) &
+            static_cast<int>(missed <= 0xFFFFU)) != 0;
+  }
+  /// Tag of the constructor below.
+  struct Exact {};
+  /// A slot from parts that fit (`fits_exactly`): no check, no kCoarse or kClipped. `flags` are
+  /// the record's kOverrun, kGap and kWarmup. For the supervisor's common case, which has
+  /// checked already.
+  PackedCycle(Exact /*tag*/, std::uint64_t cycle, Nanos release_ns, Nanos latency, Nanos user,
+              Nanos overhead, std::uint32_t missed, std::uint8_t flags, TaskState state) noexcept
+      : cycle_(cycle),
+        release_ns_(release_ns),
+        latency_(static_cast<std::int32_t>(latency)),
+        user_(static_cast<std::int32_t>(user)),
+        overhead_(static_cast<std::uint32_t>(overhead)),
+        tail_(tail(missed, flags, state)) {}
 
   [[nodiscard]] CycleRecord unpack() const noexcept {
     CycleRecord r;
     r.cycle = cycle_;
     r.release_ns = release_ns_;
-    const Nanos unit = (flags_ & CycleRecord::kCoarse) != 0 ? 1000 : 1;
+    const auto flags = static_cast<std::uint8_t>(tail_ >> 16);
+    const Nanos unit = (flags & CycleRecord::kCoarse) != 0 ? 1000 : 1;
     r.start_ns = release_ns_ + latency_ * unit;
     r.end_ns = r.start_ns + user_ * unit;
     r.overhead_ns = overhead_;
-    r.missed_before = missed_;
-    r.flags = flags_;
-    r.state = state_;
+    r.missed_before = tail_ & 0xFFFFU;
+    r.flags = flags;
+    r.state = static_cast<TaskState>(tail_ >> 24);
     return r;
   }
 
  private:
   static constexpr Nanos kMax32 = 0x7FFF'FFFF;
-  static constexpr bool fits_ns(Nanos v) noexcept { return v >= -kMax32 && v <= kMax32; }
+  static constexpr bool fits_ns(Nanos v) noexcept {
+    // Unsigned: -kMax32 .. kMax32 maps to 0 .. 2 kMax32, everything else above (no overflow).
+    return static_cast<std::uint64_t>(v) + std::uint64_t{kMax32} <= std::uint64_t{2 * kMax32};
+  }
   // v in microseconds (rounded toward zero), saturated: kClipped when it did not fit.
   static std::uint8_t to_us(Nanos v, std::int32_t& out) noexcept {
     const Nanos us = v / 1000;
@@ -126,9 +149,16 @@ class PackedCycle {
   std::int32_t latency_ = 0;  // start - release (ns, or us with kCoarse)
   std::int32_t user_ = 0;     // end - start (ns, or us with kCoarse)
   std::uint32_t overhead_ = 0;
-  std::uint16_t missed_ = 0;
-  std::uint8_t flags_ = 0;
-  TaskState state_ = TaskState::Running;
+  // Missed releases (bits 0-15), flags (16-23) and state (24-31), one word: composed in a
+  // register and stored at once. (Three fields stored apart were merged by the compiler through
+  // the stack, and the wider load of the merge waited for the narrower stores: ~15 cycles.)
+  std::uint32_t tail_ = tail(0, 0, TaskState::Running);
+
+  static constexpr std::uint32_t tail(std::uint32_t missed, std::uint8_t flags,
+                                      TaskState state) noexcept {
+    return missed | std::uint32_t{flags} << 16 |
+           std::uint32_t{static_cast<std::uint8_t>(state)} << 24;
+  }
 };
 static_assert(sizeof(PackedCycle) == 32, "keep the flight recorder's slot at 32 bytes");
 
@@ -152,6 +182,16 @@ class FlightRing {
   /// record is never overwritten) and PackedCycle::packs_exactly(r). Never allocates.
   void push_pending(const CycleRecord& r) noexcept {
     push(r);
+    ++pending_;
+  }
+  /// True when push_pending() may be called (there are slots, and a free one).
+  [[nodiscard]] bool has_room_pending() const noexcept { return pending_ < capacity_; }
+  /// push_pending() of a cycle given as PackedCycle's exact parts (see its Exact constructor).
+  template <class... Parts>
+  void push_pending_exact(const Parts&... parts) noexcept {
+    ::new (static_cast<void*>(&slots_[next_])) PackedCycle(PackedCycle::Exact{}, parts...);
+    next_ = next_ + 1 == capacity_ ? 0 : next_ + 1;
+    size_ += size_ < capacity_ ? 1 : 0;
     ++pending_;
   }
   /// Records pushed by push_pending() and not yet taken.

@@ -320,7 +320,7 @@ class BasicRunningStats {
   /// as add() may (CompactHistogram).
   constexpr void add_all(const Nanos* values, std::size_t n) noexcept {
     scalars_.add_all(values, n);
-    for (std::size_t i = 0; i < n; ++i) histogram_.add(values[i]);
+    Histogram::template add_all<1>({&histogram_}, {values}, {n});
   }
   /// Counts runs of samples into K statistics and L histogram-free ones at once: as add_all()
   /// on each, the K + L EWMA chains interleaved (ScalarStats::add_all). values and n: the K
@@ -336,14 +336,15 @@ class BasicRunningStats {
     ScalarStats::add_all<K + L>(all, values, n);
     // The histograms interleaved too: a run of samples in one bucket is a chain of increments
     // of one counter, which overlaps with the other histograms' chains.
-    std::size_t longest = 0;
-    for (std::size_t k = 0; k < K; ++k) longest = std::max(longest, n[k]);
-    for (std::size_t j = 0; j < longest; ++j) {
-#pragma GCC unroll 8
-      for (std::size_t k = 0; k < K; ++k) {
-        if (j < n[k]) stats[k]->histogram_.add(values[k][j]);
-      }
+    std::array<Histogram*, K> hs;
+    std::array<const Nanos*, K> hv;
+    std::array<std::size_t, K> hn;
+    for (std::size_t k = 0; k < K; ++k) {
+      hs[k] = &stats[k]->histogram_;
+      hv[k] = values[k];
+      hn[k] = n[k];
     }
+    Histogram::template add_all<K>(hs, hv, hn);
   }
 
   /**
