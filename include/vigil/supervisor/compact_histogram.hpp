@@ -157,14 +157,7 @@ class CompactHistogram {
       for (std::size_t k = 0; k < K; ++k) {
         if (j >= n[k]) continue;
         std::int64_t v = values[k][j];
-        if (v < 0) [[unlikely]] {
-          ++negative[k];
-          v = 0;
-        }
-        if (v > kMaxTrackable) [[unlikely]] {
-          ++overflow[k];
-          continue;
-        }
+        if (!Layout::admit_counted(v, negative[k], overflow[k])) continue;
         const auto i = static_cast<std::uint32_t>(Layout::bucket_index(v));
         const std::uint32_t off = i - first[k];  // wraps below first: one compare, as add()
         if (off < size[k]) [[likely]] {

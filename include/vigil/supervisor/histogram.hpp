@@ -144,15 +144,7 @@ class LogLinearHistogram {
       for (std::size_t k = 0; k < K; ++k) {
         if (j >= n[k]) continue;
         std::int64_t v = values[k][j];
-        if (v < 0) [[unlikely]] {
-          ++negative[k];
-          v = 0;
-        }
-        if (v > kMaxTrackable) [[unlikely]] {
-          ++overflow[k];
-          continue;
-        }
-        ++hs[k]->counts_[bucket_index(v)];
+        if (admit_counted(v, negative[k], overflow[k])) ++hs[k]->counts_[bucket_index(v)];
       }
     }
     for (std::size_t k = 0; k < K; ++k) {
@@ -168,6 +160,11 @@ class LogLinearHistogram {
   static constexpr bool admit(std::int64_t& value, std::uint64_t& count, std::uint64_t& negative,
                               std::uint64_t& overflow) noexcept {
     ++count;
+    return admit_counted(value, negative, overflow);
+  }
+  /// `admit` for a sample already counted (add_all counts a run at once). O(1), RT-safe.
+  static constexpr bool admit_counted(std::int64_t& value, std::uint64_t& negative,
+                                      std::uint64_t& overflow) noexcept {
     if (value < 0) [[unlikely]] {
       ++negative;
       value = 0;
