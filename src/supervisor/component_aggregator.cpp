@@ -152,6 +152,19 @@ struct ComponentAggregator::Slot {
     take([&](auto&& to) { ring.take_pending(to); });
   }
 
+  // What every sample taken does to the per-drain fields, whichever path took it
+  // (take_steady() or take_sample()): the gap rule, and the bookkeeping after it.
+  [[nodiscard]] bool gap_before(std::uint64_t cycle) const noexcept {
+    return has_sample && cycle != last_cycle + 1;
+  }
+  void took(std::uint64_t cycle, Nanos at) noexcept {
+    watched = true;
+    has_sample = true;
+    last_cycle = cycle;
+    ++samples;
+    last_sample_at = at;
+  }
+
   // --- cold ---
   ComponentSnapshot data;  // see above; summaries are filled only in copies handed to readers
   Nanos last_frozen = 0;
@@ -328,14 +341,11 @@ namespace {
       !PackedCycle::fits_exactly(latency, user, m.overhead_ns, m.missed_before)) [[unlikely]]
     return false;
   const std::uint64_t cycle = m.cycle();
-  const auto flags = static_cast<std::uint8_t>(cycle != s.last_cycle + 1 ? CycleRecord::kGap : 0);
+  const auto flags = static_cast<std::uint8_t>(s.gap_before(cycle) ? CycleRecord::kGap : 0);
   s.ring.push_pending_exact(cycle, m.release_ns, latency, user, m.overhead_ns, m.missed_before,
                             flags, m.state);
   s.state = m.state;
-  s.watched = true;
-  s.last_cycle = cycle;
-  ++s.samples;
-  s.last_sample_at = drain_time;
+  s.took(cycle, drain_time);
   return true;
 }
 }  // namespace
@@ -389,7 +399,7 @@ void ComponentAggregator::take_sample(Slot& s, const task::CycleSample& m) {
     s.data.warmup_counters = s.counters;
     ++s.data.warmup_cycles;
   }
-  const bool gap = s.has_sample && m.cycle() != s.last_cycle + 1;
+  const bool gap = s.gap_before(m.cycle());
   const CycleRecord r{.cycle = m.cycle(),
                       .release_ns = m.release_ns,
                       .start_ns = m.start_ns,
@@ -428,11 +438,7 @@ void ComponentAggregator::take_sample(Slot& s, const task::CycleSample& m) {
                             static_cast<double>(drain_time_ - s.last_sample_at) / 1e6);
     raise(s, std::move(ev));
   }
-  s.watched = true;
-  s.has_sample = true;
-  s.last_cycle = m.cycle();
-  ++s.samples;
-  s.last_sample_at = drain_time_;
+  s.took(m.cycle(), drain_time_);
   if (!s.pending.empty()) [[unlikely]]
     resolve_pending(s, &m);
 }
