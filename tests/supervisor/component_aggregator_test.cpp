@@ -204,6 +204,131 @@ TEST_CASE("The aggregator's percentiles keep the documented bound against exact 
   });
 }
 
+namespace {
+// The aggregator without its on_batch(): the supervisor then hands it message by message (on()).
+struct OneByOne {
+  using Entry = bus::RegistryEntry<task::Message>;
+  explicit OneByOne(ComponentAggregator& a) : agg(a) {}
+  void on_join(const Entry& e) { agg.on_join(e); }
+  void on_leave(const Entry& e) { agg.on_leave(e); }
+  void begin(const Entry& e) { agg.begin(e); }
+  void end(const Entry& e, const PortDrain& d) { agg.end(e, d); }
+  void on_cycle(const SupervisorCycle& c) { agg.on_cycle(c); }
+  template <class M>
+  void on(const Entry& e, const M& m) {
+    agg.on(e, m);
+  }
+  ComponentAggregator& agg;
+};
+}  // namespace
+
+TEST_CASE("A batch of messages does what each message handed over in turn does",
+          "[supervisor][aggregator]") {
+  // on_batch() takes runs of common samples straight into the flight ring and leaves the rest to
+  // the path of one message. Whatever the stream (gaps, overruns, totals-only samples, times a
+  // slot keeps inexactly, clipped missed releases, loss reports waiting for their cycle, a
+  // warm-up, a full ring), the ring, the counters and the statistics must be what on() of each
+  // message in turn gives.
+  std::mt19937_64 rng(GENERATE(11, 12, 13, 14));
+  const std::size_t ring = GENERATE(std::size_t{16}, std::size_t{1024});
+  const AggregatorOptions options{.warmup_ns = 5 * kNanosPerMilli, .recorder = {.cycles = ring}};
+  Registry<task::Message> reg_batch;
+  Registry<task::Message> reg_one;
+  ComponentAggregator batch_agg(options);
+  ComponentAggregator one_agg(options);
+  TaskSupervisor batch(reg_batch, batch_agg);
+  OneByOne one_handler(one_agg);
+  Supervisor<task::Message, OneByOne> one(reg_one, one_handler);
+  auto member_batch = reg_batch.join<256>("c");
+  auto member_one = reg_one.join<256>("c");
+  std::uniform_int_distribution<Nanos> latency(-500, 80'000);
+  std::uniform_int_distribution<Nanos> user(0, 400'000);
+  std::uint64_t cycle = 0;
+  task::Counters counters;
+  Nanos release = kNanosPerSecond;
+  std::size_t overruns = 0;
+  std::size_t totals_only = 0;
+  std::size_t losses = 0;
+  for (int drain = 0; drain < 80; ++drain) {
+    const auto n = static_cast<int>(rng() % 200);
+    for (int i = 0; i < n; ++i) {
+      const auto push = [&](const task::Message& m) {
+        REQUIRE(member_batch.port()->try_push(m));
+        REQUIRE(member_one.port()->try_push(m));
+      };
+      task::CycleSample s;
+      if (rng() % 97 == 0 && cycle > 0) {
+        s.totals_only = true;  // the latest cycle's counters again
+        ++totals_only;
+      } else {
+        cycle += rng() % 50 == 0 ? 3 : 1;  // now and then a gap
+        release += kNanosPerMilli;
+        s.missed_before = rng() % 300 == 0 ? 70'000U : static_cast<std::uint32_t>(rng() % 2);
+        s.release_ns = release;
+        s.start_ns = release + latency(rng);
+        s.end_ns = s.start_ns + (rng() % 400 == 0 ? 3 * kNanosPerSecond : user(rng));
+        s.overhead_ns = rng() % 8 == 0 ? static_cast<Nanos>(100 + rng() % 900) : 0;
+        s.overrun = rng() % 60 == 0;
+        if (s.overrun) {
+          ++overruns;
+          ++counters.overruns;
+        }
+        counters.missed_cycles += s.missed_before;
+        if (rng() % 150 == 0) {  // a loss reported before the sample of its cycle
+          ++losses;
+          ++counters.losses[0];
+          push(task::Message{task::RealTimeLoss{.cycle = cycle, .count = 1}});
+        }
+      }
+      counters.cycles = cycle;
+      s.counters = counters;
+      s.state = TaskState::Running;
+      push(task::Message{s});
+    }
+    batch.step();
+    one.step();
+  }
+  CHECK(overruns > 0);
+  CHECK(totals_only > 0);
+  CHECK(losses > 0);
+  const auto a = one_agg.flight_record("c");
+  const auto b = batch_agg.flight_record("c");
+  REQUIRE(a.has_value());
+  REQUIRE(b.has_value());
+  REQUIRE(a->cycles.size() == ring);
+  REQUIRE(b->cycles.size() == a->cycles.size());
+  for (std::size_t i = 0; i < a->cycles.size(); ++i) {
+    const CycleRecord& x = a->cycles[i];
+    const CycleRecord& y = b->cycles[i];
+    INFO("record " << i << ", cycle " << x.cycle);
+    CHECK(y.cycle == x.cycle);
+    CHECK(y.release_ns == x.release_ns);
+    CHECK(y.start_ns == x.start_ns);
+    CHECK(y.end_ns == x.end_ns);
+    CHECK(y.overhead_ns == x.overhead_ns);
+    CHECK(y.missed_before == x.missed_before);
+    CHECK(y.flags == x.flags);
+    CHECK(y.state == x.state);
+  }
+  const auto sa = one_agg.find("c");
+  const auto sb = batch_agg.find("c");
+  REQUIRE(sa.has_value());
+  REQUIRE(sb.has_value());
+  CHECK(sa->counters.cycles == cycle);
+  CHECK(sb->counters == sa->counters);
+  CHECK(sb->samples == sa->samples);
+  CHECK(sb->state == sa->state);
+  CHECK(sb->last.cycle() == sa->last.cycle());
+  CHECK(sb->warmup_cycles == sa->warmup_cycles);
+  CHECK(sb->user_ns == sa->user_ns);
+  CHECK(sb->latency_ns == sa->latency_ns);
+  CHECK(sb->period_ns == sa->period_ns);
+  CHECK(sb->overhead_ns == sa->overhead_ns);
+  CHECK(sb->total_ns == sa->total_ns);
+  CHECK(sb->events == sa->events);
+  CHECK(sb->has_loss == sa->has_loss);
+}
+
 TEST_CASE("The statistics are the same whether cycles are taken at once or in bulk from the ring",
           "[supervisor][aggregator]") {
   // The aggregator packs each drained cycle into the flight ring and takes the ring's pending

@@ -1,8 +1,10 @@
 // The flight ring's 32-byte slots: what goes in comes out, to the nanosecond where it fits and
 // to the microsecond (flagged) where it does not; nothing wraps silently.
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <cstdint>
 #include <limits>
+#include <new>
 #include <vector>
 
 #include "vigil/supervisor/flight_recorder.hpp"
@@ -174,14 +176,15 @@ TEST_CASE("A flight ring slot says which cycles it keeps exactly", "[supervisor]
   }
 }
 
-TEST_CASE("A cycle pushed from its exact parts reads back as the same cycle pushed whole",
+TEST_CASE("Cycles pushed in runs from their exact parts read back as the same cycles pushed whole",
           "[supervisor][recorder]") {
-  // The supervisor's common case packs a slot from a sample's parts; a reader must not tell it
-  // from a record pushed whole (every field, each flag, each state, the extremes that fit).
+  // The supervisor's common case packs runs of slots from samples' parts; a reader must not tell
+  // them from records pushed whole (every field, each flag, each state, the extremes that fit),
+  // whatever the runs' lengths and wherever they wrap.
   FlightRing whole(8);
   FlightRing parts(8);
   std::vector<CycleRecord> pushed;
-  for (std::uint64_t c = 1; c <= 20; ++c) {
+  for (std::uint64_t c = 1; c <= 40; ++c) {
     CycleRecord r = record(c, static_cast<Nanos>(c) * 1'000'000 - 5'000,
                            c % 3 == 0 ? -2'147'483'647 : static_cast<Nanos>(c) * 17,
                            c % 4 == 0 ? 2'147'483'647 : static_cast<Nanos>(c) * 1'001);
@@ -190,15 +193,40 @@ TEST_CASE("A cycle pushed from its exact parts reads back as the same cycle push
     r.flags = static_cast<std::uint8_t>(c % 8);  // kOverrun, kGap, kWarmup in every combination
     r.state = static_cast<TaskState>(c % 5);     // PreOperational .. FatalError
     REQUIRE(PackedCycle::packs_exactly(r));
-    if (whole.pending() == whole.capacity()) {
-      whole.take_pending([](const CycleRecord&) {});
-      parts.take_pending([](const CycleRecord&) {});
-    }
-    REQUIRE(parts.has_room_pending());
-    whole.push_pending(r);
-    parts.push_pending_exact(r.cycle, r.release_ns, r.latency_ns(), r.user_ns(), r.overhead_ns,
-                             r.missed_before, r.flags, r.state);
     pushed.push_back(r);
+  }
+  std::size_t at = 0;
+  std::size_t run = 1;
+  while (at < pushed.size()) {
+    // A run of 1 .. 5 cycles, or fewer if the ring has no more room.
+    const std::size_t room = parts.capacity() - parts.pending();
+    const std::size_t want = std::min({run, pushed.size() - at, room});
+    std::size_t calls = 0;
+    const std::size_t n = parts.push_pending_while([&](void* slot) {
+      if (calls == want) return false;  // ends the run, writing nothing
+      const CycleRecord& r = pushed[at + calls++];
+      ::new (slot) PackedCycle(PackedCycle::Exact{}, r.cycle, r.release_ns, r.latency_ns(),
+                               r.user_ns(), r.overhead_ns, r.missed_before, r.flags, r.state);
+      return true;
+    });
+    REQUIRE(n == want);
+    for (std::size_t i = 0; i < n; ++i) whole.push_pending(pushed[at + i]);
+    at += n;
+    CHECK(parts.pending() == whole.pending());
+    CHECK(parts.size() == whole.size());
+    if (parts.pending() == parts.capacity()) {
+      // Full: a run pushes nothing, without asking for a slot.
+      CHECK(parts.push_pending_while([](void*) {
+        FAIL("asked to pack into a full ring");
+        return true;
+      }) == 0);
+      std::vector<std::uint64_t> a;
+      std::vector<std::uint64_t> b;
+      whole.take_pending([&](const CycleRecord& r) { a.push_back(r.cycle); });
+      parts.take_pending([&](const CycleRecord& r) { b.push_back(r.cycle); });
+      CHECK(a == b);
+    }
+    run = run % 5 + 1;
   }
   const auto a = whole.ordered();
   const auto b = parts.ordered();
@@ -219,4 +247,9 @@ TEST_CASE("A cycle pushed from its exact parts reads back as the same cycle push
   }
   FlightRing none(0);
   CHECK_FALSE(none.has_room_pending());
+  CHECK(none.push_pending_while([](void*) {
+    FAIL("asked to pack into a ring without slots");
+    return true;
+  }) == 0);
+  CHECK(none.size() == 0);
 }

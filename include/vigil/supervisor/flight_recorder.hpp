@@ -186,13 +186,26 @@ class FlightRing {
   }
   /// True when push_pending() may be called (there are slots, and a free one).
   [[nodiscard]] bool has_room_pending() const noexcept { return pending_ < capacity_; }
-  /// push_pending() of a cycle given as PackedCycle's exact parts (see its Exact constructor).
-  template <class... Parts>
-  void push_pending_exact(const Parts&... parts) noexcept {
-    ::new (static_cast<void*>(&slots_[next_])) PackedCycle(PackedCycle::Exact{}, parts...);
-    next_ = next_ + 1 == capacity_ ? 0 : next_ + 1;
-    size_ += size_ < capacity_ ? 1 : 0;
-    ++pending_;
+  /// push_pending() of a run of cycles: while there is room, calls `pack(void* slot)`, which
+  /// either constructs a PackedCycle at `slot` (placement new) and returns true, or returns false
+  /// having written nothing, which ends the run. Returns the cycles pushed. The cursor stays in
+  /// registers over the run (one store of it at the end, not one per cycle). Never allocates.
+  template <class Pack>
+  std::size_t push_pending_while(Pack&& pack) noexcept {
+    PackedCycle* const slots = slots_.data();
+    const std::size_t cap = capacity_;
+    std::size_t next = next_;
+    std::size_t pending = pending_;
+    const std::size_t before = pending;
+    while (pending < cap && pack(static_cast<void*>(slots + next))) {
+      next = next + 1 == cap ? 0 : next + 1;
+      ++pending;
+    }
+    const std::size_t n = pending - before;
+    next_ = next;
+    pending_ = pending;
+    size_ = size_ + n < cap ? size_ + n : cap;
+    return n;
   }
   /// Records pushed by push_pending() and not yet taken.
   [[nodiscard]] std::size_t pending() const noexcept { return pending_; }
