@@ -458,26 +458,34 @@ TEMPLATE_TEST_CASE("Histograms given runs of samples, several at once, count as 
                    "[stats][histogram]", (LogLinearHistogram<5, 40>), (CompactHistogram<5, 40>)) {
   // add_all keeps each histogram's totals and block in registers over its run and interleaves
   // the runs: every count, and the compact block's growth, must equal add()'s, with negative,
-  // overflowed and growing samples among them.
+  // overflowed and growing samples among them; runs within range counted with and without the
+  // checks.
   std::mt19937_64 rng(2111);
+  int unchecked = 0;
   const std::array<std::int64_t, 6> scale{100, 70'000, 5'000'000, 1LL << 39, 1LL << 41, 40};
   for (int round = 0; round < 40; ++round) {
     auto one_by_one = std::make_unique<std::array<TestType, 3>>();
     auto in_runs = std::make_unique<std::array<TestType, 3>>();
     for (int run = 0; run < 5; ++run) {
       std::array<std::vector<std::int64_t>, 3> v;
+      const bool non_negative = rng() % 2 == 0;
       for (auto& x : v) {
         x.resize(static_cast<std::size_t>(rng() % 70));  // 0 included: an empty run
         const std::int64_t top = scale[rng() % scale.size()];
-        std::uniform_int_distribution<std::int64_t> value(-top / 10 - 1, top);
+        std::uniform_int_distribution<std::int64_t> value(non_negative ? 0 : -top / 10 - 1, top);
         for (auto& e : x) e = value(rng);
       }
       for (std::size_t k = 0; k < 3; ++k) {
         for (std::int64_t e : v[k]) (*one_by_one)[k].add(e);
       }
-      TestType::template add_all<3>({&(*in_runs)[0], &(*in_runs)[1], &(*in_runs)[2]},
-                                    {v[0].data(), v[1].data(), v[2].data()},
-                                    {v[0].size(), v[1].size(), v[2].size()});
+      // Runs known to be within range may skip the checks (in_range); the others may not.
+      bool in_range = true;
+      for (const auto& x : v) {
+        for (std::int64_t e : x) in_range = in_range && e >= 0 && e <= TestType::kMaxTrackable;
+      }
+      TestType::template add_all<3>(
+          {&(*in_runs)[0], &(*in_runs)[1], &(*in_runs)[2]}, {v[0].data(), v[1].data(), v[2].data()},
+          {v[0].size(), v[1].size(), v[2].size()}, in_range && rng() % 2 == 0 && ++unchecked > 0);
     }
     for (std::size_t k = 0; k < 3; ++k) {
       const TestType& a = (*in_runs)[k];
@@ -494,4 +502,5 @@ TEMPLATE_TEST_CASE("Histograms given runs of samples, several at once, count as 
         REQUIRE(a.count_at(i) == b.count_at(i));
     }
   }
+  CHECK(unchecked > 10);  // the unchecked path was taken
 }

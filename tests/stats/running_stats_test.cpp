@@ -443,9 +443,25 @@ TEST_CASE("Statistics given runs of samples, several at once, equal those given 
   // add_all interleaves the statistics' EWMA chains and histograms: the result must be the
   // same bit for bit (same operations, same order per statistic), from empty or not, whatever
   // the lengths of the runs.
+  // Some rounds bring values a 64-bit block sum could not hold (add_all sums blocks of values
+  // within +-2^56 in one word, and sums any other block value by value), some values beyond
+  // the histograms' range (their checks are skipped only for runs known to be within it).
   std::mt19937_64 rng(21);
   std::uniform_int_distribution<vigil::Nanos> value(-1'000, 5'000'000);
-  for (int round = 0; round < 50; ++round) {
+  std::uniform_int_distribution<vigil::Nanos> huge(std::numeric_limits<vigil::Nanos>::min() / 2,
+                                                   std::numeric_limits<vigil::Nanos>::max() / 2);
+  for (int round = 0; round < 80; ++round) {
+    const int extreme = round % 4;  // 0: none; 1: now and then; 2: often; 3: the 2^56 edges
+    const auto draw = [&] {
+      if (extreme == 1 && rng() % 40 == 0) return huge(rng);
+      if (extreme == 2 && rng() % 3 == 0) return huge(rng);
+      if (extreme == 3 && rng() % 8 == 0) {
+        constexpr vigil::Nanos kEdge = vigil::Nanos{1} << 56;
+        const std::array<vigil::Nanos, 4> edges{kEdge, kEdge + 1, -kEdge, -kEdge - 1};
+        return edges[rng() % 4];
+      }
+      return value(rng);
+    };
     std::array<vigil::supervisor::CompactRunningStats, 3> one_by_one;
     std::array<vigil::supervisor::CompactRunningStats, 3> in_runs;
     vigil::supervisor::ScalarStats scalar_one_by_one;
@@ -455,7 +471,7 @@ TEST_CASE("Statistics given runs of samples, several at once, equal those given 
       std::array<std::vector<vigil::Nanos>, 4> v;
       for (auto& x : v) {
         x.resize(static_cast<std::size_t>(rng() % 70));  // 0 included: an empty run
-        for (auto& e : x) e = value(rng);
+        for (auto& e : x) e = draw();
       }
       for (std::size_t k = 0; k < 3; ++k) {
         for (vigil::Nanos e : v[k]) one_by_one[k].add(e);
@@ -470,6 +486,13 @@ TEST_CASE("Statistics given runs of samples, several at once, equal those given 
       CHECK(in_runs[k].summary() == one_by_one[k].summary());
       CHECK(in_runs[k].histogram().count() == one_by_one[k].histogram().count());
       CHECK(in_runs[k].histogram().negative_count() == one_by_one[k].histogram().negative_count());
+      CHECK(in_runs[k].histogram().overflow_count() == one_by_one[k].histogram().overflow_count());
+      for (std::size_t b = 0; b < vigil::supervisor::CompactRunningStats::Histogram::kBucketCount;
+           ++b) {
+        if (in_runs[k].histogram().count_at(b) != one_by_one[k].histogram().count_at(b)) {
+          FAIL_CHECK("bucket " << b << " of statistic " << k << " differs");
+        }
+      }
     }
     CHECK(scalar_in_runs.summary() == scalar_one_by_one.summary());
   }

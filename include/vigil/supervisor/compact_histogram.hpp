@@ -30,6 +30,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <new>
 #include <utility>
 
@@ -130,53 +131,64 @@ class CompactHistogram {
     add_outside(i);
   }
 
-  /// Adds every count of `other`: the result equals a histogram given the samples of both.
-  /// Grows this block to cover other's (other's counts go to `lost_count` if that fails).
   /// Counts the samples `values[k][0 .. n[k])` in `*hs[k]`, for each k: the same counts, and the
   /// same growth, as add() of each in turn (tested). As LogLinearHistogram::add_all: the runs
-  /// interleaved, each histogram's header kept in registers over its run. Not RT-safe (a
-  /// sample outside the allocated range allocates, as add()).
+  /// interleaved, each histogram's header kept in registers over its run; `in_range`: the caller
+  /// knows every value is within 0 .. kMaxTrackable (ScalarStats::add_all's ranges), so the
+  /// common part of the runs skips the per-sample checks. Not RT-safe (a sample outside the
+  /// allocated range allocates, as add()).
   template <std::size_t K>
   static void add_all(const std::array<CompactHistogram*, K>& hs,
                       const std::array<const std::int64_t*, K>& values,
-                      const std::array<std::size_t, K>& n) noexcept {
+                      const std::array<std::size_t, K>& n, bool in_range = false) noexcept {
     std::array<std::uint64_t*, K> counts;
     std::array<std::uint32_t, K> first;
     std::array<std::uint32_t, K> size;
     std::array<std::uint64_t, K> negative{};
     std::array<std::uint64_t, K> overflow{};
-    std::size_t longest = 0;
+    std::size_t common = std::numeric_limits<std::size_t>::max();
     for (std::size_t k = 0; k < K; ++k) {
       counts[k] = hs[k]->counts_;
       first[k] = hs[k]->first_;
       size[k] = hs[k]->size_;
-      longest = std::max(longest, n[k]);
+      common = std::min(common, n[k]);
     }
-    for (std::size_t j = 0; j < longest; ++j) {
+    const auto count = [&](std::size_t k, std::int64_t v) {
+      const auto i = static_cast<std::uint32_t>(Layout::bucket_index(v));
+      const std::uint32_t off = i - first[k];  // wraps below first: one compare, as add()
+      if (off < size[k]) [[likely]] {
+        ++counts[k][off];
+        return;
+      }
+      hs[k]->add_outside(i);  // grows the block: its header changes
+      counts[k] = hs[k]->counts_;
+      first[k] = hs[k]->first_;
+      size[k] = hs[k]->size_;
+    };
+    const auto checked = [&](std::size_t k, std::int64_t v) {
+      if (Layout::admit_counted(v, negative[k], overflow[k])) count(k, v);
+    };
+    if (in_range) {
+      for (std::size_t j = 0; j < common; ++j) {
 #pragma GCC unroll 8
-      for (std::size_t k = 0; k < K; ++k) {
-        if (j >= n[k]) continue;
-        std::int64_t v = values[k][j];
-        if (!Layout::admit_counted(v, negative[k], overflow[k])) continue;
-        const auto i = static_cast<std::uint32_t>(Layout::bucket_index(v));
-        const std::uint32_t off = i - first[k];  // wraps below first: one compare, as add()
-        if (off < size[k]) [[likely]] {
-          ++counts[k][off];
-          continue;
-        }
-        hs[k]->add_outside(i);  // grows the block: its header changes
-        counts[k] = hs[k]->counts_;
-        first[k] = hs[k]->first_;
-        size[k] = hs[k]->size_;
+        for (std::size_t k = 0; k < K; ++k) count(k, values[k][j]);
+      }
+    } else {
+      for (std::size_t j = 0; j < common; ++j) {
+#pragma GCC unroll 8
+        for (std::size_t k = 0; k < K; ++k) checked(k, values[k][j]);
       }
     }
     for (std::size_t k = 0; k < K; ++k) {
+      for (std::size_t j = common; j < n[k]; ++j) checked(k, values[k][j]);
       hs[k]->count_ += n[k];
       hs[k]->negative_ += negative[k];
       hs[k]->overflow_ += overflow[k];
     }
   }
 
+  /// Adds every count of `other`: the result equals a histogram given the samples of both.
+  /// Grows this block to cover other's (other's counts go to `lost_count` if that fails).
   void merge(const CompactHistogram& other) noexcept {
     count_ += other.count_;
     negative_ += other.negative_;

@@ -130,24 +130,33 @@ class LogLinearHistogram {
   /// Counts the samples `values[k][0 .. n[k])` in `*hs[k]`, for each k: the same counts as
   /// add() of each in turn (tested). The histograms' runs are interleaved, so that their
   /// increments overlap, and each one's totals are kept in registers over its run (add()'s count
-  /// is a store per sample that the next sample's load waits for). RT-safe, O(sum of n).
+  /// is a store per sample that the next sample's load waits for). `in_range`: the caller knows
+  /// every value is within 0 .. kMaxTrackable, so the common part of the runs skips the
+  /// per-sample checks. RT-safe, O(sum of n).
   template <std::size_t K>
   static void add_all(const std::array<LogLinearHistogram*, K>& hs,
                       const std::array<const std::int64_t*, K>& values,
-                      const std::array<std::size_t, K>& n) noexcept {
+                      const std::array<std::size_t, K>& n, bool in_range = false) noexcept {
     std::array<std::uint64_t, K> negative{};
     std::array<std::uint64_t, K> overflow{};
-    std::size_t longest = 0;
-    for (std::size_t k = 0; k < K; ++k) longest = std::max(longest, n[k]);
-    for (std::size_t j = 0; j < longest; ++j) {
+    std::size_t common = std::numeric_limits<std::size_t>::max();
+    for (std::size_t k = 0; k < K; ++k) common = std::min(common, n[k]);
+    const auto checked = [&](std::size_t k, std::int64_t v) {
+      if (admit_counted(v, negative[k], overflow[k])) ++hs[k]->counts_[bucket_index(v)];
+    };
+    if (in_range) {
+      for (std::size_t j = 0; j < common; ++j) {
 #pragma GCC unroll 8
-      for (std::size_t k = 0; k < K; ++k) {
-        if (j >= n[k]) continue;
-        std::int64_t v = values[k][j];
-        if (admit_counted(v, negative[k], overflow[k])) ++hs[k]->counts_[bucket_index(v)];
+        for (std::size_t k = 0; k < K; ++k) ++hs[k]->counts_[bucket_index(values[k][j])];
+      }
+    } else {
+      for (std::size_t j = 0; j < common; ++j) {
+#pragma GCC unroll 8
+        for (std::size_t k = 0; k < K; ++k) checked(k, values[k][j]);
       }
     }
     for (std::size_t k = 0; k < K; ++k) {
+      for (std::size_t j = common; j < n[k]; ++j) checked(k, values[k][j]);
       hs[k]->count_ += n[k];
       hs[k]->negative_ += negative[k];
       hs[k]->overflow_ += overflow[k];

@@ -140,13 +140,25 @@ class ScalarStats {
     last_ = values[n - 1];
   }
 
+  /// The smallest and largest of a run of values (lo > hi: an empty run).
+  struct RunRange {
+    Nanos lo = std::numeric_limits<Nanos>::max();
+    Nanos hi = std::numeric_limits<Nanos>::min();
+  };
+  static constexpr void widen(RunRange& r, Nanos v) noexcept {
+    r.lo = v < r.lo ? v : r.lo;
+    r.hi = v > r.hi ? v : r.hi;
+  }
+
   /// Counts runs of samples into K statistics at once: stats[k] gets values[k][0 .. n[k]), as
   /// add_all() on each would (bit for bit), with their EWMA chains interleaved, so that each
-  /// addition waits only for the previous one of its own statistic. O(sum of n), RT-safe.
+  /// addition waits only for the previous one of its own statistic. Returns each run's range
+  /// (what a histogram needs to know to skip its per-sample range checks). O(sum of n), RT-safe.
   template <std::size_t K>
-  static void add_all(const std::array<ScalarStats*, K>& stats,
-                      const std::array<const Nanos*, K>& values,
-                      const std::array<std::size_t, K>& n) noexcept {
+  static std::array<RunRange, K> add_all(const std::array<ScalarStats*, K>& stats,
+                                         const std::array<const Nanos*, K>& values,
+                                         const std::array<std::size_t, K>& n) noexcept {
+    std::array<RunRange, K> range{};
     std::array<std::size_t, K> at{};
     std::size_t common = std::numeric_limits<std::size_t>::max();
     for (std::size_t k = 0; k < K; ++k) {
@@ -159,32 +171,47 @@ class ScalarStats {
     if (common > 0) {
       std::array<double, K> e;
       std::array<double, K> w;
-      std::array<Nanos, K> lo;
-      std::array<Nanos, K> hi;
       std::array<detail::WideSum, K> sum;
       for (std::size_t k = 0; k < K; ++k) {
         e[k] = stats[k]->ewma_;
         w[k] = stats[k]->ewma_weight_;
-        lo[k] = stats[k]->min_;
-        hi[k] = stats[k]->max_;
         sum[k] = stats[k]->sum_;
       }
-      for (std::size_t j = 0; j < common; ++j) {
+      // In blocks of kBlock: each block's sum in one 64-bit word (no carry to propagate per
+      // sample), exact when the block's values are within +-2^56 (kBlock of them cannot reach
+      // 2^62); otherwise that block is summed again into the wide sum, value by value.
+      constexpr std::size_t kBlock = 64;
+      constexpr Nanos kSafe = Nanos{1} << 56;
+      for (std::size_t j0 = 0; j0 < common; j0 += kBlock) {
+        const std::size_t j1 = std::min(common, j0 + kBlock);
+        std::array<std::uint64_t, K> block_sum{};
+        std::array<RunRange, K> block{};
+        for (std::size_t j = j0; j < j1; ++j) {
 #pragma GCC unroll 8
+          for (std::size_t k = 0; k < K; ++k) {
+            const Nanos v = values[k][at[k] + j];
+            e[k] += w[k] * (static_cast<double>(v) - e[k]);
+            block[k].lo = v < block[k].lo ? v : block[k].lo;
+            block[k].hi = v > block[k].hi ? v : block[k].hi;
+            block_sum[k] += static_cast<std::uint64_t>(v);  // wraps harmlessly if unsafe
+          }
+        }
         for (std::size_t k = 0; k < K; ++k) {
-          const Nanos v = values[k][at[k] + j];
-          e[k] += w[k] * (static_cast<double>(v) - e[k]);
-          lo[k] = v < lo[k] ? v : lo[k];
-          hi[k] = v > hi[k] ? v : hi[k];
-          sum[k].add(v);
+          if (block[k].lo >= -kSafe && block[k].hi <= kSafe) [[likely]] {
+            sum[k].add(static_cast<std::int64_t>(block_sum[k]));
+          } else {
+            for (std::size_t j = j0; j < j1; ++j) sum[k].add(values[k][at[k] + j]);
+          }
+          range[k].lo = std::min(range[k].lo, block[k].lo);
+          range[k].hi = std::max(range[k].hi, block[k].hi);
         }
       }
       for (std::size_t k = 0; k < K; ++k) {
         ScalarStats& t = *stats[k];
         t.count_ += common;
         t.ewma_ = e[k];
-        t.min_ = lo[k];
-        t.max_ = hi[k];
+        t.min_ = std::min(t.min_, range[k].lo);
+        t.max_ = std::max(t.max_, range[k].hi);
         t.sum_ = sum[k];
         t.last_ = values[k][at[k] + common - 1];
       }
@@ -192,7 +219,11 @@ class ScalarStats {
     for (std::size_t k = 0; k < K; ++k) {
       const std::size_t done = at[k] + common;
       stats[k]->add_all(values[k] + done, n[k] - done);
+      // The values outside the common part (a first one, a longer run's tail) in the range too.
+      for (std::size_t j = 0; j < at[k]; ++j) widen(range[k], values[k][j]);
+      for (std::size_t j = done; j < n[k]; ++j) widen(range[k], values[k][j]);
     }
+    return range;
   }
 
   /// Merges `other` as if its samples had been added after this one's (see RunningStats::merge).
@@ -333,18 +364,22 @@ class BasicRunningStats {
     std::array<ScalarStats*, K + L> all;
     for (std::size_t k = 0; k < K; ++k) all[k] = &stats[k]->scalars_;
     for (std::size_t l = 0; l < L; ++l) all[K + l] = scalars[l];
-    ScalarStats::add_all<K + L>(all, values, n);
+    const auto range = ScalarStats::add_all<K + L>(all, values, n);
     // The histograms interleaved too: a run of samples in one bucket is a chain of increments
-    // of one counter, which overlaps with the other histograms' chains.
+    // of one counter, which overlaps with the other histograms' chains. Runs known to be within
+    // the histograms' range (the usual case) skip the per-sample checks.
     std::array<Histogram*, K> hs;
     std::array<const Nanos*, K> hv;
     std::array<std::size_t, K> hn;
+    bool in_range = true;
     for (std::size_t k = 0; k < K; ++k) {
       hs[k] = &stats[k]->histogram_;
       hv[k] = values[k];
       hn[k] = n[k];
+      in_range =
+          in_range && (n[k] == 0 || (range[k].lo >= 0 && range[k].hi <= Histogram::kMaxTrackable));
     }
-    Histogram::template add_all<K>(hs, hv, hn);
+    Histogram::template add_all<K>(hs, hv, hn, in_range);
   }
 
   /**
