@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "support/cycle_record.hpp"
 #include "support/fake_clock.hpp"
 #include "support/probe.hpp"
 #include "vigil/exec/manual_activity.hpp"
@@ -298,17 +299,8 @@ TEST_CASE("A batch of messages does what each message handed over in turn does",
   REQUIRE(a->cycles.size() == ring);
   REQUIRE(b->cycles.size() == a->cycles.size());
   for (std::size_t i = 0; i < a->cycles.size(); ++i) {
-    const CycleRecord& x = a->cycles[i];
-    const CycleRecord& y = b->cycles[i];
-    INFO("record " << i << ", cycle " << x.cycle);
-    CHECK(y.cycle == x.cycle);
-    CHECK(y.release_ns == x.release_ns);
-    CHECK(y.start_ns == x.start_ns);
-    CHECK(y.end_ns == x.end_ns);
-    CHECK(y.overhead_ns == x.overhead_ns);
-    CHECK(y.missed_before == x.missed_before);
-    CHECK(y.flags == x.flags);
-    CHECK(y.state == x.state);
+    INFO("record " << i << ", cycle " << a->cycles[i].cycle);
+    vigil::test::check_same(b->cycles[i], a->cycles[i]);
   }
   const auto sa = one_agg.find("c");
   const auto sb = batch_agg.find("c");

@@ -7,10 +7,12 @@
 #include <new>
 #include <vector>
 
+#include "support/cycle_record.hpp"
 #include "vigil/supervisor/flight_recorder.hpp"
 
 using namespace vigil;
 using namespace vigil::supervisor;
+using vigil::test::check_same;
 
 namespace {
 
@@ -25,17 +27,6 @@ CycleRecord record(std::uint64_t cycle, Nanos release, Nanos latency, Nanos user
   r.flags = CycleRecord::kOverrun | CycleRecord::kWarmup;
   r.state = TaskState::Running;
   return r;
-}
-
-void check_same(const CycleRecord& a, const CycleRecord& b) {
-  CHECK(a.cycle == b.cycle);
-  CHECK(a.release_ns == b.release_ns);
-  CHECK(a.start_ns == b.start_ns);
-  CHECK(a.end_ns == b.end_ns);
-  CHECK(a.overhead_ns == b.overhead_ns);
-  CHECK(a.missed_before == b.missed_before);
-  CHECK(a.flags == b.flags);
-  CHECK(a.state == b.state);
 }
 
 }  // namespace
@@ -234,16 +225,7 @@ TEST_CASE("Cycles pushed in runs from their exact parts read back as the same cy
   REQUIRE(b.size() == 8);
   for (std::size_t i = 0; i < a.size(); ++i) {
     const CycleRecord& want = pushed[pushed.size() - 8 + i];
-    for (const CycleRecord* got : {&a[i], &b[i]}) {
-      CHECK(got->cycle == want.cycle);
-      CHECK(got->release_ns == want.release_ns);
-      CHECK(got->start_ns == want.start_ns);
-      CHECK(got->end_ns == want.end_ns);
-      CHECK(got->overhead_ns == want.overhead_ns);
-      CHECK(got->missed_before == want.missed_before);
-      CHECK(got->flags == want.flags);
-      CHECK(got->state == want.state);
-    }
+    for (const CycleRecord* got : {&a[i], &b[i]}) check_same(*got, want);
   }
   FlightRing none(0);
   CHECK_FALSE(none.has_room_pending());
