@@ -191,8 +191,7 @@ class ScalarStats {
           for (std::size_t k = 0; k < K; ++k) {
             const Nanos v = values[k][at[k] + j];
             e[k] += w[k] * (static_cast<double>(v) - e[k]);
-            block[k].lo = v < block[k].lo ? v : block[k].lo;
-            block[k].hi = v > block[k].hi ? v : block[k].hi;
+            widen(block[k], v);
             block_sum[k] += static_cast<std::uint64_t>(v);  // wraps harmlessly if unsafe
           }
         }
