@@ -25,6 +25,10 @@ constexpr EnumName<OverrunPolicy> kOverrunPolicies[] = {{"skip", OverrunPolicy::
                                                         {"reanchor", OverrunPolicy::Reanchor}};
 constexpr EnumName<platform::ClockSource> kClocks[] = {
     {"monotonic", platform::ClockSource::Monotonic}, {"tsc", platform::ClockSource::Tsc}};
+constexpr EnumName<supervisor::RingStores> kRingStores[] = {
+    {"auto", supervisor::RingStores::Auto},
+    {"cached", supervisor::RingStores::Cached},
+    {"streaming", supervisor::RingStores::Streaming}};
 constexpr EnumName<Detectors> kDetectors[] = {{"allocation", Detectors::Allocation},
                                               {"blocking", Detectors::Blocking},
                                               {"page_faults", Detectors::PageFaults},
@@ -205,7 +209,7 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
       sp.state_events = e.optional("state_changes", sp.state_events);
     }
     if (const config::Node f = s["flight_recorder"]; f.defined()) {
-      f.reject_unknown_keys({"cycles", "min_interval", "max_records"});
+      f.reject_unknown_keys({"cycles", "min_interval", "max_records", "stores"});
       sp.recorder.cycles = f.optional<std::size_t>("cycles", sp.recorder.cycles,
                                                    config::in_range<std::size_t>(0, 1U << 20U));
       sp.recorder.min_interval_ns =
@@ -213,6 +217,7 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
                               config::duration_in_range(0, 86400 * kNanosPerSecond));
       sp.recorder.max_records = f.optional<std::size_t>(
           "max_records", sp.recorder.max_records, config::in_range<std::size_t>(0, 1U << 20U));
+      sp.recorder.stores = f.optional_enum("stores", sp.recorder.stores, kRingStores);
     }
     if (const config::Node m = s["shared_memory"];
         m.defined() && !bus::valid_supervisor_name(sp.shared_memory)) {

@@ -8,6 +8,10 @@
 #include <array>
 #include <cstddef>
 #include <cstdlib>
+#include <fstream>
+#include <string>
+
+#include <unistd.h>
 
 #include "vigil/task/shm_messages.hpp"
 
@@ -169,6 +173,11 @@ struct ComponentAggregator::Slot {
     last_sample_at = at;
   }
 
+  // What the drains of this component sweep through: its flight ring and its port (RingStores).
+  [[nodiscard]] std::size_t drained_bytes() const noexcept {
+    return ring.capacity() * sizeof(PackedCycle) + data.port_capacity * sizeof(task::Message);
+  }
+
   // --- cold ---
   ComponentSnapshot data;  // see above; summaries are filled only in copies handed to readers
   Nanos last_frozen = 0;
@@ -177,7 +186,7 @@ struct ComponentAggregator::Slot {
   // two ports ahead, the lines a drain touches; one port ahead (they are in by then), what they
   // point to: the flight ring's next slots.
   void prefetch_hot() const noexcept;
-  void prefetch_targets() const noexcept {
+  void prefetch_targets() const noexcept {  // not when the ring streams: no line to bring in
     if (const auto* r = static_cast<const char*>(ring.next_slot())) {
       for (std::size_t off = 0; off < 16 * sizeof(PackedCycle); off += 64) {
         __builtin_prefetch(r + off, 1);
@@ -216,9 +225,65 @@ std::string demangle(const char* mangled) {
 
 }  // namespace
 
+namespace {
+// The last-level cache that CPU 0 shares, in bytes (0: unknown). From sysfs, which describes the
+// cache a core can use (on AMD, its CCX's L3); glibc's sysconf() may count every L3 of the socket,
+// so it is only the fallback.
+std::size_t last_level_cache_bytes() {
+  int best_level = 0;
+  std::size_t best = 0;
+  for (int i = 0; i < 8; ++i) {
+    const std::string dir = fmt::format("/sys/devices/system/cpu/cpu0/cache/index{}/", i);
+    std::ifstream level_file(dir + "level");
+    std::ifstream size_file(dir + "size");
+    int level = 0;
+    std::string size;  // "32768K", "1M"
+    if (!(level_file >> level) || !(size_file >> size) || size.empty()) continue;
+    char* end = nullptr;
+    const unsigned long long n = std::strtoull(size.c_str(), &end, 10);
+    const std::size_t unit = *end == 'K' ? 1024 : *end == 'M' ? 1024 * 1024 : *end == 0 ? 1 : 0;
+    if (unit != 0 && n > 0 && level > best_level) {
+      best_level = level;
+      best = static_cast<std::size_t>(n) * unit;
+    }
+  }
+  if (best > 0) return best;
+#if defined(_SC_LEVEL3_CACHE_SIZE) && defined(_SC_LEVEL2_CACHE_SIZE)
+  for (const int name : {_SC_LEVEL3_CACHE_SIZE, _SC_LEVEL2_CACHE_SIZE}) {
+    if (const long bytes = ::sysconf(name); bytes > 0) return static_cast<std::size_t>(bytes);
+  }
+#endif
+  return 0;
+}
+}  // namespace
+
 ComponentAggregator::ComponentAggregator(AggregatorOptions options)
-    : options_(options), ewma_weight_(options.ewma_weight), events_(options.events) {}
+    : options_(options),
+      ewma_weight_(options.ewma_weight),
+      cache_bytes_(last_level_cache_bytes()),
+      events_(options.events) {
+  choose_ring_stores();
+}
 ComponentAggregator::~ComponentAggregator() = default;
+
+bool ComponentAggregator::streams_rings(RingStores mode, std::size_t drained_bytes,
+                                        std::size_t cache_bytes) noexcept {
+  switch (mode) {
+    case RingStores::Cached:
+      return false;
+    case RingStores::Streaming:
+      return true;
+    case RingStores::Auto:
+      break;
+  }
+  // Beyond the cache, a slot written now is evicted before the statistics read it back (a few
+  // hundred drains later): reading its line first, as an ordinary store does, is wasted.
+  return cache_bytes > 0 && drained_bytes > cache_bytes;
+}
+
+void ComponentAggregator::choose_ring_stores() noexcept {
+  stream_rings_ = streams_rings(options_.recorder.stores, footprint_bytes_, cache_bytes_);
+}
 
 ComponentAggregator::Slot* ComponentAggregator::slot_for(const Entry& e) {
   // Called by the supervisor thread, the only writer of slots_: no lock needed to read it.
@@ -227,7 +292,7 @@ ComponentAggregator::Slot* ComponentAggregator::slot_for(const Entry& e) {
   // thousands of components every dereference would be a cache miss).
   if (hint_ < ids_.size() && ids_[hint_] == e.id) {
     if (hint_ + 2 < slots_.size()) slots_[hint_ + 2]->prefetch_hot();
-    if (hint_ + 1 < slots_.size()) slots_[hint_ + 1]->prefetch_targets();
+    if (hint_ + 1 < slots_.size() && !stream_rings_) slots_[hint_ + 1]->prefetch_targets();
     return slots_[hint_++].get();
   }
   const auto it = std::lower_bound(ids_.begin(), ids_.end(), e.id);
@@ -257,8 +322,10 @@ void ComponentAggregator::on_join(const Entry& e) {
   std::unique_lock lock(list_mutex_);
   const auto at = std::lower_bound(ids_.begin(), ids_.end(), e.id) - ids_.begin();
   ids_.insert(ids_.begin() + at, e.id);
+  footprint_bytes_ += slot->drained_bytes();
   slots_.insert(slots_.begin() + at, std::move(slot));
   hint_ = 0;
+  choose_ring_stores();
 }
 
 void ComponentAggregator::on_leave(const Entry& e) {
@@ -307,6 +374,7 @@ void ComponentAggregator::end(const Entry& /*e*/, const PortDrain& d) {
   // fast component): they are still in the caches, and the statistics' lines are paid for once
   // per drain either way.
   if (s.ring.pending() >= s.catch_up_at || d.messages >= kCatchUpDrain) s.catch_up();
+  if (stream_rings_) PackedCycle::fence_streams();  // before a reader may take the lock
   current_->mutex.unlock();
   current_ = nullptr;
 }
@@ -334,7 +402,8 @@ namespace {
 // overruns, that a ring slot keeps exactly, while the ring has room. Each is packed straight into
 // the ring; the record's fields change once, after the run. The same effect as take_sample() on
 // each (tested by running every stream both ways). Returns the samples taken (0: none, nothing
-// changed).
+// changed). `Stream`: the slots are written with streaming stores (RingStores).
+template <bool Stream>
 [[gnu::always_inline]] inline std::size_t take_run(ComponentAggregator::Slot& s,
                                                    const task::Message* ms, std::size_t n,
                                                    Nanos drain_time) noexcept {
@@ -358,8 +427,13 @@ namespace {
     const std::uint64_t cycle = m->cycle();
     const auto flags =
         static_cast<std::uint8_t>(Slot::gap_between(last, cycle) ? CycleRecord::kGap : 0);
-    ::new (slot) PackedCycle(PackedCycle::Exact{}, cycle, m->release_ns, latency, user,
-                             m->overhead_ns, m->missed_before, flags, m->state);
+    if constexpr (Stream) {
+      PackedCycle::stream(slot, cycle, m->release_ns, latency, user, m->overhead_ns,
+                          m->missed_before, flags, m->state);
+    } else {
+      ::new (slot) PackedCycle(PackedCycle::Exact{}, cycle, m->release_ns, latency, user,
+                               m->overhead_ns, m->missed_before, flags, m->state);
+    }
     last = cycle;
     ++i;
     return true;
@@ -387,8 +461,11 @@ void ComponentAggregator::on_batch(const Entry& e, const task::Message* messages
     if (latest != nullptr) s.data.last = *latest;
     latest = counted = nullptr;
   };
+  const bool stream = stream_rings_;
   for (std::size_t i = 0; i < n;) {
-    if (const std::size_t k = take_run(s, messages + i, n - i, drain_time_); k > 0) [[likely]] {
+    const std::size_t k = stream ? take_run<true>(s, messages + i, n - i, drain_time_)
+                                 : take_run<false>(s, messages + i, n - i, drain_time_);
+    if (k > 0) [[likely]] {
       // Past the warm-up, not totals-only: their counters are merged as the latest's.
       latest = counted = std::get_if<task::CycleSample>(&messages[i + k - 1]);
       i += k;
@@ -598,6 +675,7 @@ void ComponentAggregator::on_cycle(const SupervisorCycle& c) {
   for (std::size_t i = 0; i < slots_.size(); ++i) {
     if (expired(slots_[i])) {
       --departed_;
+      footprint_bytes_ -= slots_[i]->drained_bytes();
       continue;
     }
     slots_[out] = std::move(slots_[i]);
@@ -606,6 +684,7 @@ void ComponentAggregator::on_cycle(const SupervisorCycle& c) {
   }
   slots_.resize(out);
   ids_.resize(out);
+  choose_ring_stores();
 }
 
 void ComponentAggregator::watch(Slot& s, Nanos now) {

@@ -137,6 +137,25 @@ components: [{name: x, type: test.dummy, activity: a}]
   CHECK_THAT(e, Catch::Contains("rdtsc"));
 }
 
+TEST_CASE("flight_recorder.stores selects how rings are written, and an unknown one is an error",
+          "[deploy][deployment]") {
+  const char* base = R"(activities: [{name: a, period: 1ms}]
+components: [{name: x, type: test.dummy, activity: a}]
+)";
+  auto d = load_deployment_string(std::string(base), "d.yaml", test_factory());
+  REQUIRE(d.has_value());
+  CHECK(d->supervision.recorder.stores == supervisor::RingStores::Auto);
+  auto s = load_deployment_string(
+      std::string(base) + "supervision: {flight_recorder: {stores: streaming}}\n", "d.yaml",
+      test_factory());
+  REQUIRE(s.has_value());
+  CHECK(s->supervision.recorder.stores == supervisor::RingStores::Streaming);
+  const std::string e =
+      errors_of(std::string(base) + "supervision: {flight_recorder: {stores: fast}}\n");
+  CHECK_THAT(e, Catch::Contains("d.yaml:3:41: supervision.flight_recorder.stores"));
+  CHECK_THAT(e, Catch::Contains("fast"));
+}
+
 TEST_CASE("overhead_sample_every takes any count, and a bad one is an error naming the field",
           "[deploy][deployment]") {
   auto d = load_deployment_string(R"(activities: [{name: a, period: 1ms}]

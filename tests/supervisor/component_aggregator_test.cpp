@@ -81,8 +81,11 @@ TEST_CASE("Stress: many components push while the supervisor drains and readers 
   // Run under TSan in CI: proves the pipeline has no data race.
   constexpr int kComponents = 8;
   constexpr int kCycles = 20000;
+  // Also with streaming stores: their fence before the record's lock is released is what makes
+  // the slots visible to the readers' copies.
+  const RingStores stores = GENERATE(RingStores::Auto, RingStores::Streaming);
   Registry<task::Message> reg;
-  ComponentAggregator agg;
+  ComponentAggregator agg({.recorder = {.stores = stores}});
   TaskSupervisor sup(reg, agg, {.period_ns = 200 * kNanosPerMicro});
   REQUIRE(sup.start().has_value());
   std::atomic<bool> done{false};
@@ -243,10 +246,14 @@ TEST_CASE("A batch of messages does what each message handed over in turn does",
   // message in turn gives.
   std::mt19937_64 rng(GENERATE(11, 12, 13, 14));
   const std::size_t ring = GENERATE(std::size_t{16}, std::size_t{1024});
+  // The batch's runs written through the caches and with streaming stores (RingStores): the same.
+  const RingStores stores = GENERATE(RingStores::Cached, RingStores::Streaming);
   const AggregatorOptions options{.warmup_ns = 5 * kNanosPerMilli, .recorder = {.cycles = ring}};
+  AggregatorOptions batch_options = options;
+  batch_options.recorder.stores = stores;
   Registry<task::Message> reg_batch;
   Registry<task::Message> reg_one;
-  ComponentAggregator batch_agg(options);
+  ComponentAggregator batch_agg(batch_options);
   ComponentAggregator one_agg(options);
   TaskSupervisor batch(reg_batch, batch_agg);
   OneByOne one_handler(one_agg);
@@ -377,4 +384,27 @@ TEST_CASE("The statistics are the same whether cycles are taken at once or in bu
     REQUIRE(b.has_value());
     check_same_statistics(*b, *a);
   }
+}
+
+TEST_CASE("Rings stream when the drains sweep more than the last-level cache, or when told to",
+          "[supervisor][aggregator][recorder]") {
+  using A = ComponentAggregator;
+  constexpr std::size_t kMiB = std::size_t{1} << 20U;
+  CHECK_FALSE(A::streams_rings(RingStores::Auto, 8 * kMiB, 32 * kMiB));
+  CHECK_FALSE(A::streams_rings(RingStores::Auto, 32 * kMiB, 32 * kMiB));
+  CHECK(A::streams_rings(RingStores::Auto, 32 * kMiB + 1, 32 * kMiB));
+  CHECK_FALSE(A::streams_rings(RingStores::Auto, 1024 * kMiB, 0));  // cache unknown: never
+  CHECK_FALSE(A::streams_rings(RingStores::Cached, 1024 * kMiB, 1));
+  CHECK(A::streams_rings(RingStores::Streaming, 0, 32 * kMiB));
+  // A few components' rings fit any cache: Auto writes through it; Streaming is kept.
+  Registry<task::Message> reg;
+  ComponentAggregator automatic;
+  ComponentAggregator streaming({.recorder = {.stores = RingStores::Streaming}});
+  TaskSupervisor a(reg, automatic);
+  TaskSupervisor b(reg, streaming);
+  auto member = reg.join<16>("c");
+  a.step();
+  b.step();
+  CHECK_FALSE(automatic.streams_rings());
+  CHECK(streaming.streams_rings());
 }

@@ -1,10 +1,13 @@
 // The flight ring's 32-byte slots: what goes in comes out, to the nanosecond where it fits and
 // to the microsecond (flagged) where it does not; nothing wraps silently.
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <catch2/catch.hpp>
 #include <cstdint>
 #include <limits>
 #include <new>
+#include <random>
 #include <vector>
 
 #include "support/cycle_record.hpp"
@@ -135,6 +138,37 @@ TEST_CASE("A flight ring hands out its pending cycles once, oldest first, across
   take();
   CHECK(taken == std::vector<std::uint64_t>{4, 5, 6, 7});
   CHECK(ring.ordered().front().cycle == 4);
+}
+
+TEST_CASE("A slot written with streaming stores is the slot constructed in place",
+          "[supervisor][recorder]") {
+  // PackedCycle::stream() writes the slot as four words where the CPU streams: byte for byte
+  // what the constructor writes, whatever the fields' values.
+  std::mt19937_64 rng(7);
+  for (int i = 0; i < 1000; ++i) {
+    const std::uint64_t cycle = rng();
+    const auto release = static_cast<Nanos>(rng());
+    const Nanos latency = static_cast<std::int32_t>(rng());
+    const Nanos user = static_cast<std::int32_t>(rng());
+    const Nanos overhead = static_cast<Nanos>(rng() & 0xFFFF'FFFFU);
+    const auto missed = static_cast<std::uint32_t>(rng() & 0xFFFFU);
+    const auto flags = static_cast<std::uint8_t>(rng() & 7U);
+    const auto state = static_cast<TaskState>(rng() % 7);
+    alignas(64) std::array<unsigned char, sizeof(PackedCycle)> streamed{};
+    alignas(64) std::array<unsigned char, sizeof(PackedCycle)> constructed{};
+    PackedCycle::stream(streamed.data(), cycle, release, latency, user, overhead, missed, flags,
+                        state);
+    PackedCycle::fence_streams();
+    ::new (static_cast<void*>(constructed.data())) PackedCycle(
+        PackedCycle::Exact{}, cycle, release, latency, user, overhead, missed, flags, state);
+    INFO("case " << i);
+    REQUIRE(streamed == constructed);
+    const CycleRecord r = std::bit_cast<PackedCycle>(streamed).unpack();
+    CHECK(r.cycle == cycle);
+    CHECK(r.start_ns - r.release_ns == latency);
+    CHECK(r.end_ns - r.start_ns == user);
+    CHECK(r.state == state);
+  }
 }
 
 TEST_CASE("A flight ring slot says which cycles it keeps exactly", "[supervisor][recorder]") {

@@ -237,6 +237,14 @@ class ComponentAggregator {
   /// The flight recorder of component `name` now (on demand), if it exists. Any thread.
   [[nodiscard]] std::optional<FlightRecord> flight_record(std::string_view name) const;
   [[nodiscard]] const AggregatorOptions& options() const noexcept { return options_; }
+  /// True while drains write the flight rings with streaming stores (`RingStores`; with Auto it
+  /// changes as components join and are forgotten). Supervisor thread.
+  [[nodiscard]] bool streams_rings() const noexcept { return stream_rings_; }
+  /// The rule of `RingStores` (Auto and the others): whether the rings stream when the drains
+  /// sweep through `drained_bytes` in all (every component's flight ring and port), on a CPU
+  /// whose last-level cache holds `cache_bytes` (0: unknown, never streams).
+  [[nodiscard]] static bool streams_rings(RingStores mode, std::size_t drained_bytes,
+                                          std::size_t cache_bytes) noexcept;
 
   struct Slot;
 
@@ -261,6 +269,10 @@ class ComponentAggregator {
   mutable std::mutex frozen_mutex_;  // frozen_: taken before the hub's lock, never after
   std::deque<std::shared_ptr<const FlightRecord>> frozen_;
   std::size_t frozen_total_ = 0;
+  std::size_t cache_bytes_ = 0;      // last-level cache (RingStores::Auto)
+  std::size_t footprint_bytes_ = 0;  // every record's ring and port
+  bool stream_rings_ = false;        // streams_rings()
+  void choose_ring_stores() noexcept;
   mutable EventHub events_;  // last: destroyed first, its dispatchers may still read the above
 };
 

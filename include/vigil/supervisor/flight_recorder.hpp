@@ -16,8 +16,13 @@
 /// The ring doubles as the aggregator's queue of cycles not yet in the statistics: the newest
 /// `pending()` slots (`push_pending`, `take_pending`), which it takes in bulk.
 
+#include <cstddef>
 #include <cstdint>
 #include <new>
+
+#if defined(__x86_64__)
+#include <emmintrin.h>  // _mm_stream_si64, _mm_sfence
+#endif
 #include <string>
 #include <vector>
 
@@ -116,6 +121,35 @@ class PackedCycle {
         overhead_(static_cast<std::uint32_t>(overhead)),
         tail_(tail(missed, flags, state)) {}
 
+  /// The same slot as the constructor above, written at `slot` with streaming stores where the
+  /// CPU has them (x86-64: four non-temporal stores, which do not read the slot's cache line
+  /// first and do not keep it in the caches); placement new elsewhere. For rings too large to
+  /// stay in the caches (`RingStores`). The writer calls `fence_streams()` before any other
+  /// thread may read the slot (the same thread reads it back without one).
+  static void stream(void* slot, std::uint64_t cycle, Nanos release_ns, Nanos latency, Nanos user,
+                     Nanos overhead, std::uint32_t missed, std::uint8_t flags,
+                     TaskState state) noexcept {
+#if defined(__x86_64__)
+    auto* w = static_cast<long long*>(slot);
+    const auto lo32 = [](auto v) { return std::uint64_t{static_cast<std::uint32_t>(v)}; };
+    _mm_stream_si64(w, static_cast<long long>(cycle));
+    _mm_stream_si64(w + 1, static_cast<long long>(release_ns));
+    _mm_stream_si64(w + 2, static_cast<long long>(lo32(latency) | lo32(user) << 32));
+    _mm_stream_si64(w + 3, static_cast<long long>(lo32(overhead) |
+                                                  std::uint64_t{tail(missed, flags, state)} << 32));
+#else
+    ::new (slot)
+        PackedCycle(Exact{}, cycle, release_ns, latency, user, overhead, missed, flags, state);
+#endif
+  }
+  /// Makes the slots written by `stream()` visible to other threads (before the lock that hands
+  /// them over is released). A no-op where `stream()` stores as usual.
+  static void fence_streams() noexcept {
+#if defined(__x86_64__)
+    _mm_sfence();
+#endif
+  }
+
   [[nodiscard]] CycleRecord unpack() const noexcept {
     CycleRecord r;
     r.cycle = cycle_;
@@ -159,8 +193,18 @@ class PackedCycle {
     return missed | std::uint32_t{flags} << 16 |
            std::uint32_t{static_cast<std::uint8_t>(state)} << 24;
   }
+
+ public:
+  /// stream() writes a slot as four little-endian words: cycle, release, latency | user << 32,
+  /// overhead | tail << 32. True when that is the members' layout (checked below).
+  static constexpr bool layout_is_four_words() noexcept {
+    return offsetof(PackedCycle, cycle_) == 0 && offsetof(PackedCycle, release_ns_) == 8 &&
+           offsetof(PackedCycle, latency_) == 16 && offsetof(PackedCycle, user_) == 20 &&
+           offsetof(PackedCycle, overhead_) == 24 && offsetof(PackedCycle, tail_) == 28;
+  }
 };
 static_assert(sizeof(PackedCycle) == 32, "keep the flight recorder's slot at 32 bytes");
+static_assert(PackedCycle::layout_is_four_words(), "PackedCycle::stream() writes this layout");
 
 /// A fixed-capacity ring of cycles. Not thread-safe (the owner locks).
 class FlightRing {
@@ -260,6 +304,16 @@ struct FlightRecord {
   Nanos frozen_ns = 0;  ///< supervisor clock
 };
 
+/// How the supervisor writes the flight rings' slots.
+enum class RingStores : std::uint8_t {
+  /// Streaming when every component's flight ring and port together exceed the last-level
+  /// cache (a drain sweeps through them: a slot written now is evicted before the statistics
+  /// read it back, and reading its line first only costs memory traffic); cached otherwise.
+  Auto,
+  Cached,     ///< ordinary stores, through the caches
+  Streaming,  ///< non-temporal stores on x86-64 (`PackedCycle::stream`); ordinary elsewhere
+};
+
 /// Options of the flight recorder (part of `AggregatorOptions`).
 struct FlightRecorderOptions {
   /// Cycles kept per component (0: no recorder, no memory). The ring also holds the cycles the
@@ -269,6 +323,8 @@ struct FlightRecorderOptions {
   Nanos min_interval_ns = 10 * kNanosPerSecond;
   /// At most this many frozen records over the aggregator's life (0: no limit).
   std::size_t max_records = 64;
+  /// How a drain writes the slots (docs/design/supervision.md, "Streaming stores").
+  RingStores stores = RingStores::Auto;
 };
 
 }  // namespace vigil::supervisor
