@@ -386,13 +386,15 @@ TEST_CASE("The statistics are the same whether cycles are taken at once or in bu
   }
 }
 
-TEST_CASE("Rings stream when the drains sweep more than the last-level cache, or when told to",
+TEST_CASE("Rings stream when the drains sweep far more than the last-level cache, or when told to",
           "[supervisor][aggregator][recorder]") {
   using A = ComponentAggregator;
   constexpr std::size_t kMiB = std::size_t{1} << 20U;
   CHECK_FALSE(A::streams_rings(RingStores::Auto, 8 * kMiB, 32 * kMiB));
-  CHECK_FALSE(A::streams_rings(RingStores::Auto, 32 * kMiB, 32 * kMiB));
-  CHECK(A::streams_rings(RingStores::Auto, 32 * kMiB + 1, 32 * kMiB));
+  CHECK_FALSE(A::streams_rings(RingStores::Auto, 65 * kMiB, 32 * kMiB));  // 1,000 components
+  CHECK_FALSE(A::streams_rings(RingStores::Auto, 128 * kMiB, 32 * kMiB));
+  CHECK(A::streams_rings(RingStores::Auto, 132 * kMiB, 32 * kMiB));
+  CHECK(A::streams_rings(RingStores::Auto, 650 * kMiB, 32 * kMiB));  // 10,000 components
   CHECK_FALSE(A::streams_rings(RingStores::Auto, 1024 * kMiB, 0));  // cache unknown: never
   CHECK_FALSE(A::streams_rings(RingStores::Cached, 1024 * kMiB, 1));
   CHECK(A::streams_rings(RingStores::Streaming, 0, 32 * kMiB));

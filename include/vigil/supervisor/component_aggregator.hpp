@@ -242,7 +242,8 @@ class ComponentAggregator {
   [[nodiscard]] bool streams_rings() const noexcept { return stream_rings_; }
   /// The rule of `RingStores` (Auto and the others): whether the rings stream when the drains
   /// sweep through `drained_bytes` in all (every component's flight ring and port), on a CPU
-  /// whose last-level cache holds `cache_bytes` (0: unknown, never streams).
+  /// whose last-level cache holds `cache_bytes` (0: unknown, never streams). Auto: beyond four
+  /// times the cache.
   [[nodiscard]] static bool streams_rings(RingStores mode, std::size_t drained_bytes,
                                           std::size_t cache_bytes) noexcept;
 
@@ -265,6 +266,7 @@ class ComponentAggregator {
   Slot* current_ = nullptr;                   // the slot between begin() and end()
   Nanos drain_time_ = 0;                      // supervisor clock at begin() (every 16th port)
   std::uint32_t clock_reads_ = 0;             // ports since the clock was read
+  std::size_t drained_ = 0;                   // messages of the current port's drain so far
   std::atomic<log::RecordConsumer*> log_consumer_{nullptr};
   mutable std::mutex frozen_mutex_;  // frozen_: taken before the hub's lock, never after
   std::deque<std::shared_ptr<const FlightRecord>> frozen_;

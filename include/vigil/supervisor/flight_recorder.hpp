@@ -306,9 +306,10 @@ struct FlightRecord {
 
 /// How the supervisor writes the flight rings' slots.
 enum class RingStores : std::uint8_t {
-  /// Streaming when every component's flight ring and port together exceed the last-level
-  /// cache (a drain sweeps through them: a slot written now is evicted before the statistics
-  /// read it back, and reading its line first only costs memory traffic); cached otherwise.
+  /// Streaming when every component's flight ring and port together exceed four times the
+  /// last-level cache (a drain sweeps through them: a slot written now is evicted before the
+  /// statistics read it back, and reading its line first only costs memory traffic); cached
+  /// otherwise. About 2,000 components with the defaults and a 32 MiB cache.
   Auto,
   Cached,     ///< ordinary stores, through the caches
   Streaming,  ///< non-temporal stores on x86-64 (`PackedCycle::stream`); ordinary elsewhere
