@@ -395,7 +395,7 @@ TEST_CASE("Rings stream when the drains sweep far more than the last-level cache
   CHECK_FALSE(A::streams_rings(RingStores::Auto, 128 * kMiB, 32 * kMiB));
   CHECK(A::streams_rings(RingStores::Auto, 132 * kMiB, 32 * kMiB));
   CHECK(A::streams_rings(RingStores::Auto, 650 * kMiB, 32 * kMiB));  // 10,000 components
-  CHECK_FALSE(A::streams_rings(RingStores::Auto, 1024 * kMiB, 0));  // cache unknown: never
+  CHECK_FALSE(A::streams_rings(RingStores::Auto, 1024 * kMiB, 0));   // cache unknown: never
   CHECK_FALSE(A::streams_rings(RingStores::Cached, 1024 * kMiB, 1));
   CHECK(A::streams_rings(RingStores::Streaming, 0, 32 * kMiB));
   // A few components' rings fit any cache: Auto writes through it; Streaming is kept.
