@@ -25,6 +25,11 @@ ComponentFactory& test_factory() {
   return f;
 }
 
+// The smallest deployment: one activity, one component (a test adds its `supervision:` line 3).
+constexpr const char* kOneComponent = R"(activities: [{name: a, period: 1ms}]
+components: [{name: x, type: test.dummy, activity: a}]
+)";
+
 std::string errors_of(std::string_view yaml) {
   auto d = load_deployment_string(yaml, "d.yaml", test_factory());
   REQUIRE_FALSE(d.has_value());
@@ -122,36 +127,29 @@ TEST_CASE("A deployment needs components, and activities for them", "[deploy][de
 
 TEST_CASE("supervision.clock selects the process's clock, and an unknown one is an error",
           "[deploy][deployment][tsc]") {
-  const char* base = R"(activities: [{name: a, period: 1ms}]
-components: [{name: x, type: test.dummy, activity: a}]
-)";
-  auto d = load_deployment_string(std::string(base), "d.yaml", test_factory());
+  const std::string base = kOneComponent;
+  auto d = load_deployment_string(base, "d.yaml", test_factory());
   REQUIRE(d.has_value());
   CHECK(d->supervision.clock == platform::ClockSource::Monotonic);
-  auto t = load_deployment_string(std::string(base) + "supervision: {clock: tsc}\n", "d.yaml",
-                                  test_factory());
+  auto t = load_deployment_string(base + "supervision: {clock: tsc}\n", "d.yaml", test_factory());
   REQUIRE(t.has_value());
   CHECK(t->supervision.clock == platform::ClockSource::Tsc);
-  const std::string e = errors_of(std::string(base) + "supervision: {clock: rdtsc}\n");
+  const std::string e = errors_of(base + "supervision: {clock: rdtsc}\n");
   CHECK_THAT(e, Catch::Contains("d.yaml:3:22: supervision.clock"));
   CHECK_THAT(e, Catch::Contains("rdtsc"));
 }
 
 TEST_CASE("flight_recorder.stores selects how rings are written, and an unknown one is an error",
           "[deploy][deployment]") {
-  const char* base = R"(activities: [{name: a, period: 1ms}]
-components: [{name: x, type: test.dummy, activity: a}]
-)";
-  auto d = load_deployment_string(std::string(base), "d.yaml", test_factory());
+  const std::string base = kOneComponent;
+  auto d = load_deployment_string(base, "d.yaml", test_factory());
   REQUIRE(d.has_value());
   CHECK(d->supervision.recorder.stores == supervisor::RingStores::Auto);
-  auto s = load_deployment_string(
-      std::string(base) + "supervision: {flight_recorder: {stores: streaming}}\n", "d.yaml",
-      test_factory());
+  auto s = load_deployment_string(base + "supervision: {flight_recorder: {stores: streaming}}\n",
+                                  "d.yaml", test_factory());
   REQUIRE(s.has_value());
   CHECK(s->supervision.recorder.stores == supervisor::RingStores::Streaming);
-  const std::string e =
-      errors_of(std::string(base) + "supervision: {flight_recorder: {stores: fast}}\n");
+  const std::string e = errors_of(base + "supervision: {flight_recorder: {stores: fast}}\n");
   CHECK_THAT(e, Catch::Contains("d.yaml:3:41: supervision.flight_recorder.stores"));
   CHECK_THAT(e, Catch::Contains("fast"));
 }
