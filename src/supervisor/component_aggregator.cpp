@@ -223,9 +223,6 @@ std::string demangle(const char* mangled) {
   return out;
 }
 
-}  // namespace
-
-namespace {
 // The last-level cache that CPU 0 shares, in bytes (0: unknown). From sysfs, which describes the
 // cache a core can use (on AMD, its CCX's L3); glibc's sysconf() may count every L3 of the socket,
 // so it is only the fallback.
@@ -255,6 +252,10 @@ std::size_t last_level_cache_bytes() {
 #endif
   return 0;
 }
+
+// RingStores::Auto streams when the drains sweep more than this many times the last-level cache.
+constexpr std::size_t kStreamBeyondCaches = 4;
+
 }  // namespace
 
 ComponentAggregator::ComponentAggregator(AggregatorOptions options)
@@ -265,11 +266,6 @@ ComponentAggregator::ComponentAggregator(AggregatorOptions options)
   choose_ring_stores();
 }
 ComponentAggregator::~ComponentAggregator() = default;
-
-namespace {
-// RingStores::Auto streams when the drains sweep more than this many times the last-level cache.
-constexpr std::size_t kStreamBeyondCaches = 4;
-}  // namespace
 
 bool ComponentAggregator::streams_rings(RingStores mode, std::size_t drained_bytes,
                                         std::size_t cache_bytes) noexcept {

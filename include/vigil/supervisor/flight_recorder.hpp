@@ -19,12 +19,12 @@
 #include <cstddef>
 #include <cstdint>
 #include <new>
+#include <string>
+#include <vector>
 
 #if defined(__x86_64__)
 #include <emmintrin.h>  // _mm_stream_si64, _mm_sfence
 #endif
-#include <string>
-#include <vector>
 
 #include "vigil/platform/clock.hpp"
 #include "vigil/supervisor/events.hpp"
