@@ -66,19 +66,23 @@ struct Components {
   /// Pushes `per_port` samples into every port (producer side; nothing else is pushing).
   std::size_t fill(std::size_t per_port) {
     std::size_t pushed = 0;
-    Nanos t = platform::now_ns();
+    // Each component's releases move forward, as a real component's do (never back to now when
+    // a fill started within the span of the previous one).
+    Nanos t = std::max(platform::now_ns(), last_release);
     for (std::size_t k = 0; k < per_port; ++k) {
       t += kNanosPerMilli;
       for (std::size_t i = 0; i < members.size(); ++i) {
         pushed += members[i].port()->try_push(sample(i, t)) ? 1 : 0;
       }
     }
+    last_release = t;
     return pushed;
   }
 
   Registry<task::Message> registry;
   std::vector<bus::Membership<task::Message, kCapacity>> members;
   std::vector<std::uint64_t> next;
+  Nanos last_release = 0;
 };
 
 /// A handler that only looks at each message: the supervisor's drain + visit without the

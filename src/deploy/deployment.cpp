@@ -29,6 +29,10 @@ constexpr EnumName<supervisor::RingStores> kRingStores[] = {
     {"auto", supervisor::RingStores::Auto},
     {"cached", supervisor::RingStores::Cached},
     {"streaming", supervisor::RingStores::Streaming}};
+constexpr EnumName<supervisor::RingPages> kRingPages[] = {
+    {"auto", supervisor::RingPages::Auto},
+    {"huge", supervisor::RingPages::Huge},
+    {"ordinary", supervisor::RingPages::Ordinary}};
 constexpr EnumName<Detectors> kDetectors[] = {{"allocation", Detectors::Allocation},
                                               {"blocking", Detectors::Blocking},
                                               {"page_faults", Detectors::PageFaults},
@@ -209,7 +213,7 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
       sp.state_events = e.optional("state_changes", sp.state_events);
     }
     if (const config::Node f = s["flight_recorder"]; f.defined()) {
-      f.reject_unknown_keys({"cycles", "min_interval", "max_records", "stores"});
+      f.reject_unknown_keys({"cycles", "min_interval", "max_records", "stores", "pages"});
       sp.recorder.cycles = f.optional<std::size_t>("cycles", sp.recorder.cycles,
                                                    config::in_range<std::size_t>(0, 1U << 20U));
       sp.recorder.min_interval_ns =
@@ -218,6 +222,7 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
       sp.recorder.max_records = f.optional<std::size_t>(
           "max_records", sp.recorder.max_records, config::in_range<std::size_t>(0, 1U << 20U));
       sp.recorder.stores = f.optional_enum("stores", sp.recorder.stores, kRingStores);
+      sp.recorder.pages = f.optional_enum("pages", sp.recorder.pages, kRingPages);
     }
     if (const config::Node m = s["shared_memory"];
         m.defined() && !bus::valid_supervisor_name(sp.shared_memory)) {

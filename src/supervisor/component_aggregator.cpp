@@ -263,6 +263,10 @@ ComponentAggregator::ComponentAggregator(AggregatorOptions options)
       ewma_weight_(options.ewma_weight),
       cache_bytes_(last_level_cache_bytes()),
       events_(options.events) {
+  if (options_.recorder.cycles > 0 && options_.recorder.pages != RingPages::Ordinary) {
+    ring_blocks_ =
+        std::make_unique<platform::HugePageBlocks>(options_.recorder.cycles * sizeof(PackedCycle));
+  }
   choose_ring_stores();
 }
 ComponentAggregator::~ComponentAggregator() = default;
@@ -282,6 +286,23 @@ bool ComponentAggregator::streams_rings(RingStores mode, std::size_t drained_byt
   // Measured (docs/performance.md, "Streaming stores"): at twice the cache (1,000 components,
   // 65 MB, a 32 MB cache) streaming was 13 % slower, at twenty times 13 % faster.
   return cache_bytes > 0 && drained_bytes / kStreamBeyondCaches > cache_bytes;
+}
+
+platform::HugePageBlocks* ComponentAggregator::ring_blocks_for_next() const noexcept {
+  if (!ring_blocks_) return nullptr;
+  // Auto: once the rings in use would fill a region (a smaller system keeps its few rings on
+  // ordinary pages rather than lock a 2 MiB region for them).
+  const bool huge = options_.recorder.pages == RingPages::Huge ||
+                    slots_.size() >= ring_blocks_->blocks_per_region();
+  return huge ? ring_blocks_.get() : nullptr;
+}
+
+std::size_t ComponentAggregator::rings_on_huge_pages() const noexcept {
+  return ring_blocks_ ? ring_blocks_->in_use() : 0;
+}
+
+std::size_t ComponentAggregator::ring_region_bytes() const noexcept {
+  return ring_blocks_ ? ring_blocks_->mapped_bytes() : 0;
 }
 
 void ComponentAggregator::choose_ring_stores() noexcept {
@@ -307,7 +328,7 @@ ComponentAggregator::Slot* ComponentAggregator::slot_for(const Entry& e) {
 
 void ComponentAggregator::on_join(const Entry& e) {
   auto slot = std::make_unique<Slot>();
-  slot->ring = FlightRing(options_.recorder.cycles);
+  slot->ring = FlightRing(options_.recorder.cycles, ring_blocks_for_next());
   // Catch up every half to three quarters of a ring (the longer the run, the fewer times the
   // statistics' lines are loaded; shorter runs measured slower), spread by id so that
   // components started together do not all catch up in the same drain.

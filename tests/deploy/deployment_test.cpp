@@ -1,6 +1,7 @@
 #include "vigil/deploy/deployment.hpp"
 
 #include <catch2/catch.hpp>
+#include <utility>
 
 #include "vigil/task/task.hpp"
 
@@ -152,6 +153,25 @@ TEST_CASE("flight_recorder.stores selects how rings are written, and an unknown 
   const std::string e = errors_of(base + "supervision: {flight_recorder: {stores: fast}}\n");
   CHECK_THAT(e, Catch::Contains("d.yaml:3:41: supervision.flight_recorder.stores"));
   CHECK_THAT(e, Catch::Contains("fast"));
+}
+
+TEST_CASE("flight_recorder.pages selects where rings live, and an unknown one is an error",
+          "[deploy][deployment]") {
+  const std::string base = kOneComponent;
+  auto d = load_deployment_string(base, "d.yaml", test_factory());
+  REQUIRE(d.has_value());
+  CHECK(d->supervision.recorder.pages == supervisor::RingPages::Auto);
+  for (const auto& [word, pages] : {std::pair{"huge", supervisor::RingPages::Huge},
+                                    std::pair{"ordinary", supervisor::RingPages::Ordinary}}) {
+    auto s = load_deployment_string(
+        base + "supervision: {flight_recorder: {pages: " + word + "}}\n", "d.yaml", test_factory());
+    REQUIRE(s.has_value());
+    CHECK(s->supervision.recorder.pages == pages);
+  }
+  const std::string e = errors_of(base + "supervision: {flight_recorder: {pages: large}}\n");
+  CHECK_THAT(e, Catch::Contains("d.yaml:3:40: supervision.flight_recorder.pages"));
+  CHECK_THAT(e, Catch::Contains("large"));
+  CHECK_THAT(e, Catch::Contains("auto, huge, ordinary"));
 }
 
 TEST_CASE("overhead_sample_every takes any count, and a bad one is an error naming the field",

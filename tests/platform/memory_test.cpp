@@ -2,9 +2,14 @@
 
 #include <sys/mman.h>
 
+#include <algorithm>
 #include <catch2/catch.hpp>
+#include <cstdint>
+#include <cstring>
 #include <fstream>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include "support/proc_reader.hpp"
 #include "vigil/build_config.hpp"
@@ -83,4 +88,79 @@ TEST_CASE("prefault_stack takes the stack's page faults up front", "[platform][m
   t->join();
   CHECK(first >= 100);
   CHECK(second < first / 4);
+}
+
+namespace {
+// The VmFlags line of the /proc/self/smaps entry that maps `p` ("" when none does).
+std::string vm_flags_of(const void* p) {
+  const auto at = reinterpret_cast<std::uintptr_t>(p);
+  std::ifstream smaps("/proc/self/smaps");
+  std::string line;
+  bool inside = false;
+  while (std::getline(smaps, line)) {
+    std::uintptr_t lo = 0;
+    std::uintptr_t hi = 0;
+    char dash = 0;
+    std::istringstream head(line);
+    if (head >> std::hex >> lo >> dash >> hi && dash == '-') {
+      inside = lo <= at && at < hi;
+    } else if (inside && line.rfind("VmFlags:", 0) == 0) {
+      return line;
+    }
+  }
+  return {};
+}
+}  // namespace
+
+TEST_CASE("Huge-page blocks are carved from aligned regions, advised, and reused once released",
+          "[platform][memory]") {
+  constexpr std::size_t kRegion = HugePageBlocks::kRegionBytes;
+  HugePageBlocks blocks(32 * 1024 + 5);  // rounded up to a cache line
+  CHECK(blocks.block_bytes() == 32 * 1024 + 64);
+  const std::size_t per = blocks.blocks_per_region();
+  CHECK(per == kRegion / (32 * 1024 + 64));
+  CHECK(blocks.mapped_bytes() == 0);  // nothing mapped before a block is asked for
+
+  std::vector<unsigned char*> got;
+  for (std::size_t i = 0; i < per + 3; ++i) {
+    auto* b = static_cast<unsigned char*>(blocks.allocate());
+    REQUIRE(b != nullptr);
+    CHECK(reinterpret_cast<std::uintptr_t>(b) % 64 == 0);
+    std::memset(b, static_cast<int>(i & 0xFFU), blocks.block_bytes());  // writable, all of it
+    got.push_back(b);
+  }
+  CHECK(blocks.mapped_bytes() == 2 * kRegion);  // the 4 last blocks opened a second region
+  CHECK(blocks.in_use() == per + 3);
+  // Each region starts on a 2 MiB boundary (a huge page needs it), and no two blocks overlap.
+  CHECK(reinterpret_cast<std::uintptr_t>(got[0]) % kRegion == 0);
+  CHECK(reinterpret_cast<std::uintptr_t>(got[per]) % kRegion == 0);
+  auto sorted = got;
+  std::sort(sorted.begin(), sorted.end());
+  for (std::size_t i = 1; i < sorted.size(); ++i) {
+    CHECK(sorted[i] - sorted[i - 1] >= static_cast<std::ptrdiff_t>(blocks.block_bytes()));
+  }
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    CHECK(got[i][0] == (i & 0xFFU));  // what was written stayed
+    CHECK(got[i][blocks.block_bytes() - 1] == (i & 0xFFU));
+  }
+  // The kernel took the advice: the region's mapping carries the huge-page flag ("hg").
+  if (blocks.advice_errno() == 0) {
+    CHECK_THAT(vm_flags_of(got[0]), Catch::Contains(" hg"));
+    CHECK_THAT(vm_flags_of(got[per]), Catch::Contains(" hg"));
+  } else {
+    WARN("madvise(MADV_HUGEPAGE) refused here (errno " << blocks.advice_errno() << ")");
+  }
+  // A released block is handed out again before any new memory.
+  blocks.release(got[5]);
+  CHECK(blocks.in_use() == per + 2);
+  CHECK(blocks.allocate() == got[5]);
+  CHECK(blocks.mapped_bytes() == 2 * kRegion);
+  for (auto* b : got) blocks.release(b);
+  CHECK(blocks.in_use() == 0);
+
+  // Blocks larger than a region: none (the caller allocates elsewhere).
+  HugePageBlocks too_large(kRegion + 1);
+  CHECK(too_large.blocks_per_region() == 0);
+  CHECK(too_large.allocate() == nullptr);
+  CHECK(too_large.mapped_bytes() == 0);
 }

@@ -5,7 +5,9 @@
 #include <atomic>
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <memory>
 #include <random>
+#include <string>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -74,6 +76,68 @@ TEST_CASE("Records of components that left are kept for a while, then forgotten"
   sup.step();
   CHECK_FALSE(agg.find("short-lived").has_value());
   CHECK(agg.size() == 0);
+}
+
+TEST_CASE("Flight rings come from huge-page regions as their option says, and go back to them",
+          "[supervisor][aggregator][recorder]") {
+  constexpr std::size_t kRegion = platform::HugePageBlocks::kRegionBytes;
+  // 16,384 cycles: 512 KiB rings, four to a region.
+  constexpr std::size_t kCycles = 16 * 1024;
+  struct System {
+    explicit System(RingPages pages)
+        : agg({.retain_left_ns = kNanosPerSecond,
+               .clock = fc.clock(),
+               .recorder = {.cycles = kCycles, .pages = pages}}),
+          sup(reg, agg) {}
+    void join(const char* prefix) {
+      for (int i = 0; i < 6; ++i) {
+        comps.push_back(std::make_unique<Instrumentation>(prefix + std::to_string(i),
+                                                          task::SupervisionOptions{}, reg));
+        comps.back()->init();
+      }
+      sup.step();
+    }
+    Registry<task::Message> reg;
+    vigil::test::FakeClock fc;
+    ComponentAggregator agg;
+    TaskSupervisor sup;
+    std::vector<std::unique_ptr<Instrumentation>> comps;
+  };
+  System huge(RingPages::Huge);
+  System automatic(RingPages::Auto);
+  System ordinary(RingPages::Ordinary);
+  for (System* s : {&huge, &automatic, &ordinary}) {
+    s->join("c");
+    for (int k = 0; k < 5; ++k) {
+      for (auto& comp : s->comps) comp->run([] {});
+      s->sup.step();
+    }
+  }
+  CHECK(huge.agg.rings_on_huge_pages() == 6);
+  CHECK(huge.agg.ring_region_bytes() == 2 * kRegion);
+  // Auto: the rings that joined once four (a region's worth) were in use.
+  CHECK(automatic.agg.rings_on_huge_pages() == 2);
+  CHECK(automatic.agg.ring_region_bytes() == kRegion);
+  CHECK(ordinary.agg.rings_on_huge_pages() == 0);
+  CHECK(ordinary.agg.ring_region_bytes() == 0);
+  // Wherever its memory is, a ring records the same cycles.
+  for (const System* s : {&huge, &automatic, &ordinary}) {
+    const auto rec = s->agg.flight_record("c5");
+    REQUIRE(rec.has_value());
+    REQUIRE(rec->cycles.size() == 5);
+    CHECK(rec->cycles.front().cycle == 1);
+    CHECK(rec->cycles.back().cycle == 5);
+  }
+  // Records forgotten give their blocks back; components joining again take them, no new region.
+  huge.comps.clear();
+  huge.sup.step();
+  huge.fc.advance(2 * kNanosPerSecond);
+  huge.sup.step();
+  CHECK(huge.agg.size() == 0);
+  CHECK(huge.agg.rings_on_huge_pages() == 0);
+  huge.join("d");
+  CHECK(huge.agg.rings_on_huge_pages() == 6);
+  CHECK(huge.agg.ring_region_bytes() == 2 * kRegion);
 }
 
 TEST_CASE("Stress: many components push while the supervisor drains and readers snapshot",

@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <string>
+#include <vector>
 
 namespace vigil::platform {
 
@@ -59,5 +60,51 @@ RealtimeSetupReport setup_realtime_process(const RealtimeSetupOptions& options =
 
 /// Touches `bytes` of the calling thread's stack so later use takes no page fault.
 void prefault_stack(std::size_t bytes) noexcept;
+
+/// Blocks of one size carved from 2 MiB regions that the kernel is asked to back with huge
+/// pages (madvise MADV_HUGEPAGE: Linux transparent huge pages, in their "always" or "madvise"
+/// mode). For memory that a non-RT thread sweeps through, a little of each block at a time, across
+/// thousands of blocks (the supervisor's flight rings): with 4 KiB pages every block visited is a
+/// TLB miss, with 2 MiB pages one entry covers 64 rings of 32 KiB.
+///
+/// Regions are mapped as blocks are asked for, and unmapped when the pool is destroyed (every block
+/// must have been released by then); released blocks are reused, never unmapped. Under
+/// mlockall(MCL_FUTURE) a region is locked and made resident when it is mapped (after the advice,
+/// so with huge pages where the kernel has them). Not RT-safe: allocate() maps memory.
+class HugePageBlocks {
+ public:
+  static constexpr std::size_t kRegionBytes = std::size_t{2} * 1024 * 1024;
+
+  /// Blocks of `block_bytes`, rounded up to a cache line; at most kRegionBytes (larger: none).
+  explicit HugePageBlocks(std::size_t block_bytes) noexcept;
+  ~HugePageBlocks();
+  HugePageBlocks(const HugePageBlocks&) = delete;
+  HugePageBlocks& operator=(const HugePageBlocks&) = delete;
+
+  /// A block (64-byte aligned, contents unspecified), or null when none can be had (a region
+  /// could not be mapped, or blocks are larger than a region): the caller allocates elsewhere.
+  [[nodiscard]] void* allocate();
+  /// Gives back a block from allocate(), for reuse. Never allocates.
+  void release(void* block) noexcept;
+
+  [[nodiscard]] std::size_t block_bytes() const noexcept { return block_; }
+  [[nodiscard]] std::size_t blocks_per_region() const noexcept { return per_region_; }
+  /// Bytes mapped (regions x kRegionBytes).
+  [[nodiscard]] std::size_t mapped_bytes() const noexcept { return regions_.size() * kRegionBytes; }
+  /// Blocks handed out and not released.
+  [[nodiscard]] std::size_t in_use() const noexcept { return in_use_; }
+  /// 0, or the errno of the first madvise(MADV_HUGEPAGE) refused (the regions then have ordinary
+  /// pages: everything works, without the fewer TLB misses).
+  [[nodiscard]] int advice_errno() const noexcept { return advice_errno_; }
+
+ private:
+  std::size_t block_ = 0;
+  std::size_t per_region_ = 0;
+  std::vector<void*> regions_;
+  std::vector<void*> free_;
+  std::size_t carved_ = 0;  // blocks handed out of the newest region
+  std::size_t in_use_ = 0;
+  int advice_errno_ = 0;
+};
 
 }  // namespace vigil::platform

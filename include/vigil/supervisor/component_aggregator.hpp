@@ -247,9 +247,15 @@ class ComponentAggregator {
   [[nodiscard]] static bool streams_rings(RingStores mode, std::size_t drained_bytes,
                                           std::size_t cache_bytes) noexcept;
 
+  /// Flight rings whose slots are on huge pages (`RingPages`), and the bytes of the 2 MiB
+  /// regions mapped for them (counted in no malloc statistic). Supervisor thread.
+  [[nodiscard]] std::size_t rings_on_huge_pages() const noexcept;
+  [[nodiscard]] std::size_t ring_region_bytes() const noexcept;
+
   struct Slot;
 
  private:
+  [[nodiscard]] platform::HugePageBlocks* ring_blocks_for_next() const noexcept;
   Slot* slot_for(const Entry& e);
   void take_sample(Slot& s, const task::CycleSample& m);  // all but the copy into data.last
   void raise(Slot& s, Event e);                           // the slot is locked by the caller
@@ -259,6 +265,8 @@ class ComponentAggregator {
   AggregatorOptions options_;
   std::atomic<double> ewma_weight_;
   mutable std::shared_mutex list_mutex_;
+  // Where rings come from (RingPages); before slots_: destroyed after the rings given back to it.
+  std::unique_ptr<platform::HugePageBlocks> ring_blocks_;
   std::vector<std::unique_ptr<Slot>> slots_;  // ordered by id
   std::vector<std::uint32_t> ids_;            // slots_[i]'s id, contiguous for the searches
   std::size_t hint_ = 0;                      // where the next port's slot probably is

@@ -7,9 +7,10 @@
 /// Chrome/Perfetto trace (vigil/export/trace_event.hpp).
 ///
 /// Memory: one ring of `capacity` slots (32 bytes each: 32 KiB for the default 1024) per
-/// component, allocated when the component joins; recording a cycle writes one slot and never
-/// allocates. A slot keeps a cycle packed (`PackedCycle`: times as offsets from the release,
-/// exact to the nanosecond up to 2.1 s, in microseconds beyond); readers get it unpacked as a
+/// component, allocated when the component joins (on a large system from huge-page regions:
+/// `RingPages`); recording a cycle writes one slot and never allocates. A slot keeps a cycle
+/// packed (`PackedCycle`: times as offsets from the release, exact to the nanosecond up to
+/// 2.1 s, in microseconds beyond); readers get it unpacked as a
 /// `CycleRecord`. Not RT-safe; one writer (the supervisor thread), readers copy under the
 /// aggregator's per-component lock.
 ///
@@ -18,8 +19,11 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <new>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #if defined(__x86_64__)
@@ -27,6 +31,7 @@
 #endif
 
 #include "vigil/platform/clock.hpp"
+#include "vigil/platform/memory.hpp"
 #include "vigil/supervisor/events.hpp"
 #include "vigil/task/messages.hpp"
 
@@ -205,12 +210,41 @@ class PackedCycle {
 };
 static_assert(sizeof(PackedCycle) == 32, "keep the flight recorder's slot at 32 bytes");
 static_assert(PackedCycle::layout_is_four_words(), "PackedCycle::stream() writes this layout");
+static_assert(std::is_trivially_destructible_v<PackedCycle>,
+              "FlightRing frees its slots without destroying them");
 
 /// A fixed-capacity ring of cycles. Not thread-safe (the owner locks).
 class FlightRing {
  public:
-  /// Allocates `capacity` slots (0: records nothing). Not RT-safe.
-  explicit FlightRing(std::size_t capacity = 0) : slots_(capacity), capacity_(capacity) {}
+  /// Allocates `capacity` slots (0: records nothing): from `blocks` when given and a block holds
+  /// them (and one can be had), else from the heap. Not RT-safe.
+  explicit FlightRing(std::size_t capacity = 0, platform::HugePageBlocks* blocks = nullptr)
+      : capacity_(capacity) {
+    if (capacity == 0) return;
+    if (blocks != nullptr && blocks->block_bytes() >= capacity * sizeof(PackedCycle)) {
+      if (void* b = blocks->allocate()) {
+        slots_ = static_cast<PackedCycle*>(b);
+        blocks_ = blocks;
+      }
+    }
+    if (slots_ == nullptr) slots_ = static_cast<PackedCycle*>(::operator new(bytes()));
+    std::uninitialized_value_construct_n(slots_, capacity);
+  }
+  ~FlightRing() { free(); }
+  FlightRing(FlightRing&& o) noexcept { take(o); }
+  FlightRing& operator=(FlightRing&& o) noexcept {
+    if (this != &o) {
+      free();
+      take(o);
+    }
+    return *this;
+  }
+  FlightRing(const FlightRing&) = delete;
+  FlightRing& operator=(const FlightRing&) = delete;
+  /// The slots' bytes.
+  [[nodiscard]] std::size_t bytes() const noexcept { return capacity_ * sizeof(PackedCycle); }
+  /// True when the slots are in a block of a HugePageBlocks.
+  [[nodiscard]] bool on_huge_pages() const noexcept { return blocks_ != nullptr; }
   /// Records one cycle, overwriting the oldest when full. Never allocates. Only when nothing is
   /// pending (see push_pending).
   void push(const CycleRecord& r) noexcept {
@@ -236,7 +270,7 @@ class FlightRing {
   /// registers over the run (one store of it at the end, not one per cycle). Never allocates.
   template <class Pack>
   std::size_t push_pending_while(Pack&& pack) noexcept {
-    PackedCycle* const slots = slots_.data();
+    PackedCycle* const slots = slots_;
     const std::size_t cap = capacity_;
     std::size_t next = next_;
     std::size_t pending = pending_;
@@ -283,8 +317,27 @@ class FlightRing {
   }
 
  private:
-  std::vector<PackedCycle> slots_;
-  std::size_t capacity_ = 0;  // slots_.size(), kept: no division per record
+  void free() noexcept {
+    if (slots_ == nullptr) return;
+    if (blocks_ != nullptr) {
+      blocks_->release(slots_);
+    } else {
+      ::operator delete(slots_);
+    }
+    slots_ = nullptr;
+  }
+  void take(FlightRing& o) noexcept {
+    slots_ = std::exchange(o.slots_, nullptr);
+    blocks_ = std::exchange(o.blocks_, nullptr);
+    capacity_ = std::exchange(o.capacity_, 0);
+    next_ = std::exchange(o.next_, 0);
+    size_ = std::exchange(o.size_, 0);
+    pending_ = std::exchange(o.pending_, 0);
+  }
+
+  PackedCycle* slots_ = nullptr;  // capacity_ of them (PackedCycle is trivially destructible)
+  platform::HugePageBlocks* blocks_ = nullptr;  // where slots_ came from (null: the heap)
+  std::size_t capacity_ = 0;
   std::size_t next_ = 0;
   std::size_t size_ = 0;
   std::size_t pending_ = 0;
@@ -315,6 +368,16 @@ enum class RingStores : std::uint8_t {
   Streaming,  ///< non-temporal stores on x86-64 (`PackedCycle::stream`); ordinary elsewhere
 };
 
+/// Whether the flight rings' memory comes from huge pages (`platform::HugePageBlocks`).
+enum class RingPages : std::uint8_t {
+  /// Huge pages for the rings that join once the rings in use fill a 2 MiB region (64 rings of
+  /// the default 1,024 cycles); the first ones, and every ring of a smaller system, on ordinary
+  /// pages (no 2 MiB region locked for a few rings).
+  Auto,
+  Huge,      ///< every ring from huge-page regions
+  Ordinary,  ///< every ring from the heap
+};
+
 /// Options of the flight recorder (part of `AggregatorOptions`).
 struct FlightRecorderOptions {
   /// Cycles kept per component (0: no recorder, no memory). The ring also holds the cycles the
@@ -326,6 +389,8 @@ struct FlightRecorderOptions {
   std::size_t max_records = 64;
   /// How a drain writes the slots (docs/design/supervision.md, "Streaming stores").
   RingStores stores = RingStores::Auto;
+  /// Where the rings' memory comes from (docs/design/supervision.md, "Huge pages").
+  RingPages pages = RingPages::Auto;
 };
 
 }  // namespace vigil::supervisor

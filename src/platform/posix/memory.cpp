@@ -93,4 +93,61 @@ RealtimeSetupReport setup_realtime_process(const RealtimeSetupOptions& options) 
   return report;
 }
 
+HugePageBlocks::HugePageBlocks(std::size_t block_bytes) noexcept
+    : block_((block_bytes + 63) / 64 * 64),
+      per_region_(block_ == 0 || block_ > kRegionBytes ? 0 : kRegionBytes / block_) {}
+
+HugePageBlocks::~HugePageBlocks() {
+  for (void* r : regions_) ::munmap(r, kRegionBytes);
+}
+
+void* HugePageBlocks::allocate() {
+  if (!free_.empty()) {
+    void* b = free_.back();
+    free_.pop_back();
+    ++in_use_;
+    return b;
+  }
+  if (per_region_ == 0) return nullptr;
+  if (regions_.empty() || carved_ == per_region_) {
+    // Twice the size, trimmed to a region on a 2 MiB boundary (huge pages need the alignment).
+    // Mapped without access first: under mlockall(MCL_FUTURE) a readable mapping is made resident
+    // at once, before the advice could apply; mprotect() then makes it resident with the advice.
+    regions_.reserve(regions_.size() + 1);  // so that push_back below cannot throw after mmap
+    void* raw = ::mmap(nullptr, 2 * kRegionBytes, PROT_NONE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (raw == MAP_FAILED) return nullptr;
+    const auto at = reinterpret_cast<std::uintptr_t>(raw);
+    const std::uintptr_t aligned = (at + kRegionBytes - 1) & ~std::uintptr_t{kRegionBytes - 1};
+    if (aligned > at) ::munmap(raw, aligned - at);
+    if (aligned + kRegionBytes < at + 2 * kRegionBytes) {
+      ::munmap(reinterpret_cast<void*>(aligned + kRegionBytes), at + kRegionBytes - aligned);
+    }
+    void* region = reinterpret_cast<void*>(aligned);
+#if defined(MADV_HUGEPAGE)
+    if (::madvise(region, kRegionBytes, MADV_HUGEPAGE) != 0 && advice_errno_ == 0) {
+      advice_errno_ = errno;
+    }
+#else
+    if (advice_errno_ == 0) advice_errno_ = ENOSYS;
+#endif
+    if (::mprotect(region, kRegionBytes, PROT_READ | PROT_WRITE) != 0) {
+      ::munmap(region, kRegionBytes);
+      return nullptr;
+    }
+    regions_.push_back(region);
+    carved_ = 0;
+  }
+  ++in_use_;
+  // Room for every block in use on the free list: release() never allocates (it is called from
+  // destructors).
+  if (free_.capacity() < in_use_) free_.reserve(2 * in_use_);
+  return static_cast<char*>(regions_.back()) + block_ * carved_++;
+}
+
+void HugePageBlocks::release(void* block) noexcept {
+  if (block == nullptr) return;
+  free_.push_back(block);
+  --in_use_;
+}
+
 }  // namespace vigil::platform
