@@ -116,13 +116,13 @@ void* HugePageBlocks::allocate() {
     regions_.reserve(regions_.size() + 1);  // so that push_back below cannot throw after mmap
     void* raw = ::mmap(nullptr, 2 * kRegionBytes, PROT_NONE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
     if (raw == MAP_FAILED) return nullptr;
+    // Pointer arithmetic from the mapping (no integer-to-pointer cast): the head to drop, then
+    // the region, then the tail to drop (kRegionBytes - head).
     const auto at = reinterpret_cast<std::uintptr_t>(raw);
-    const std::uintptr_t aligned = (at + kRegionBytes - 1) & ~std::uintptr_t{kRegionBytes - 1};
-    if (aligned > at) ::munmap(raw, aligned - at);
-    if (aligned + kRegionBytes < at + 2 * kRegionBytes) {
-      ::munmap(reinterpret_cast<void*>(aligned + kRegionBytes), at + kRegionBytes - aligned);
-    }
-    void* region = reinterpret_cast<void*>(aligned);
+    const std::size_t head = ((at + kRegionBytes - 1) & ~std::uintptr_t{kRegionBytes - 1}) - at;
+    char* const region = static_cast<char*>(raw) + head;
+    if (head > 0) ::munmap(raw, head);
+    if (head < kRegionBytes) ::munmap(region + kRegionBytes, kRegionBytes - head);
 #if defined(MADV_HUGEPAGE)
     if (::madvise(region, kRegionBytes, MADV_HUGEPAGE) != 0 && advice_errno_ == 0) {
       advice_errno_ = errno;
