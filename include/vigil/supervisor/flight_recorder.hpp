@@ -243,8 +243,6 @@ class FlightRing {
   FlightRing& operator=(const FlightRing&) = delete;
   /// The slots' bytes.
   [[nodiscard]] std::size_t bytes() const noexcept { return capacity_ * sizeof(PackedCycle); }
-  /// True when the slots are in a block of a HugePageBlocks.
-  [[nodiscard]] bool on_huge_pages() const noexcept { return blocks_ != nullptr; }
   /// Records one cycle, overwriting the oldest when full. Never allocates. Only when nothing is
   /// pending (see push_pending).
   void push(const CycleRecord& r) noexcept {
