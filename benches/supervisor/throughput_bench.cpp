@@ -161,6 +161,8 @@ void throughput(benchmark::State& state) {
   if constexpr (std::is_same_v<Handler, supervisor::ComponentAggregator>) {
     state.counters["goal_value_min"] =
         n >= 10'000 ? kGoalMessagesPerSecond10k : kGoalMessagesPerSecond;
+    using Aggregator = supervisor::ComponentAggregator;
+    state.SetLabel(std::string("catch-up: ") + Aggregator::name(Aggregator::instruction_set()));
   }
 }
 

@@ -6,6 +6,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <random>
 #include <string>
 #include <thread>
@@ -448,6 +449,79 @@ TEST_CASE("The statistics are the same whether cycles are taken at once or in bu
     REQUIRE(b.has_value());
     check_same_statistics(*b, *a);
   }
+}
+
+TEST_CASE("The statistics' catch-up gives the same results with either instruction set",
+          "[supervisor][aggregator]") {
+  // On x86-64 the catch-up is compiled for the base set and for LZCNT + BMI2, and the process
+  // picks one from CPUID. The same stream through both must give the same statistics, bit for
+  // bit: values across every octave the histograms cover (and below their exact range), gaps,
+  // overheads, cycles a ring slot keeps inexactly.
+  using Set = ComponentAggregator::InstructionSet;
+  const Set chosen = ComponentAggregator::instruction_set();
+  struct Restore {
+    Set set;
+    ~Restore() { (void)ComponentAggregator::set_instruction_set(set); }
+  } restore{chosen};
+  CHECK(std::string(ComponentAggregator::name(Set::Base)) == "base");
+  CHECK(std::string(ComponentAggregator::name(Set::LzcntBmi2)) == "lzcnt+bmi2");
+  REQUIRE(ComponentAggregator::set_instruction_set(Set::Base));
+  CHECK(ComponentAggregator::instruction_set() == Set::Base);
+  if (!ComponentAggregator::set_instruction_set(Set::LzcntBmi2)) {
+    CHECK(ComponentAggregator::instruction_set() == Set::Base);  // refused: nothing changed
+    WARN("this CPU (or build) has no LZCNT + BMI2 catch-up: only the base one is checked");
+    return;
+  }
+  CHECK(ComponentAggregator::instruction_set() == Set::LzcntBmi2);
+  std::mt19937_64 rng(GENERATE(1, 2));
+  struct Side {
+    explicit Side(Set s)
+        : set(s), agg({.recorder = {.cycles = 256}}), sup(reg, agg), member(reg.join<256>("c")) {}
+    Set set;
+    Registry<task::Message> reg;
+    ComponentAggregator agg;
+    TaskSupervisor sup;
+    bus::Membership<task::Message, 256> member;
+  };
+  Side base(Set::Base);
+  Side bits(Set::LzcntBmi2);
+  std::uint64_t cycle = 0;
+  Nanos release = kNanosPerSecond;
+  // A value of 2^k + a few bits, k from 0 to 35 (beyond the 2.1 s a ring slot keeps exactly).
+  const auto any_octave = [&] {
+    const int k = static_cast<int>(rng() % 36);
+    return (Nanos{1} << k) + static_cast<Nanos>(rng() % (std::uint64_t{1} << k));
+  };
+  for (int drain = 0; drain < 40; ++drain) {
+    const auto n = static_cast<int>(rng() % 257);
+    for (int i = 0; i < n; ++i) {
+      cycle += rng() % 50 == 0 ? 3 : 1;
+      release += any_octave();
+      task::CycleSample s;
+      s.counters.cycles = cycle;
+      s.release_ns = release;
+      s.start_ns = release + (rng() % 3 == 0 ? static_cast<Nanos>(rng() % 64) : any_octave());
+      s.end_ns = s.start_ns + any_octave();
+      s.overhead_ns = rng() % 8 == 0 ? any_octave() : 0;
+      s.state = TaskState::Running;
+      for (Side* side : {&base, &bits}) REQUIRE(side->member.port()->try_push(task::Message{s}));
+    }
+    for (Side* side : {&base, &bits}) {
+      REQUIRE(ComponentAggregator::set_instruction_set(side->set));
+      side->sup.step();
+    }
+  }
+  // Reading catches up what is still pending, with the set of each side.
+  std::optional<ComponentSnapshot> a;
+  std::optional<ComponentSnapshot> b;
+  REQUIRE(ComponentAggregator::set_instruction_set(Set::Base));
+  a = base.agg.find("c");
+  REQUIRE(ComponentAggregator::set_instruction_set(Set::LzcntBmi2));
+  b = bits.agg.find("c");
+  REQUIRE(a.has_value());
+  REQUIRE(b.has_value());
+  CHECK(a->user_ns.count > 2'000);
+  check_same_statistics(*b, *a);
 }
 
 TEST_CASE("Rings stream when the drains sweep far more than the last-level cache, or when told to",

@@ -138,9 +138,10 @@ class CompactHistogram {
   /// common part of the runs skips the per-sample checks. Not RT-safe (a sample outside the
   /// allocated range allocates, as add()).
   template <std::size_t K>
-  static void add_all(const std::array<CompactHistogram*, K>& hs,
-                      const std::array<const std::int64_t*, K>& values,
-                      const std::array<std::size_t, K>& n, bool in_range = false) noexcept {
+  [[gnu::always_inline]] static void add_all(const std::array<CompactHistogram*, K>& hs,
+                                             const std::array<const std::int64_t*, K>& values,
+                                             const std::array<std::size_t, K>& n,
+                                             bool in_range = false) noexcept {
     std::array<std::uint64_t*, K> counts;
     std::array<std::uint32_t, K> first;
     std::array<std::uint32_t, K> size;

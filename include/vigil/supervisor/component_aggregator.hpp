@@ -252,6 +252,21 @@ class ComponentAggregator {
   [[nodiscard]] std::size_t rings_on_huge_pages() const noexcept;
   [[nodiscard]] std::size_t ring_region_bytes() const noexcept;
 
+  /// The instruction set the statistics' catch-up runs with (the bulk update of a component's
+  /// statistics, every few hundred of its cycles; docs/design/supervision.md, "Instruction
+  /// sets"). On x86-64 it is compiled twice, and the process picks `LzcntBmi2` when the CPU has
+  /// LZCNT, BMI1 and BMI2 (every x86-64 core since about 2013), else `Base`. Both give the same
+  /// results, bit for bit; only their speed differs. Elsewhere, only `Base`.
+  enum class InstructionSet { Base, LzcntBmi2 };
+  /// The catch-up's instruction set in this process. Any thread.
+  [[nodiscard]] static InstructionSet instruction_set() noexcept;
+  /// Makes every aggregator of the process use `set` from their next catch-up (to compare, or to
+  /// rule the faster one out). False, and nothing changes, when the CPU cannot run it. Any
+  /// thread.
+  static bool set_instruction_set(InstructionSet set) noexcept;
+  /// The name of `set`: "base", "lzcnt+bmi2".
+  [[nodiscard]] static const char* name(InstructionSet set) noexcept;
+
   struct Slot;
 
  private:

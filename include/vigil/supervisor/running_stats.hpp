@@ -112,7 +112,7 @@ class ScalarStats {
   /// Counts `n` samples, oldest first: the same result as add() on each, bit for bit (the same
   /// operations in the same order), with the state in registers across the run. O(n),
   /// allocation-free, RT-safe.
-  constexpr void add_all(const Nanos* values, std::size_t n) noexcept {
+  [[gnu::always_inline]] constexpr void add_all(const Nanos* values, std::size_t n) noexcept {
     if (n == 0) return;
     std::size_t i = 0;
     if (count_ == 0) {
@@ -155,9 +155,9 @@ class ScalarStats {
   /// addition waits only for the previous one of its own statistic. Returns each run's range
   /// (what a histogram needs to know to skip its per-sample range checks). O(sum of n), RT-safe.
   template <std::size_t K>
-  static std::array<RunRange, K> add_all(const std::array<ScalarStats*, K>& stats,
-                                         const std::array<const Nanos*, K>& values,
-                                         const std::array<std::size_t, K>& n) noexcept {
+  [[gnu::always_inline]] static std::array<RunRange, K> add_all(
+      const std::array<ScalarStats*, K>& stats, const std::array<const Nanos*, K>& values,
+      const std::array<std::size_t, K>& n) noexcept {
     std::array<RunRange, K> range{};
     std::array<std::size_t, K> at{};
     std::size_t common = std::numeric_limits<std::size_t>::max();
@@ -348,7 +348,7 @@ class BasicRunningStats {
   }
   /// Counts `n` samples, oldest first: the same result as add() on each. O(n); may allocate
   /// as add() may (CompactHistogram).
-  constexpr void add_all(const Nanos* values, std::size_t n) noexcept {
+  [[gnu::always_inline]] constexpr void add_all(const Nanos* values, std::size_t n) noexcept {
     scalars_.add_all(values, n);
     Histogram::template add_all<1>({&histogram_}, {values}, {n});
   }
@@ -356,10 +356,10 @@ class BasicRunningStats {
   /// on each, the K + L EWMA chains interleaved (ScalarStats::add_all). values and n: the K
   /// statistics' runs, then the L others'.
   template <std::size_t K, std::size_t L>
-  static void add_all(const std::array<BasicRunningStats*, K>& stats,
-                      const std::array<ScalarStats*, L>& scalars,
-                      const std::array<const Nanos*, K + L>& values,
-                      const std::array<std::size_t, K + L>& n) noexcept {
+  [[gnu::always_inline]] static void add_all(const std::array<BasicRunningStats*, K>& stats,
+                                             const std::array<ScalarStats*, L>& scalars,
+                                             const std::array<const Nanos*, K + L>& values,
+                                             const std::array<std::size_t, K + L>& n) noexcept {
     std::array<ScalarStats*, K + L> all;
     for (std::size_t k = 0; k < K; ++k) all[k] = &stats[k]->scalars_;
     for (std::size_t l = 0; l < L; ++l) all[K + l] = scalars[l];
