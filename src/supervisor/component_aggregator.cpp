@@ -224,7 +224,8 @@ static_assert(kSlotHotBytes <= std::size_t{6} * 64,
 // every call inlined (flatten; the statistics' loops are always_inline for it), integer
 // arithmetic, and the same floating point (no FMA in the set): the same results bit for bit
 // (tested). Measured: 1.13x the messages per second at 1,000 components x 10 messages, 1.16x
-// at 10,000 (docs/performance.md). Chosen once, from CPUID; set_instruction_set() changes it.
+// at 10,000 (docs/performance.md). Chosen once, from CPUID; set_instruction_set() changes it. A
+// build that already targets LZCNT and BMI2 has one copy, which is then the LzcntBmi2 one.
 namespace {
 using InstructionSet = ComponentAggregator::InstructionSet;
 using TakePending = void (*)(const ComponentAggregator::Slot&) noexcept;
@@ -234,16 +235,24 @@ using TakePending = void (*)(const ComponentAggregator::Slot&) noexcept;
   s.take_pending();
 }
 
-#if defined(__x86_64__) && !(defined(__LZCNT__) && defined(__BMI__) && defined(__BMI2__))
+#if defined(__x86_64__) && defined(__LZCNT__) && defined(__BMI__) && defined(__BMI2__)
+// A build for CPUs that have them (-march=haswell or later): the one copy uses them.
+constexpr bool kBaseCopyHasBits = true;
+#else
+constexpr bool kBaseCopyHasBits = false;
+#if defined(__x86_64__)
 #define VIGIL_CATCH_UP_BITS 1
 [[gnu::target("lzcnt,bmi,bmi2"), gnu::flatten, gnu::noinline]] void take_pending_bits(
     const ComponentAggregator::Slot& s) noexcept {
   s.take_pending();
 }
 #endif
+#endif
 
-bool cpu_runs(InstructionSet set) noexcept {
-  if (set == InstructionSet::Base) return true;
+// Whether this build and this CPU can run the catch-up with `set`.
+bool can_run(InstructionSet set) noexcept {
+  if (set == InstructionSet::Base) return !kBaseCopyHasBits;
+  if (kBaseCopyHasBits) return true;
 #if defined(VIGIL_CATCH_UP_BITS)
   unsigned a = 0, b = 0, c = 0, d = 0;
   if (__get_cpuid(0x80000001U, &a, &b, &c, &d) == 0 || (c & bit_LZCNT) == 0) return false;
@@ -269,7 +278,7 @@ struct Dispatch {
 Dispatch& dispatch() noexcept {
   static Dispatch d = [] {
     const InstructionSet set =
-        cpu_runs(InstructionSet::LzcntBmi2) ? InstructionSet::LzcntBmi2 : InstructionSet::Base;
+        can_run(InstructionSet::LzcntBmi2) ? InstructionSet::LzcntBmi2 : InstructionSet::Base;
     return Dispatch{take_pending_for(set), set};
   }();
   return d;
@@ -285,7 +294,7 @@ ComponentAggregator::InstructionSet ComponentAggregator::instruction_set() noexc
 }
 
 bool ComponentAggregator::set_instruction_set(InstructionSet set) noexcept {
-  if (!cpu_runs(set)) return false;
+  if (!can_run(set)) return false;
   // A catch-up that loaded the other one finishes with it: both give the same results.
   dispatch().take.store(take_pending_for(set), std::memory_order_relaxed);
   dispatch().set.store(set, std::memory_order_relaxed);

@@ -256,13 +256,14 @@ class ComponentAggregator {
   /// statistics, every few hundred of its cycles; docs/design/supervision.md, "Instruction
   /// sets"). On x86-64 it is compiled twice, and the process picks `LzcntBmi2` when the CPU has
   /// LZCNT, BMI1 and BMI2 (every x86-64 core since about 2013), else `Base`. Both give the same
-  /// results, bit for bit; only their speed differs. Elsewhere, only `Base`.
+  /// results, bit for bit; only their speed differs. A build that targets those instructions
+  /// already (`-march=haswell` or later) has only `LzcntBmi2`; other CPUs, only `Base`.
   enum class InstructionSet { Base, LzcntBmi2 };
   /// The catch-up's instruction set in this process. Any thread.
   [[nodiscard]] static InstructionSet instruction_set() noexcept;
   /// Makes every aggregator of the process use `set` from their next catch-up (to compare, or to
-  /// rule the faster one out). False, and nothing changes, when the CPU cannot run it. Any
-  /// thread.
+  /// rule the faster one out). False, and nothing changes, when this build or CPU has no such
+  /// copy. Any thread.
   static bool set_instruction_set(InstructionSet set) noexcept;
   /// The name of `set`: "base", "lzcnt+bmi2".
   [[nodiscard]] static const char* name(InstructionSet set) noexcept;
