@@ -286,8 +286,9 @@ class FlightRing {
   /// Records pushed by push_pending() and not yet taken.
   [[nodiscard]] std::size_t pending() const noexcept { return pending_; }
   /// Hands every pending record to `f(const CycleRecord&)`, oldest first; none is pending after.
+  /// Always inlined, so that a caller compiled for another instruction set runs it with that set.
   template <class F>
-  void take_pending(F&& f) noexcept {
+  [[gnu::always_inline]] void take_pending(F&& f) noexcept {
     std::size_t i = next_ >= pending_ ? next_ - pending_ : next_ + capacity_ - pending_;
     for (; pending_ > 0; --pending_) {
       f(slots_[i].unpack());
