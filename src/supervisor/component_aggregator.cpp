@@ -271,33 +271,26 @@ TakePending take_pending_for(InstructionSet set) noexcept {
   return &take_pending_base;
 }
 
-struct Dispatch {
-  std::atomic<TakePending> take;
-  std::atomic<InstructionSet> set;
-};
-Dispatch& dispatch() noexcept {
-  static Dispatch d = [] {
-    const InstructionSet set =
-        can_run(InstructionSet::LzcntBmi2) ? InstructionSet::LzcntBmi2 : InstructionSet::Base;
-    return Dispatch{take_pending_for(set), set};
-  }();
-  return d;
+// The copy in use: the set alone (its function follows from it, take_pending_for).
+std::atomic<InstructionSet>& current_set() noexcept {
+  static std::atomic<InstructionSet> set{
+      can_run(InstructionSet::LzcntBmi2) ? InstructionSet::LzcntBmi2 : InstructionSet::Base};
+  return set;
 }
 }  // namespace
 
 void take_pending_into_stats(const ComponentAggregator::Slot& s) noexcept {
-  dispatch().take.load(std::memory_order_relaxed)(s);
+  take_pending_for(current_set().load(std::memory_order_relaxed))(s);
 }
 
 ComponentAggregator::InstructionSet ComponentAggregator::instruction_set() noexcept {
-  return dispatch().set.load(std::memory_order_relaxed);
+  return current_set().load(std::memory_order_relaxed);
 }
 
 bool ComponentAggregator::set_instruction_set(InstructionSet set) noexcept {
   if (!can_run(set)) return false;
   // A catch-up that loaded the other one finishes with it: both give the same results.
-  dispatch().take.store(take_pending_for(set), std::memory_order_relaxed);
-  dispatch().set.store(set, std::memory_order_relaxed);
+  current_set().store(set, std::memory_order_relaxed);
   return true;
 }
 
