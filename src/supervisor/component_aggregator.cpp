@@ -101,72 +101,92 @@ struct ComponentAggregator::Slot {
   mutable Nanos stats_last_start = 0;  // start of the latest cycle in the statistics
   mutable bool stats_has_prev = false;
 
-  // Cycles on their way into the statistics: the values of a run of cycles, staged, then each
-  // statistic takes its run at once (its EWMA chain and histogram increments interleaved with
-  // the others'). The one place the rule lives: what a cycle gives each statistic.
+  // Cycles on their way into the statistics: the values of a run of up to kRun cycles, staged,
+  // then each statistic takes its run at once (its EWMA chain and histogram increments
+  // interleaved with the others'): flush(). The one place the rule lives: what a cycle gives each
+  // statistic. The arrays are memory; the run's cursor (`Run`) is a separate object, so that once
+  // inlined it stays in registers (in one object with the arrays, each 64-bit store into them
+  // could alias it). The staging loop has no flush in it: it stages a whole run, then flushes.
   struct Staging {
     static constexpr std::size_t kRun = 64;
     std::array<Nanos, kRun> user, total, latency, period, overhead;
+  };
+  struct Run {
     std::size_t n = 0, np = 0, no = 0;
     bool has_prev = false;
     Nanos prev_start = 0;
     Nanos last_overhead = 0;
   };
-  [[gnu::always_inline]] void stage(Staging& st, const CycleRecord& r) const noexcept {
-    const bool had_prev = st.has_prev;
-    const Nanos before = st.prev_start;
-    st.has_prev = true;
-    st.prev_start = r.start_ns;
+  // At most kRun cycles between two flushes.
+  [[gnu::always_inline]] static void stage(Staging& st, Run& run, const CycleRecord& r) noexcept {
+    const bool had_prev = run.has_prev;
+    const Nanos before = run.prev_start;
+    run.has_prev = true;
+    run.prev_start = r.start_ns;
     if ((r.flags & CycleRecord::kWarmup) != 0) [[unlikely]]
       return;  // kept out of the statistics; still the start of the next period
     if (had_prev && (r.flags & CycleRecord::kGap) == 0) {
-      st.period[st.np++] = r.start_ns - before;
+      st.period[run.np++] = r.start_ns - before;
     }
     if (r.overhead_ns > 0) {
-      st.last_overhead = r.overhead_ns;
-      st.overhead[st.no++] = r.overhead_ns;
+      run.last_overhead = r.overhead_ns;
+      st.overhead[run.no++] = r.overhead_ns;
     }
-    st.user[st.n] = r.end_ns - r.start_ns;
-    st.total[st.n] = st.user[st.n] + st.last_overhead;
-    st.latency[st.n] = r.start_ns - r.release_ns;
-    if (++st.n == Staging::kRun) flush(st);
+    const Nanos user_ns = r.end_ns - r.start_ns;
+    st.user[run.n] = user_ns;
+    st.total[run.n] = user_ns + run.last_overhead;
+    st.latency[run.n] = r.start_ns - r.release_ns;
+    ++run.n;
   }
-  [[gnu::always_inline]] void flush(Staging& st) const noexcept {
+  [[gnu::always_inline]] void flush(const Staging& st, Run& run) const noexcept {
     CompactRunningStats::add_all<3, 1>(
         {&user, &latency, &period}, {&total.stats},
         {st.user.data(), st.latency.data(), st.period.data(), st.total.data()},
-        {st.n, st.n, st.np, st.n});
-    overhead.add_all(st.overhead.data(), st.no);
-    st.n = st.np = st.no = 0;
+        {run.n, run.n, run.np, run.n});
+    overhead.add_all(st.overhead.data(), run.no);
+    run.n = run.np = run.no = 0;
   }
   // Takes cycles into the statistics, in order (the period is from the previous one): `feed`
-  // hands them to the given function. Under the mutex. Inlined into the out-of-line catch-ups
-  // (take_pending_into_stats): a drain calls one once per few hundred cycles, and inline its
-  // buffers would weigh on every call.
+  // stages them, flushing at least every kRun cycles. Under the mutex. Inlined into the
+  // out-of-line catch-ups (take_pending_into_stats): a drain calls one once per few hundred
+  // cycles, and inline its buffers would weigh on every call.
   template <class Feed>
   [[gnu::always_inline]] void take(Feed&& feed) const noexcept {
     Staging st;
-    st.has_prev = stats_has_prev;
-    st.prev_start = stats_last_start;
-    st.last_overhead = last_overhead;
-    feed([&](const CycleRecord& r) __attribute__((always_inline)) { stage(st, r); });
-    flush(st);
-    stats_has_prev = st.has_prev;
-    stats_last_start = st.prev_start;
-    last_overhead = st.last_overhead;
+    Run run;
+    run.has_prev = stats_has_prev;
+    run.prev_start = stats_last_start;
+    run.last_overhead = last_overhead;
+    feed(st, run);
+    stats_has_prev = run.has_prev;
+    stats_last_start = run.prev_start;
+    last_overhead = run.last_overhead;
   }
   // Takes one cycle into the statistics at once (rare: no ring, or a cycle it keeps inexactly).
   [[gnu::noinline]] void aggregate(const CycleRecord& r) const noexcept {
-    take([&](auto&& to) { to(r); });
+    take([&](Staging& st, Run& run) {
+      stage(st, run, r);
+      flush(st, run);
+    });
   }
   // Takes every pending cycle of the ring into the statistics.
   void catch_up() const noexcept {
     if (ring.pending() == 0) return;
     take_pending_into_stats(*this);
   }
-  // What catch_up() does, compiled once for each instruction set (take_pending_into_stats).
+  // What catch_up() does, compiled once for each instruction set (take_pending_into_stats): the
+  // ring's pending cycles, a run of kRun at a time.
   [[gnu::always_inline]] void take_pending() const noexcept {
-    take([&](auto&& to) __attribute__((always_inline)) { ring.take_pending(to); });
+    const auto stage_run = [&](auto& st, auto& run) __attribute__((always_inline)) {
+      const auto to = [&](const CycleRecord& r) __attribute__((always_inline)) {
+        stage(st, run, r);
+      };
+      while (ring.pending() > 0) {
+        ring.take_pending(Staging::kRun, to);
+        flush(st, run);
+      }
+    };
+    take(stage_run);
   }
 
   // What every sample taken does to the per-drain fields, whichever path took it (take_run()

@@ -289,11 +289,23 @@ class FlightRing {
   /// Always inlined, so that a caller compiled for another instruction set runs it with that set.
   template <class F>
   [[gnu::always_inline]] void take_pending(F&& f) noexcept {
-    std::size_t i = next_ >= pending_ ? next_ - pending_ : next_ + capacity_ - pending_;
-    for (; pending_ > 0; --pending_) {
-      f(slots_[i].unpack());
-      i = i + 1 == capacity_ ? 0 : i + 1;
+    take_pending(pending_, f);
+  }
+  /// As take_pending(f), for the oldest `max` pending records only (all of them when fewer are
+  /// pending); returns how many were handed. The loop's state is in locals, not in the ring's
+  /// members: `f` may store 64-bit values, which could alias those and force a reload per record.
+  template <class F>
+  [[gnu::always_inline]] std::size_t take_pending(std::size_t max, F&& f) noexcept {
+    const std::size_t n = pending_ < max ? pending_ : max;
+    const std::size_t capacity = capacity_;
+    const PackedCycle* const slots = slots_;
+    std::size_t i = next_ >= pending_ ? next_ - pending_ : next_ + capacity - pending_;
+    pending_ -= n;
+    for (std::size_t left = n; left > 0; --left) {
+      f(slots[i].unpack());
+      i = i + 1 == capacity ? 0 : i + 1;
     }
+    return n;
   }
   /// The records, oldest first (a copy, unpacked).
   [[nodiscard]] std::vector<CycleRecord> ordered() const {
