@@ -140,6 +140,38 @@ TEST_CASE("A flight ring hands out its pending cycles once, oldest first, across
   CHECK(ring.ordered().front().cycle == 4);
 }
 
+TEST_CASE("A flight ring hands out at most the asked number of pending cycles, the oldest",
+          "[supervisor][recorder]") {
+  FlightRing ring(5);
+  std::vector<std::uint64_t> taken;
+  const auto take = [&](std::size_t max) {
+    return ring.take_pending(max, [&](const CycleRecord& r) { taken.push_back(r.cycle); });
+  };
+  ring.push(record(1, 1'000'000, 1'000, 2'000));  // not pending
+  ring.push(record(2, 2'000'000, 1'000, 2'000));
+  ring.push(record(3, 3'000'000, 1'000, 2'000));
+  // Five pending cycles, their slots wrapping past the ring's end: 3, 4, 0, 1, 2.
+  for (std::uint64_t c = 4; c <= 8; ++c) ring.push_pending(record(c, Nanos(c) * 1'000'000, 1, 2));
+  REQUIRE(ring.pending() == 5);
+  CHECK(take(2) == 2);
+  CHECK(taken == std::vector<std::uint64_t>{4, 5});
+  CHECK(ring.pending() == 3);
+  CHECK(take(0) == 0);  // none asked, none taken
+  CHECK(ring.pending() == 3);
+  CHECK(take(2) == 2);  // across the wrap
+  CHECK(taken == std::vector<std::uint64_t>{4, 5, 6, 7});
+  CHECK(take(64) == 1);  // more asked than pending: what there is
+  CHECK(taken == std::vector<std::uint64_t>{4, 5, 6, 7, 8});
+  CHECK(ring.pending() == 0);
+  CHECK(take(64) == 0);
+  // Taking leaves the records in the ring, newest last.
+  CHECK(ring.size() == 5);
+  CHECK(ring.back().cycle == 8);
+  ring.push_pending(record(9, 9'000'000, 1, 2));
+  CHECK(take(1) == 1);
+  CHECK(taken.back() == 9);
+}
+
 TEST_CASE("A slot written with streaming stores is the slot constructed in place",
           "[supervisor][recorder]") {
   // PackedCycle::stream() writes the slot as four words where the CPU streams: byte for byte
