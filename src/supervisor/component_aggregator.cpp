@@ -18,6 +18,7 @@
 #include <cpuid.h>
 #endif
 
+#include "vigil/assert.hpp"
 #include "vigil/task/shm_messages.hpp"
 
 namespace vigil::supervisor {
@@ -117,8 +118,9 @@ struct ComponentAggregator::Slot {
     Nanos prev_start = 0;
     Nanos last_overhead = 0;
   };
-  // At most kRun cycles between two flushes.
+  // At most kRun cycles between two flushes (checked in debug builds).
   [[gnu::always_inline]] static void stage(Staging& st, Run& run, const CycleRecord& r) noexcept {
+    VIGIL_ASSERT(run.n < Staging::kRun, "a run of cycles staged beyond Staging::kRun");
     const bool had_prev = run.has_prev;
     const Nanos before = run.prev_start;
     run.has_prev = true;
