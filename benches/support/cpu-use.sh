@@ -31,8 +31,11 @@ ticks() {
 }
 
 ncpu=$(nproc)
-read -r busy0 all0 < <(ticks)
+# Assignments, not process substitutions: ticks' exit status 2 ends this script with it.
+t0=$(ticks)
 sleep "$window"
-read -r busy1 all1 < <(ticks)
+t1=$(ticks)
+read -r busy0 all0 <<< "$t0"
+read -r busy1 all1 <<< "$t1"
 awk -v b="$((busy1 - busy0))" -v a="$((all1 - all0))" -v n="$ncpu" \
   'BEGIN { printf "%.2f %d\n", (a > 0 ? b / a : 0) * n, n }'
