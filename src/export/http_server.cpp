@@ -1,27 +1,31 @@
-// The HTTP endpoint on cpp-httplib 0.11 (Debian's libcpp-httplib, a compiled library: its
-// compile-time limits are the package's: 8 KiB request line and header line, backlog 5).
-//
-// cpp-httplib pulls the socket headers in; the only socket call made here is the SO_REUSEADDR
-// option that replaces cpp-httplib's default (which also sets SO_REUSEPORT, letting a second
-// server silently share the port).
+// The HTTP endpoint: requests' checks, routes and bodies. HTTP itself (parsing, limits,
+// timeouts, sockets) is cpp-httplib's, in the module `vigil_http` (http_transport.cpp), which
+// this file opens with dlopen the first time a server starts or answer() is called: a program
+// that never serves HTTP never maps cpp-httplib and the TLS and compression libraries Debian
+// builds it with (http_transport.hpp says why).
 #include "vigil/export/http_server.hpp"
 
+#include <dlfcn.h>
 #include <fmt/format.h>
-#include <httplib.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <charconv>
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <deque>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "dashboard_assets.hpp"
+#include "http_transport.hpp"
 #include "vigil/export/diagnostics.hpp"
 #include "vigil/export/json_report.hpp"
 #include "vigil/export/json_writer.hpp"
@@ -82,8 +86,8 @@ namespace {
 
 // cpp-httplib's own pool uses std::thread, which inherits the creating thread's policy: a
 // program whose main thread runs SCHED_FIFO would get real-time HTTP workers. These are created
-// SCHED_OTHER explicitly.
-class Pool final : public httplib::TaskQueue {
+// SCHED_OTHER explicitly; the module queues each accepted connection here.
+class Pool final : public detail::WorkerPool {
  public:
   Pool(unsigned n, const std::string& name) {
     for (unsigned i = 0; i < n; ++i) {
@@ -317,59 +321,119 @@ bool loopback_host(std::string_view host) {
   return host == "localhost" || host.starts_with("127.");
 }
 
-// cpp-httplib's server with one request served from any Stream (process_request is protected):
-// what a connection's thread runs, used on an in-memory stream by HttpServer::answer().
-class Server final : public httplib::Server {
- public:
-  bool serve_one(httplib::Stream& stream) {
-    bool closed = false;
-    // As on a connection with keep-alive count 1: the request is the connection's last.
-    return process_request(stream, true, closed, nullptr);
-  }
+// --- the module -------------------------------------------------------------------------------
+
+// One module per process, opened on first use and never closed (a transport's code must stay
+// mapped while any transport lives; the module holds no state of its own).
+struct Module {
+  VigilHttpTransportCreateFn create = nullptr;
+  std::string path;
 };
 
-// A connection in memory: reads the request's bytes, collects the response's.
-class MemoryStream final : public httplib::Stream {
- public:
-  explicit MemoryStream(std::string_view in) : in_(in) {}
-  bool is_readable() const override { return true; }
-  bool is_writable() const override { return true; }
-  ssize_t read(char* ptr, size_t size) override {
-    const std::size_t n = std::min(size, in_.size() - pos_);
-    std::memcpy(ptr, in_.data() + pos_, n);
-    pos_ += n;
-    return static_cast<ssize_t>(n);
+// Opens `path` and checks that it is a vigil HTTP module of this build.
+expected<Module, std::string> open_module(const std::string& path) {
+  void* handle = ::dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+  if (handle == nullptr) {
+    const char* why = ::dlerror();
+    return vigil::unexpected(why != nullptr ? std::string(why) : path + ": cannot be opened");
   }
-  ssize_t write(const char* ptr, size_t size) override {
-    out_.append(ptr, size);
-    return static_cast<ssize_t>(size);
+  const auto abi =
+      reinterpret_cast<VigilHttpTransportAbiFn>(::dlsym(handle, detail::kHttpModuleAbiSymbol));
+  const auto version = reinterpret_cast<VigilHttpTransportVersionFn>(
+      ::dlsym(handle, detail::kHttpModuleVersionSymbol));
+  const auto create = reinterpret_cast<VigilHttpTransportCreateFn>(
+      ::dlsym(handle, detail::kHttpModuleCreateSymbol));
+  std::string wrong;
+  if (abi == nullptr || version == nullptr || create == nullptr) {
+    wrong =
+        fmt::format("{}: not a vigil HTTP module (no {})", path, detail::kHttpModuleCreateSymbol);
+  } else if (abi() != detail::kHttpTransportAbi || std::strcmp(version(), kVersion) != 0) {
+    wrong = fmt::format(
+        "{}: built from vigil {} (interface {}), this program is vigil {} (interface "
+        "{})",
+        path, version(), abi(), kVersion, detail::kHttpTransportAbi);
   }
-  void get_remote_ip_and_port(std::string& ip, int& port) const override {
-    ip = "127.0.0.1";
-    port = 40000;
+  if (!wrong.empty()) {
+    (void)::dlclose(handle);
+    return vigil::unexpected(std::move(wrong));
   }
-  void get_local_ip_and_port(std::string& ip, int& port) const override {
-    ip = "127.0.0.1";
-    port = kDefaultHttpPort;
-  }
-  socket_t socket() const override { return INVALID_SOCKET; }
-  std::string take() { return std::move(out_); }
+  // The file actually opened (a bare name was found through the dynamic linker's search).
+  Dl_info info{};
+  const bool found = ::dladdr(reinterpret_cast<void*>(create), &info) != 0 &&
+                     info.dli_fname != nullptr && *info.dli_fname != '\0';
+  return Module{.create = create, .path = found ? std::string(info.dli_fname) : path};
+}
 
- private:
-  std::string_view in_;
-  std::size_t pos_ = 0;
-  std::string out_;
-};
+// Where the module is looked for, in order (docs/reference/http.md, "The HTTP module").
+std::vector<std::string> module_candidates() {
+  if (const char* env = std::getenv("VIGIL_HTTP_MODULE"); env != nullptr && *env != '\0') {
+    return {env};  // an explicit choice: nothing else is tried
+  }
+  std::vector<std::string> c;
+  // The dynamic linker's search: the program's RUNPATH (the installed `vigil` has
+  // $ORIGIN/../lib/vigil, and find_package(vigil) adds the installation's), LD_LIBRARY_PATH,
+  // the system's directories.
+  c.emplace_back(detail::kHttpModuleFile);
+#ifdef VIGIL_HTTP_MODULE_BUILD_PATH
+  // This build tree's module: what tests and the tool run from the build tree load.
+  if (::access(VIGIL_HTTP_MODULE_BUILD_PATH, F_OK) == 0)
+    c.emplace_back(VIGIL_HTTP_MODULE_BUILD_PATH);
+#endif
+#ifdef VIGIL_HTTP_MODULE_INSTALL_PATH
+  c.emplace_back(VIGIL_HTTP_MODULE_INSTALL_PATH);  // where `cmake --install` puts it by default
+#endif
+  return c;
+}
+
+std::mutex module_mutex;
+std::optional<Module> loaded_module;  // guarded by module_mutex
+
+expected<Module, Error> load_module() {
+  std::lock_guard lock(module_mutex);
+  if (loaded_module) return *loaded_module;
+  std::string tried;
+  for (const std::string& path : module_candidates()) {
+    auto m = open_module(path);
+    if (m) {
+      loaded_module = *m;
+      return *m;
+    }
+    tried += "\n  " + m.error();
+  }
+  return vigil::unexpected(
+      Error(ENOENT, fmt::format("HTTP server: cannot load its module {} (set VIGIL_HTTP_MODULE to "
+                                "its path; see docs/reference/http.md):{}",
+                                detail::kHttpModuleFile, tried)));
+}
+
+std::string endpoint_list() {
+  return "endpoints: /, /metrics, /api/v1/reports, /api/v1/reports/<name>, /api/v1/diagnostics, "
+         "/api/v1/histograms, /api/v1/history, /healthz";
+}
+
+std::string error_text(int status, std::string_view path) {
+  if (status == 404) {
+    return fmt::format("404 not found: {} ({})\n", path.substr(0, 200), endpoint_list());
+  }
+  return fmt::format("{} {}\n", status, reason(status));
+}
 
 }  // namespace
+
+expected<std::string, Error> http_module() {
+  auto m = load_module();
+  if (!m) return vigil::unexpected(m.error());
+  return m->path;
+}
 
 // --- the server --------------------------------------------------------------------------------
 
 struct HttpServer::Impl {
   HttpOptions options;
-  std::unique_ptr<Server> server;
-  std::mutex memory_mutex;         // creates `memory` once
-  std::unique_ptr<Server> memory;  // answer()'s server: the same configuration, no socket
+  detail::TransportConfig transport_config;
+  std::unique_ptr<detail::Transport> transport;
+  std::mutex memory_mutex;                    // creates `memory` once
+  std::unique_ptr<detail::Transport> memory;  // answer()'s transport: no socket
   platform::Thread listener;
   std::mutex control_mutex;  // serialises start() and stop()
   std::atomic<bool> running{false};
@@ -406,9 +470,15 @@ struct HttpServer::Impl {
     return std::max<Nanos>(3 * interval.load(std::memory_order_relaxed), 3 * kNanosPerSecond);
   }
 
-  // Everything a server does with a request: limits, timeouts, checks and routes.
-  void configure(Server& s);
-  void routes(Server& s);
+  // A new transport from the module, with this server's limits, timeouts and routes.
+  expected<std::unique_ptr<detail::Transport>, Error> make_transport();
+
+  // Every request: method and Host checks, then the routes.
+  void handle(const detail::HttpRequest& req, detail::HttpResponse& res);
+  void route(const detail::HttpRequest& req, detail::HttpResponse& res);
+  bool json_503(detail::HttpResponse& res, const std::shared_ptr<const Published>& p) const;
+  void events(const detail::HttpRequest& req, detail::HttpResponse& res);
+  void healthz(detail::HttpResponse& res);
 };
 
 namespace {
@@ -429,7 +499,28 @@ void replace_all(std::string& s, std::string_view from, std::string_view to) {
   }
 }
 
+bool iequal(std::string_view a, std::string_view b) {
+  return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
+           return std::tolower(static_cast<unsigned char>(x)) ==
+                  std::tolower(static_cast<unsigned char>(y));
+         });
+}
+
 }  // namespace
+
+std::string detail::HttpRequest::header(std::string_view name) const {
+  for (const auto& [k, v] : headers) {
+    if (iequal(k, name)) return v;
+  }
+  return {};
+}
+
+const std::string* detail::HttpRequest::param(std::string_view name) const {
+  for (const auto& [k, v] : params) {
+    if (k == name) return &v;
+  }
+  return nullptr;
+}
 
 HttpServer::Impl::Impl(HttpOptions o) : options(std::move(o)) {
   if (options.dashboard) {
@@ -441,239 +532,252 @@ HttpServer::Impl::Impl(HttpOptions o) : options(std::move(o)) {
   } else {
     page = index_page();
   }
-}
-
-void HttpServer::Impl::configure(Server& s) {
-  const HttpOptions& o = options;
-  s.set_keep_alive_max_count(1);  // one request per connection: no thread held between requests
-  s.set_keep_alive_timeout(
-      std::max<time_t>(1, static_cast<time_t>(o.read_timeout_ns / kNanosPerSecond)));
-  s.set_read_timeout(o.read_timeout_ns / kNanosPerSecond,
-                     (o.read_timeout_ns % kNanosPerSecond) / 1000);
-  s.set_write_timeout(o.write_timeout_ns / kNanosPerSecond,
-                      (o.write_timeout_ns % kNanosPerSecond) / 1000);
-  s.set_payload_max_length(o.max_body_bytes);
-  routes(s);
-}
-
-void HttpServer::Impl::routes(Server& s) {
-  using HR = httplib::Server::HandlerResponse;
-  const bool check_host = options.listen.loopback();
-
-  const bool clear_enabled = static_cast<bool>(options.clear);
-  s.set_pre_routing_handler([check_host, clear_enabled](const httplib::Request& req,
-                                                        httplib::Response& res) {
-    const bool clear_post = clear_enabled && req.method == "POST" && req.path == "/api/v1/clear";
-    if (req.method != "GET" && req.method != "HEAD" && !clear_post) {
-      res.status = 405;
-      res.set_header("Allow", "GET, HEAD");
-      res.set_content(fmt::format("405 method not allowed: {} (this endpoint is read-only: GET "
-                                  "and HEAD)\n",
-                                  req.method),
-                      kText);
-      return HR::Handled;
-    }
-    if (check_host && !loopback_host(req.get_header_value("Host"))) {
-      res.status = 403;
-      res.set_content(
-          "403 forbidden: this server listens on a loopback address and answers "
-          "only requests for localhost, 127.0.0.1 or [::1]\n",
-          kText);
-      return HR::Handled;
-    }
-    return HR::Unhandled;
-  });
-  s.set_error_handler(
-      httplib::Server::HandlerWithResponse([](const httplib::Request& req, httplib::Response& res) {
-        if (!res.body.empty()) return HR::Unhandled;
-        if (res.status == 404) {
-          res.set_content(fmt::format("404 not found: {} (endpoints: /, /metrics, /api/v1/reports, "
-                                      "/api/v1/reports/<name>, /api/v1/diagnostics, "
-                                      "/api/v1/histograms, /api/v1/history, /healthz)\n",
-                                      req.path.size() > 200 ? req.path.substr(0, 200) : req.path),
-                          kText);
-        } else {
-          res.set_content(fmt::format("{} {}\n", res.status, reason(res.status)), kText);
-        }
-        return HR::Handled;
-      }));
-  s.set_exception_handler(
-      [](const httplib::Request&, httplib::Response& res, const std::exception_ptr& ep) {
-        std::string what = "unknown exception";
-        try {
-          if (ep) std::rethrow_exception(ep);
-        } catch (const std::exception& e) {
-          what = e.what();
-        } catch (...) {
-        }
-        res.status = 500;
-        res.set_content("500 internal server error: " + what + "\n", kText);
-      });
-  s.set_logger([this](const httplib::Request&, const httplib::Response& res) {
+  detail::TransportConfig& c = transport_config;
+  const HttpOptions& op = options;
+  c.keep_alive_timeout_s =
+      std::max<long>(1, static_cast<long>(op.read_timeout_ns / kNanosPerSecond));
+  c.read_timeout_s = static_cast<long>(op.read_timeout_ns / kNanosPerSecond);
+  c.read_timeout_us = static_cast<long>((op.read_timeout_ns % kNanosPerSecond) / 1000);
+  c.write_timeout_s = static_cast<long>(op.write_timeout_ns / kNanosPerSecond);
+  c.write_timeout_us = static_cast<long>((op.write_timeout_ns % kNanosPerSecond) / 1000);
+  c.max_body_bytes = op.max_body_bytes;
+  c.listen_backlog = kListenBacklog;
+  c.default_headers = {{"X-Content-Type-Options", "nosniff"},
+                       {"Cache-Control", "no-store"},
+                       {"Referrer-Policy", "no-referrer"}};
+  c.handle = [this](const detail::HttpRequest& req, detail::HttpResponse& res) {
+    handle(req, res);
+  };
+  c.error_body = [](int status, std::string_view path) { return error_text(status, path); };
+  c.answered = [this](int status) {
     requests.fetch_add(1, std::memory_order_relaxed);
-    if (res.status >= 500) {
+    if (status >= 500) {
       server_errors.fetch_add(1, std::memory_order_relaxed);
-    } else if (res.status >= 400) {
+    } else if (status >= 400) {
       client_errors.fetch_add(1, std::memory_order_relaxed);
     }
-  });
-  s.set_default_headers({{"X-Content-Type-Options", "nosniff"},
-                         {"Cache-Control", "no-store"},
-                         {"Referrer-Policy", "no-referrer"}});
+  };
+  c.make_pool = [threads = op.threads, name = op.thread_name] {
+    return std::make_unique<Pool>(threads, name);
+  };
+}
+
+expected<std::unique_ptr<detail::Transport>, Error> HttpServer::Impl::make_transport() {
+  auto module = load_module();
+  if (!module) return vigil::unexpected(module.error());
+  std::unique_ptr<detail::Transport> t(module->create(transport_config));
+  if (!t) {
+    return vigil::unexpected(Error(
+        ENOMEM, fmt::format("HTTP server: the module {} could not create a server", module->path)));
+  }
+  return t;
+}
+
+void HttpServer::Impl::handle(const detail::HttpRequest& req, detail::HttpResponse& res) {
+  const bool clear_post = options.clear && req.method == "POST" && req.path == "/api/v1/clear";
+  if (req.method != "GET" && req.method != "HEAD" && !clear_post) {
+    res.status = 405;
+    res.headers.emplace_back("Allow", "GET, HEAD");
+    res.set(fmt::format("405 method not allowed: {} (this endpoint is read-only: GET and HEAD)\n",
+                        req.method),
+            kText);
+    return;
+  }
+  if (options.listen.loopback() && !loopback_host(req.header("Host"))) {
+    res.status = 403;
+    res.set(
+        "403 forbidden: this server listens on a loopback address and answers "
+        "only requests for localhost, 127.0.0.1 or [::1]\n",
+        kText);
+    return;
+  }
+  try {
+    route(req, res);
+  } catch (const std::exception& e) {
+    res = detail::HttpResponse{};
+    res.status = 500;
+    res.set(std::string("500 internal server error: ") + e.what() + "\n", kText);
+  }
+}
+
+bool HttpServer::Impl::json_503(detail::HttpResponse& res,
+                                const std::shared_ptr<const Published>& p) const {
+  if (p) return false;
+  res.status = 503;
+  res.set(error_json("no reports yet: the monitor has not published a cycle"), kJson);
+  return true;
+}
+
+void HttpServer::Impl::route(const detail::HttpRequest& req, detail::HttpResponse& res) {
+  const std::string& path = req.path;
+  if (req.method == "POST") {  // handle() let only POST /api/v1/clear through, when enabled
+    if (req.header("X-Vigil-Clear") != "1") {
+      res.status = 403;
+      res.set(error_json("POST /api/v1/clear needs the header X-Vigil-Clear: 1"), kJson);
+      return;
+    }
+    const std::string* name = req.param("component");
+    const std::size_t n = options.clear(name != nullptr ? *name : std::string());
+    res.set(fmt::format(R"({{"cleared":{}}})", n) + "\n", kJson);
+    return;
+  }
 
   // The dashboard and its files.
-  s.Get("/", [this](const httplib::Request&, httplib::Response& res) {
-    res.set_header("Content-Security-Policy",
-                   "default-src 'self'; style-src 'self' 'unsafe-inline'; img-src 'self' data:; "
-                   "frame-ancestors 'none'");
-    res.set_content(page, "text/html; charset=utf-8");
-  });
+  if (path == "/") {
+    res.headers.emplace_back(
+        "Content-Security-Policy",
+        "default-src 'self'; style-src 'self' 'unsafe-inline'; img-src 'self' data:; "
+        "frame-ancestors 'none'");
+    res.set(page, "text/html; charset=utf-8");
+    return;
+  }
   if (options.dashboard) {
-    s.Get("/static/dashboard.js", [](const httplib::Request&, httplib::Response& res) {
-      res.set_content(std::string(detail::kDashboardJs), "text/javascript; charset=utf-8");
-    });
-    s.Get("/static/dashboard.css", [](const httplib::Request&, httplib::Response& res) {
-      res.set_content(std::string(detail::kDashboardCss), "text/css; charset=utf-8");
-    });
-    if (!detail::kChartJs.empty()) {
-      s.Get("/static/chart.js", [](const httplib::Request&, httplib::Response& res) {
-        res.set_header("Cache-Control", "max-age=86400");
-        res.set_content(std::string(detail::kChartJs), "text/javascript; charset=utf-8");
-      });
+    if (path == "/static/dashboard.js") {
+      res.set(std::string(detail::kDashboardJs), "text/javascript; charset=utf-8");
+      return;
+    }
+    if (path == "/static/dashboard.css") {
+      res.set(std::string(detail::kDashboardCss), "text/css; charset=utf-8");
+      return;
+    }
+    if (path == "/static/chart.js" && !detail::kChartJs.empty()) {
+      res.headers.emplace_back("Cache-Control", "max-age=86400");
+      res.set(std::string(detail::kChartJs), "text/javascript; charset=utf-8");
+      return;
     }
   }
 
-  s.Get("/metrics", [this](const httplib::Request& req, httplib::Response& res) {
-    const ExpositionFormat f = negotiate_format(req.get_header_value("Accept"));
+  if (path == "/metrics") {
+    const ExpositionFormat f = negotiate_format(req.header("Accept"));
     auto p = published();
     if (!p) {
-      res.set_content(render_metrics(MetricsSnapshot{}, f), content_type(f));
+      res.set(render_metrics(MetricsSnapshot{}, f), content_type(f));
       return;
     }
     const std::string& body =
         f == ExpositionFormat::OpenMetrics
             ? p->get(p->openmetrics, [&] { return render_metrics(*p->snap, f); })
             : p->get(p->prometheus, [&] { return render_metrics(*p->snap, f); });
-    res.set_content(body, content_type(f));
-  });
+    res.set(body, content_type(f));
+    return;
+  }
 
-  const auto json_endpoint = [this](auto body_of) {
-    return [this, body_of](const httplib::Request&, httplib::Response& res) {
-      auto p = published();
-      if (!p) {
-        res.status = 503;
-        res.set_content(error_json("no reports yet: the monitor has not published a cycle"), kJson);
-        return;
-      }
-      res.set_content(body_of(*p), kJson);
-    };
-  };
-  s.Get("/api/v1/reports", json_endpoint([](const Published& p) -> const std::string& {
-          return p.get(p.reports, [&] { return to_json(p.snap->reports); });
-        }));
-  s.Get("/api/v1/diagnostics", json_endpoint([](const Published& p) -> const std::string& {
-          return p.get(p.diagnostics,
-                       [&] { return to_diagnostics_json(p.snap->reports, p.snap->wall_time_ns); });
-        }));
-  s.Get("/api/v1/histograms", json_endpoint([](const Published& p) -> const std::string& {
-          return p.get(p.histograms, [&] { return histograms_json(*p.snap); });
-        }));
-  s.Get("/api/v1/history", json_endpoint([](const Published& p) -> const std::string& {
-          return p.get(p.history, [&] { return history_json(*p.snap); });
-        }));
-  s.Get(R"(/api/v1/reports/(.+))", [this](const httplib::Request& req, httplib::Response& res) {
+  const auto json = [&](auto body_of) {
     auto p = published();
-    if (!p) {
-      res.status = 503;
-      res.set_content(error_json("no reports yet: the monitor has not published a cycle"), kJson);
-      return;
-    }
-    const std::string name = req.matches[1];
+    if (json_503(res, p)) return;
+    res.set(body_of(*p), kJson);
+  };
+  if (path == "/api/v1/reports") {
+    json([](const Published& p) -> const std::string& {
+      return p.get(p.reports, [&] { return to_json(p.snap->reports); });
+    });
+    return;
+  }
+  if (path == "/api/v1/diagnostics") {
+    json([](const Published& p) -> const std::string& {
+      return p.get(p.diagnostics,
+                   [&] { return to_diagnostics_json(p.snap->reports, p.snap->wall_time_ns); });
+    });
+    return;
+  }
+  if (path == "/api/v1/histograms") {
+    json([](const Published& p) -> const std::string& {
+      return p.get(p.histograms, [&] { return histograms_json(*p.snap); });
+    });
+    return;
+  }
+  if (path == "/api/v1/history") {
+    json([](const Published& p) -> const std::string& {
+      return p.get(p.history, [&] { return history_json(*p.snap); });
+    });
+    return;
+  }
+  constexpr std::string_view kReportOf = "/api/v1/reports/";
+  if (path.size() > kReportOf.size() && path.starts_with(kReportOf)) {
+    auto p = published();
+    if (json_503(res, p)) return;
+    const std::string name = path.substr(kReportOf.size());
     const Report* r = p->snap->reports.find(name);
     if (r == nullptr) {
       res.status = 404;
-      res.set_content(error_json("no component named '" + name + "'"), kJson);
+      res.set(error_json("no component named '" + name + "'"), kJson);
       return;
     }
-    res.set_content(component_json(*p->snap, *r), kJson);
-  });
-
-  if (options.events != nullptr) {
-    s.Get("/api/v1/events", [this](const httplib::Request& req, httplib::Response& res) {
-      supervisor::EventHub& hub = *options.events;
-      std::uint64_t after = 0;
-      double wait_s = 0;
-      try {
-        if (req.has_param("after")) after = std::stoull(req.get_param_value("after"));
-        if (req.has_param("wait")) wait_s = std::stod(req.get_param_value("wait"));
-      } catch (const std::exception&) {
-        res.status = 400;
-        res.set_content(error_json("after must be an event sequence number and wait a number "
-                                   "of seconds"),
-                        kJson);
-        return;
-      }
-      if (!(wait_s >= 0)) wait_s = 0;
-      const Nanos wait_ns = std::min(static_cast<Nanos>(wait_s * 1e9), options.events_max_wait_ns);
-      if (wait_ns > 0) (void)hub.wait(after, wait_ns);
-      const auto events = hub.since(after, 1000);
-      std::string body = fmt::format(
-          R"({{"last_seq":{},"lost_before":{},"events":[)", hub.last_seq(),
-          !events.empty() && events.front().seq > after + 1 ? events.front().seq - after - 1 : 0);
-      for (std::size_t i = 0; i < events.size(); ++i) {
-        if (i > 0) body += ',';
-        body += event_json(events[i]);
-      }
-      body += "]}\n";
-      res.set_content(body, kJson);
-    });
+    res.set(component_json(*p->snap, *r), kJson);
+    return;
   }
-  if (options.trace) {
-    s.Get(R"(/api/v1/trace/(.+))", [this](const httplib::Request& req, httplib::Response& res) {
-      const std::string name = req.matches[1];
-      auto body = options.trace(name);
-      if (!body) {
-        res.status = 404;
-        res.set_content(error_json("no component named '" + name + "'"), kJson);
-        return;
-      }
-      res.set_header("Content-Disposition", "attachment; filename=\"vigil-trace.json\"");
-      res.set_content(*body, kJson);
-    });
+  if (path == "/api/v1/events" && options.events != nullptr) {
+    events(req, res);
+    return;
   }
-  if (options.clear) {
-    s.Post("/api/v1/clear", [this](const httplib::Request& req, httplib::Response& res) {
-      if (req.get_header_value("X-Vigil-Clear") != "1") {
-        res.status = 403;
-        res.set_content(error_json("POST /api/v1/clear needs the header X-Vigil-Clear: 1"), kJson);
-        return;
-      }
-      const std::string name = req.has_param("component") ? req.get_param_value("component") : "";
-      const std::size_t n = options.clear(name);
-      res.set_content(fmt::format(R"({{"cleared":{}}})", n) + "\n", kJson);
-    });
-  }
-
-  s.Get("/healthz", [this](const httplib::Request&, httplib::Response& res) {
-    auto p = published();
-    exporter::JsonWriter w;
-    w.begin_object();
-    if (!p) {
-      res.status = 503;
-      w.field("status", "starting").field("detail", "no reports published yet");
-    } else {
-      const Nanos age = platform::now_ns() - p->snap->published_ns;
-      const bool stale = age > stale_limit();
-      res.status = stale ? 503 : 200;
-      w.field("status", stale ? "stale" : "ok");
-      w.field("cycle", p->snap->reports.cycle);
-      w.field("age_s", static_cast<double>(age) / 1e9);
-      w.field("stale_after_s", static_cast<double>(stale_limit()) / 1e9);
-      w.field("worst", to_string(p->snap->reports.worst()));
+  constexpr std::string_view kTraceOf = "/api/v1/trace/";
+  if (options.trace && path.size() > kTraceOf.size() && path.starts_with(kTraceOf)) {
+    const std::string name = path.substr(kTraceOf.size());
+    auto body = options.trace(name);
+    if (!body) {
+      res.status = 404;
+      res.set(error_json("no component named '" + name + "'"), kJson);
+      return;
     }
-    w.end_object();
-    res.set_content(w.take() + "\n", kJson);
-  });
+    res.headers.emplace_back("Content-Disposition", "attachment; filename=\"vigil-trace.json\"");
+    res.set(std::move(*body), kJson);
+    return;
+  }
+  if (path == "/healthz") {
+    healthz(res);
+    return;
+  }
+  res.status = 404;
+  res.set(error_text(404, path), kText);
+}
+
+void HttpServer::Impl::events(const detail::HttpRequest& req, detail::HttpResponse& res) {
+  supervisor::EventHub& hub = *options.events;
+  std::uint64_t after = 0;
+  double wait_s = 0;
+  try {
+    if (const std::string* a = req.param("after")) after = std::stoull(*a);
+    if (const std::string* w = req.param("wait")) wait_s = std::stod(*w);
+  } catch (const std::exception&) {
+    res.status = 400;
+    res.set(error_json("after must be an event sequence number and wait a number of seconds"),
+            kJson);
+    return;
+  }
+  if (!(wait_s >= 0)) wait_s = 0;
+  const Nanos wait_ns = std::min(static_cast<Nanos>(wait_s * 1e9), options.events_max_wait_ns);
+  if (wait_ns > 0) (void)hub.wait(after, wait_ns);
+  const auto list = hub.since(after, 1000);
+  std::string body =
+      fmt::format(R"({{"last_seq":{},"lost_before":{},"events":[)", hub.last_seq(),
+                  !list.empty() && list.front().seq > after + 1 ? list.front().seq - after - 1 : 0);
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    if (i > 0) body += ',';
+    body += event_json(list[i]);
+  }
+  body += "]}\n";
+  res.set(std::move(body), kJson);
+}
+
+void HttpServer::Impl::healthz(detail::HttpResponse& res) {
+  auto p = published();
+  exporter::JsonWriter w;
+  w.begin_object();
+  if (!p) {
+    res.status = 503;
+    w.field("status", "starting").field("detail", "no reports published yet");
+  } else {
+    const Nanos age = platform::now_ns() - p->snap->published_ns;
+    const bool stale = age > stale_limit();
+    res.status = stale ? 503 : 200;
+    w.field("status", stale ? "stale" : "ok");
+    w.field("cycle", p->snap->reports.cycle);
+    w.field("age_s", static_cast<double>(age) / 1e9);
+    w.field("stale_after_s", static_cast<double>(stale_limit()) / 1e9);
+    w.field("worst", to_string(p->snap->reports.worst()));
+  }
+  w.end_object();
+  res.set(w.take() + "\n", kJson);
 }
 
 HttpServer::HttpServer(HttpOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {}
@@ -698,61 +802,35 @@ expected<void, Error> HttpServer::start() {
         Error(EINVAL, "HTTP server: the dashboard refresh must be 200 ms..1 s (1 to 5 Hz)"));
   }
 
-  m.server = std::make_unique<Server>();
-  Server& s = *m.server;
-  // SO_REUSEADDR (restart while old connections linger in TIME_WAIT) but not SO_REUSEPORT:
-  // a second server on the same port must fail, not share the port.
-  // The hook also remembers the socket, whose listen backlog is raised after the bind.
-  auto last_socket = std::make_shared<std::atomic<socket_t>>(INVALID_SOCKET);
-  s.set_socket_options([last_socket](socket_t sock) {
-    int yes = 1;
-    (void)::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
-    last_socket->store(sock);
-  });
-  const unsigned threads = o.threads;
-  const std::string name = o.thread_name;
-  s.new_task_queue = [threads, name] { return new Pool(threads, name); };
-  m.configure(s);
-
-  errno = 0;
-  int port = o.listen.port;
-  bool bound = false;
-  if (port == 0) {
-    port = s.bind_to_any_port(o.listen.host);
-    bound = port > 0;
-  } else {
-    bound = s.bind_to_port(o.listen.host, port);
-  }
-  if (!bound) {
-    const int err = errno;
+  auto made = m.make_transport();
+  if (!made) return vigil::unexpected(made.error());
+  m.transport = std::move(*made);
+  const int port = m.transport->bind(o.listen.host, o.listen.port);
+  if (port <= 0) {
+    const int err = -port;
     const std::string what =
         err == EADDRINUSE ? "the port is taken (another process serves it); choose another port"
-        : err != 0        ? std::string(std::strerror(err))
+        : err > 1         ? std::string(std::strerror(err))
                           : std::string("cannot resolve or bind");
-    m.server.reset();
-    return vigil::unexpected(Error(
-        err, fmt::format("HTTP server: cannot listen on {}: {}", o.listen.to_string(), what)));
+    m.transport.reset();
+    return vigil::unexpected(
+        Error(err > 1 ? err : 0,
+              fmt::format("HTTP server: cannot listen on {}: {}", o.listen.to_string(), what)));
   }
   m.bound = ListenAddress{o.listen.host, port};
-  // Debian's cpp-httplib listens with a backlog of 5: a burst of scrapers (or a browser opening
-  // several connections) would see dropped SYNs and retransmission delays of seconds. Linux
-  // updates the backlog of a listening socket when listen() is called again.
-  if (const socket_t sock = last_socket->load(); sock != INVALID_SOCKET) {
-    (void)::listen(sock, kListenBacklog);
-  }
 
   auto t = platform::Thread::spawn(
       platform::ThreadConfig{
           .name = o.thread_name, .policy = platform::SchedPolicy::Other, .prefault_stack_bytes = 0},
-      [srv = m.server.get()] { srv->listen_after_bind(); });
+      [tr = m.transport.get()] { tr->serve(); });
   if (!t) {
-    m.server.reset();
+    m.transport.reset();
     return vigil::unexpected(
         Error(t.error().code, "HTTP server: cannot start its thread: " + t.error().message));
   }
   m.listener = std::move(*t);
   // stop() only stops a server whose accept loop has begun: wait for it (a few ms).
-  for (int i = 0; i < 2000 && !m.server->is_running(); ++i) {
+  for (int i = 0; i < 2000 && !m.transport->serving(); ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
   m.running = true;
@@ -773,9 +851,9 @@ void HttpServer::stop() {
   std::lock_guard control(m.control_mutex);
   if (!m.running) return;
   if (m.options.events != nullptr) m.options.events->cancel_waits();  // end the long polls
-  m.server->stop();
+  m.transport->stop();
   m.listener.join();
-  m.server.reset();
+  m.transport.reset();
   m.running = false;
 }
 
@@ -783,18 +861,24 @@ bool HttpServer::running() const noexcept { return impl_->running; }
 
 std::string HttpServer::answer(std::string_view request) {
   Impl& m = *impl_;
-  Server* s = nullptr;
+  detail::Transport* t = nullptr;
   {
     std::lock_guard lock(m.memory_mutex);
     if (!m.memory) {
-      m.memory = std::make_unique<Server>();
-      m.configure(*m.memory);
+      auto made = m.make_transport();
+      if (!made) {
+        // As a server that cannot serve would answer: 503, saying why.
+        const std::string body = made.error().message + "\n";
+        return fmt::format(
+            "HTTP/1.1 503 Service Unavailable\r\nContent-Type: text/plain; charset=utf-8\r\n"
+            "Content-Length: {}\r\nConnection: close\r\n\r\n{}",
+            body.size(), body);
+      }
+      m.memory = std::move(*made);
     }
-    s = m.memory.get();
+    t = m.memory.get();
   }
-  MemoryStream stream(request);
-  (void)s->serve_one(stream);
-  return stream.take();
+  return t->answer(request);
 }
 
 ListenAddress HttpServer::address() const { return impl_->bound; }

@@ -12,6 +12,9 @@ CHECK is one of:
   fleet        docs/fleet/: agent mode + remote write + the documented alerts, the Grafana JSON
   requests     bad requests get 4xx, 100 concurrent scrapers are served, slow clients are bounded,
                a second server on the port fails, the default listener is on 127.0.0.1 only
+  module       the HTTP module (libvigil_http.so, with cpp-httplib and OpenSSL) is mapped only
+               with --http; VIGIL_HTTP_MODULE naming a missing file or a library that is not
+               the module stops the demo with an error naming it
 
 A check whose tool is missing exits 77 (CTest: skipped) and says why. Every check is bounded in
 time: the demo runs with --duration and is stopped with SIGINT (its Ctrl-C) when done.
@@ -632,9 +635,62 @@ def check_requests(args):
         fail("; ".join(problems))
 
 
+# What only the HTTP server needs: the module and the libraries Debian's cpp-httplib brings.
+HTTP_ONLY = ("libvigil_http", "libcpp-httplib", "libcrypto", "libssl")
+
+
+def mapped_files(pid):
+    """The files mapped into process `pid`."""
+    with open(f"/proc/{pid}/maps") as f:
+        return {line.split()[5] for line in f if len(line.split()) >= 6}
+
+
+def check_module(args):
+    problems = []
+    # Without --http: none of it is mapped (memory locked, it would all be resident).
+    proc = subprocess.Popen([args.vigil, "demo", "--duration", "4", "--no-live"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    time.sleep(2)
+    files = mapped_files(proc.pid) if proc.poll() is None else None
+    out, _ = proc.communicate(timeout=30)
+    if files is None or proc.returncode != 0:
+        fail(f"the demo without --http exited with {proc.returncode}:\n{out}")
+    leaked = sorted(f for f in files if any(n in f for n in HTTP_ONLY))
+    if leaked:
+        problems.append(f"without --http the demo maps {leaked}")
+    not_module = next((f for f in files if "libfmt" in f), None)
+
+    # With --http: the module is opened, and serves.
+    demo = Demo(args.vigil, duration=20)
+    demo.wait_healthy()
+    files = mapped_files(demo.proc.pid)
+    if not any("libvigil_http.so" in f for f in files):
+        problems.append("with --http the demo serves but libvigil_http.so is not mapped")
+    demo.finish()
+
+    # VIGIL_HTTP_MODULE names the only file tried; a bad one is an error that names it.
+    cases = [("/nonexistent/libvigil_http.so", "No such file")]
+    if not_module:
+        cases.append((not_module, "not a vigil HTTP module"))
+    for path, why in cases:
+        env = dict(os.environ, VIGIL_HTTP_MODULE=path)
+        r = subprocess.run([args.vigil, "demo", "--duration", "3", "--no-live", "--http",
+                            "127.0.0.1:0"], env=env, capture_output=True, text=True, timeout=60)
+        said = r.stdout + r.stderr
+        if r.returncode == 0 or path not in said or why not in said or \
+                "VIGIL_HTTP_MODULE" not in said:
+            problems.append(f"VIGIL_HTTP_MODULE={path}: exit {r.returncode}, expected an error "
+                            f"naming the file and '{why}':\n{said}")
+    if problems:
+        fail("; ".join(problems))
+    print(f"OK: without --http none of {HTTP_ONLY} is mapped; with it the module is; "
+          f"{len(cases)} bad VIGIL_HTTP_MODULE refused by name")
+
+
 CHECKS = {"promtool": check_promtool, "openmetrics": check_openmetrics,
           "reference": check_reference, "chromium": check_chromium,
-          "prometheus": check_prometheus, "requests": check_requests, "fleet": check_fleet}
+          "prometheus": check_prometheus, "requests": check_requests, "fleet": check_fleet,
+          "module": check_module}
 
 
 def main():

@@ -270,6 +270,35 @@ TEST_CASE("answer() serves raw request bytes like a connection, without a socket
   CHECK(server.stats().server_errors == 1);  // the 503 before the first publication
 }
 
+TEST_CASE("The HTTP module is opened on demand, and http_module() names it", "[export][http]") {
+  // In a test binary the module is this build's (nothing else is installed or named).
+  const auto path = http_module();
+  REQUIRE(path);
+  CHECK(std::filesystem::path(*path).filename() == "libvigil_http.so");
+  CHECK(std::filesystem::is_regular_file(*path));
+  std::ifstream maps("/proc/self/maps");
+  const std::string mapped((std::istreambuf_iterator<char>(maps)),
+                           std::istreambuf_iterator<char>());
+  CHECK(mapped.find(std::filesystem::canonical(*path).string()) != std::string::npos);
+  const auto again = http_module();  // opened once: the same path
+  CHECK((again && *again == *path));
+
+  // What crosses the module's boundary: a route's own headers, HEAD without a body.
+  Fixture f;
+  HttpServer server(quiet_options());
+  server.publish(f.h.step());
+  const std::string page = server.answer("GET / HTTP/1.1\r\nHost: localhost\r\n\r\n");
+  CHECK(page.find("Content-Security-Policy: default-src 'self'") != std::string::npos);
+  CHECK(page.find("Cache-Control: no-store") != std::string::npos);
+  const std::string head = server.answer("HEAD /metrics HTTP/1.1\r\nHost: localhost\r\n\r\n");
+  CHECK(head.starts_with("HTTP/1.1 200 OK\r\n"));
+  CHECK(head.find("Content-Length: ") != std::string::npos);
+  CHECK(head.ends_with("\r\n\r\n"));  // headers only
+  const std::string query =
+      server.answer("GET /api/v1/events?after=x HTTP/1.1\r\nHost: localhost\r\n\r\n");
+  CHECK(query.starts_with("HTTP/1.1 404 "));  // no event hub given: no such endpoint
+}
+
 TEST_CASE("100 concurrent scrapers are all served", "[export][http]") {
   Fixture f;
   HttpServer server(quiet_options());

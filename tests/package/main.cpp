@@ -1,7 +1,9 @@
 // Built against the installed package in CI (.ci/run): proves that find_package(vigil) and
 // vigil::vigil work, and that a program of its own gets CAN supervision from a deployment's
-// `can:` section just by linking the package (the section's extension registers itself).
+// `can:` section just by linking the package (the section's extension registers itself), and
+// that the HTTP server's module is found in the installation, not in the build tree.
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <stdexcept>
 #include <thread>
@@ -11,6 +13,7 @@
 #include "vigil/deploy/can_extension.hpp"
 #include "vigil/deploy/deployment.hpp"
 #include "vigil/deploy/system.hpp"
+#include "vigil/export/http_server.hpp"
 #include "vigil/vigil.hpp"
 
 // The generated build flags are installed as vigil/build_config.hpp (was vigil/config.hpp).
@@ -61,6 +64,18 @@ can:
 
 int main() {
   std::printf("vigil %s found\n", vigil::kVersion);
+  const auto module = vigil::exporter::http_module();
+  if (!module) {
+    std::fprintf(stderr, "%s\n", module.error().message.c_str());
+    return 1;
+  }
+  const auto dir = std::filesystem::canonical(*module).parent_path();
+  if (dir != std::filesystem::canonical(VIGIL_PACKAGE_MODULE_DIR)) {
+    std::fprintf(stderr, "HTTP module %s is not the installation's (%s)\n", module->c_str(),
+                 VIGIL_PACKAGE_MODULE_DIR);
+    return 1;
+  }
+  std::printf("HTTP module: %s\n", module->c_str());
   auto spec = vigil::deploy::load_deployment_string(kDeployment, "<consumer>");
   if (!spec) {
     std::fprintf(stderr, "%s\n", vigil::config::to_string(spec.error()).c_str());

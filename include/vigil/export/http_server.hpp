@@ -19,6 +19,12 @@
 ///    Host is not a loopback name are refused (403) so that a web page cannot read the
 ///    endpoint through DNS rebinding.
 ///
+///  - **Loaded on demand.** HTTP itself is cpp-httplib's, which Debian builds with OpenSSL, zlib
+///    and brotli; it lives in the module `libvigil_http.so`, opened the first time a server
+///    starts or answer() is called. A program that never serves HTTP never maps those libraries
+///    (with memory locked, they would cost ~6.6 MB of RAM). Where the module is looked for:
+///    http_module(), and docs/reference/http.md.
+///
 /// Thread safety: every member is thread-safe. Nothing here is RT-safe.
 ///
 /// @code
@@ -63,6 +69,18 @@ struct ListenAddress {
 /// "localhost:9479". Without an address the host is 127.0.0.1. Fails with a message naming what
 /// is wrong (empty, port not a number or not in 0..65535, an IPv6 address without brackets).
 [[nodiscard]] expected<ListenAddress, std::string> parse_listen(std::string_view text);
+
+/// Opens the HTTP module if it is not open yet and returns the path it was opened from. Looked
+/// for, in order: `$VIGIL_HTTP_MODULE` when set (then nothing else); `libvigil_http.so`
+/// through the dynamic linker's search (the program's RUNPATH, which find_package(vigil) and
+/// the installed `vigil` point at the installation's `<libdir>/vigil`, `LD_LIBRARY_PATH`, the
+/// system's directories); this build tree's module (programs run from the build tree); the
+/// default installation's `<libdir>/vigil/libvigil_http.so`. A module from another vigil version is
+/// refused. Fails naming every path tried and why each was refused; HttpServer::start() fails
+/// with the same message. Once open, the module stays open. Thread-safe; not RT-safe (it opens
+/// files). With memory locked (`mlockall`, MCL_FUTURE), the module and its libraries are locked
+/// when they are opened.
+[[nodiscard]] expected<std::string, Error> http_module();
 
 /// Options of the server.
 struct HttpOptions {
@@ -136,7 +154,8 @@ class HttpServer {
   /// limits, method and Host checks, routes and error pages as a connection of the running
   /// server, without any socket; whether or not the server runs. Returns the raw response
   /// (status line, headers, body), empty when the bytes hold no request line (the connection
-  /// would be closed without an answer). Counted in stats(). For tests and fuzzing
+  /// would be closed without an answer). Counted in stats(). When the HTTP module cannot be
+  /// opened, a 503 response whose body says why (not counted). For tests and fuzzing
   /// (tests/fuzz/http_request_fuzz.cpp). Thread-safe; not RT-safe.
   [[nodiscard]] std::string answer(std::string_view request);
 
