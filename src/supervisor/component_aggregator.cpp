@@ -1024,6 +1024,13 @@ std::optional<ComponentSnapshot> ComponentAggregator::find(std::string_view name
   return std::nullopt;
 }
 
+std::optional<ComponentSnapshot> ComponentAggregator::find_id(std::uint32_t id) const {
+  std::shared_lock lock(list_mutex_);
+  const auto it = std::lower_bound(ids_.begin(), ids_.end(), id);
+  if (it == ids_.end() || *it != id) return std::nullopt;
+  return copy_of(*slots_[static_cast<std::size_t>(it - ids_.begin())]);
+}
+
 void ComponentAggregator::visit_distributions(
     const std::function<void(const ComponentDistributions&)>& visit) const {
   std::shared_lock lock(list_mutex_);

@@ -79,6 +79,41 @@ TEST_CASE("Records of components that left are kept for a while, then forgotten"
   CHECK(agg.size() == 0);
 }
 
+TEST_CASE("find_id() copies one record by id, alive or recently left", "[supervisor][aggregator]") {
+  Registry<task::Message> reg;
+  vigil::test::FakeClock fc;
+  ComponentAggregator agg({.retain_left_ns = 5 * kNanosPerSecond, .clock = fc.clock()});
+  TaskSupervisor sup(reg, agg);
+  Instrumentation a("a", {}, reg);
+  std::uint32_t gone_id = 0;
+  {
+    Instrumentation b("b", {}, reg);
+    a.init();
+    b.init();
+    a.run([] {});
+    b.run([] {});
+    sup.step();
+    REQUIRE(agg.find("b").has_value());
+    gone_id = agg.find("b")->id;
+    const auto by_id = agg.find_id(gone_id);
+    REQUIRE(by_id.has_value());
+    CHECK(by_id->name == "b");
+    CHECK(by_id->id == gone_id);
+    CHECK(by_id->alive);
+    CHECK(by_id->samples == 1);
+  }
+  sup.step();
+  const auto gone = agg.find_id(gone_id);
+  REQUIRE(gone.has_value());
+  CHECK(gone->name == "b");
+  CHECK_FALSE(gone->alive);
+  const auto alive = agg.find_id(agg.find("a")->id);
+  REQUIRE(alive.has_value());
+  CHECK(alive->name == "a");
+  CHECK_FALSE(agg.find_id(gone_id + 100).has_value());
+  CHECK_FALSE(agg.find_id(0).has_value());
+}
+
 TEST_CASE("Flight rings come from huge-page regions as their option says, and go back to them",
           "[supervisor][aggregator][recorder]") {
   constexpr std::size_t kRegion = platform::HugePageBlocks::kRegionBytes;

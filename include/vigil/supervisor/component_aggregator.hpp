@@ -204,6 +204,9 @@ class ComponentAggregator {
   [[nodiscard]] std::vector<ComponentSnapshot> snapshot() const;
   /// The record of component `name` (the first alive one of that name), if any.
   [[nodiscard]] std::optional<ComponentSnapshot> find(std::string_view name) const;
+  /// The record of component `id` (ids are never reused), if any: one copy, O(log n) to find it
+  /// (snapshot() copies every record, with their percentiles).
+  [[nodiscard]] std::optional<ComponentSnapshot> find_id(std::uint32_t id) const;
   /// Calls `visit` for every record, in id order, holding that record's lock during the call:
   /// keep it short (no I/O), the supervisor waits for it. Any thread; not RT-safe. `visit` must
   /// not call back into the aggregator.
