@@ -142,10 +142,16 @@ void System::stop_outputs() {
 expected<void, Error> System::start() {
   if (running_) return {};
   log_.clear();
+  // The malloc arenas are bounded before the outputs start their threads (glibc gives every
+  // thread that allocates before the bound an arena of its own, for good); the rest of the
+  // real-time set-up comes after them, so that a taken port fails before anything is locked.
+  const platform::RealtimeSetupOptions rt_options;
+  if (spec_.supervision.lock_memory)
+    (void)platform::bound_malloc_arenas(rt_options.malloc_arena_max);
   // Outputs first: a taken port fails here, before anything runs.
   if (auto r = start_outputs(); !r) return r;
   if (spec_.supervision.lock_memory) {
-    rt_setup_ = platform::setup_realtime_process();
+    rt_setup_ = platform::setup_realtime_process(rt_options);
     log_.push_back(rt_setup_.memory_locked
                        ? fmt::format("memory locked; {} KiB of heap prefaulted; malloc arenas: {}",
                                      rt_setup_.heap_prefaulted / 1024,

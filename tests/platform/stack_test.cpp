@@ -60,3 +60,14 @@ TEST_CASE("setup_realtime_process bounds the malloc arenas and says so", "[platf
   STATIC_REQUIRE(RealtimeSetupOptions{}.malloc_arena_max == 1);
   STATIC_REQUIRE(RealtimeSetupOptions{}.prefault_heap_bytes == 4 * 1024 * 1024);
 }
+
+TEST_CASE("bound_malloc_arenas sets the bound alone and returns it", "[platform][memory]") {
+  // Nothing to do, nothing done: 0 and a negative bound leave glibc's default.
+  CHECK(bound_malloc_arenas(0) == 0);
+  CHECK(bound_malloc_arenas(-3) == 0);
+#if defined(__SANITIZE_ADDRESS__)
+  CHECK(bound_malloc_arenas(2) == 0);  // ASan's malloc has no arenas: refused, and said so
+#else
+  CHECK(bound_malloc_arenas(2) == 2);
+#endif
+}

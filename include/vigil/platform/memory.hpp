@@ -58,6 +58,14 @@ struct RealtimeSetupReport {
 /// Locks and prefaults memory as `options` says. Never throws; failures are in the report.
 RealtimeSetupReport setup_realtime_process(const RealtimeSetupOptions& options = {});
 
+/// Bounds glibc's malloc arenas to `max` (mallopt M_ARENA_MAX), the step of
+/// `setup_realtime_process` that must come before any other thread allocates: glibc makes a new
+/// arena for each thread that allocates while fewer than 8 exist, whatever the bound set later,
+/// and an arena, once made, stays (with its 64 MiB reserve, locked under mlockall). Call it
+/// before starting threads that `setup_realtime_process` would otherwise follow (a server's).
+/// Returns the bound now in force, or 0 when `max` <= 0 (nothing changed) or glibc refused it.
+int bound_malloc_arenas(int max) noexcept;
+
 /// Touches `bytes` of the calling thread's stack so later use takes no page fault.
 void prefault_stack(std::size_t bytes) noexcept;
 

@@ -42,6 +42,10 @@ void prefault_stack(std::size_t bytes) noexcept {
   base[bytes - 1] = 0;
 }
 
+int bound_malloc_arenas(int max) noexcept {
+  return max > 0 && mallopt(M_ARENA_MAX, max) == 1 ? max : 0;
+}
+
 RealtimeSetupReport setup_realtime_process(const RealtimeSetupOptions& options) {
   RealtimeSetupReport report;
   // Cobalt: repeating libcobalt's mlockall is harmless (same flags) and lets the report say what
@@ -58,9 +62,7 @@ RealtimeSetupReport setup_realtime_process(const RealtimeSetupOptions& options) 
   // prefaulted here stays mapped (and locked). glibc's malloc serves Cobalt programs too.
   report.malloc_tuned = mallopt(M_TRIM_THRESHOLD, -1) == 1 && mallopt(M_MMAP_MAX, 0) == 1;
   // Bound the arenas before the process's threads start allocating: an arena, once made, stays.
-  if (options.malloc_arena_max > 0 && mallopt(M_ARENA_MAX, options.malloc_arena_max) == 1) {
-    report.malloc_arena_max = options.malloc_arena_max;
-  }
+  report.malloc_arena_max = bound_malloc_arenas(options.malloc_arena_max);
   if (options.prefault_heap_bytes > 0) {
     if (void* p = std::malloc(options.prefault_heap_bytes)) {
       const long page = sysconf(_SC_PAGESIZE);
