@@ -41,6 +41,8 @@ TEST_CASE("A flight ring slot keeps a cycle exactly within +-2.1 s", "[superviso
         record(7, -5'000, -300, 1),  // a release after the start: a clock's calibration error
         record(9, 0, 0x7FFF'FFFF, 0x7FFF'FFFF), record(10, 0, -0x7FFF'FFFF, 0)}) {
     check_same(PackedCycle(r).unpack(), r);
+    // The catch-up's read of an exact slot (every pending one) gives the same record.
+    check_same(PackedCycle(r).unpack_exact(), r);
   }
   CycleRecord r = record(2, 10, 20, 30);
   r.overhead_ns = 0xFFFF'FFFF;
@@ -48,6 +50,7 @@ TEST_CASE("A flight ring slot keeps a cycle exactly within +-2.1 s", "[superviso
   r.state = TaskState::Exception;
   r.flags = CycleRecord::kGap;
   check_same(PackedCycle(r).unpack(), r);
+  check_same(PackedCycle(r).unpack_exact(), r);
 }
 
 TEST_CASE("A flight ring slot keeps longer times to the microsecond, flagged",

@@ -30,6 +30,7 @@
 #include <emmintrin.h>  // _mm_stream_si64, _mm_sfence
 #endif
 
+#include "vigil/assert.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/platform/memory.hpp"
 #include "vigil/supervisor/events.hpp"
@@ -153,6 +154,22 @@ class PackedCycle {
 #if defined(__x86_64__)
     _mm_sfence();
 #endif
+  }
+
+  /// unpack() of a slot that holds its cycle exactly (written from a record for which
+  /// packs_exactly() held, as every pending slot is: no kCoarse), without the unit's select and
+  /// multiplies. The same record as unpack() for such a slot.
+  [[nodiscard]] CycleRecord unpack_exact() const noexcept {
+    CycleRecord r;
+    r.cycle = cycle_;
+    r.release_ns = release_ns_;
+    r.start_ns = release_ns_ + latency_;
+    r.end_ns = r.start_ns + user_;
+    r.overhead_ns = overhead_;
+    r.missed_before = tail_ & 0xFFFFU;
+    r.flags = static_cast<std::uint8_t>(tail_ >> 16);
+    r.state = static_cast<TaskState>(tail_ >> 24);
+    return r;
   }
 
   [[nodiscard]] CycleRecord unpack() const noexcept {
@@ -302,7 +319,10 @@ class FlightRing {
     std::size_t i = next_ >= pending_ ? next_ - pending_ : next_ + capacity - pending_;
     pending_ -= n;
     for (std::size_t left = n; left > 0; --left) {
-      f(slots[i].unpack());
+      // Pending slots are exact (push_pending's contract).
+      VIGIL_ASSERT((slots[i].unpack().flags & CycleRecord::kCoarse) == 0,
+                   "a pending flight-ring slot that is not exact");
+      f(slots[i].unpack_exact());
       i = i + 1 == capacity ? 0 : i + 1;
     }
     return n;
