@@ -3,7 +3,8 @@
 the encoder's exception is an event within 20 ms of its fault time; the hanging component
 (gripper) is reported by the watchdog and recovers; each component that went to ERROR by an
 event has a trace that parses as trace-event JSON with its last cycles; the healthy motors'
-statistics hold no start-up overruns (the warm-up is kept out of them)."""
+statistics hold no start-up overruns (the warm-up is kept out of them), and the motors read OK unless
+the host stalled the VM during the run (steal time and missed releases both say so)."""
 import json
 import os
 import subprocess
@@ -16,6 +17,20 @@ trace_dir = os.path.join(out, "t")
 final_path = os.path.join(out, "final.json")
 for f in os.listdir(trace_dir) if os.path.isdir(trace_dir) else []:
     os.remove(os.path.join(trace_dir, f))
+
+
+def steal_ms():
+    """Time the hypervisor ran something else while this machine's CPUs had work (/proc/stat's
+    steal column, all CPUs; 0 where the kernel does not count it)."""
+    try:
+        with open("/proc/stat") as f:
+            fields = f.readline().split()
+        return int(fields[8]) * 1000 // os.sysconf("SC_CLK_TCK") if len(fields) > 8 else 0
+    except (OSError, ValueError):
+        return 0
+
+
+steal0 = steal_ms()
 r = subprocess.run([vigil, "demo", "--duration", "4", "--no-live", "--events", events_path,
                     "--trace-dir", trace_dir, "--json", final_path],
                    capture_output=True, text=True, timeout=90)
@@ -96,7 +111,18 @@ for motor in ("motor_left", "motor_right"):
         if e["cycle"] <= warm["cycles"]:
             failures.append(f"{motor}: an overrun event in the warm-up: {e}")
     if c["status"] != "OK":
-        failures.append(f"{motor} is {c['status']}: {c['messages']}")
+        # A healthy motor must read OK: anything else is a false alarm, unless the host took the
+        # CPUs away during the run (a VM stall: vigil then rightly reports the missed releases
+        # and the overruns they cause). Only that, seen by the kernel's steal time and by the
+        # motor's own missed releases, excuses it.
+        stolen = steal_ms() - steal0
+        missed = c["counters"].get("missed_cycles", 0)
+        if stolen >= 10 and missed > 0:
+            print(f"{motor} is {c['status']} after a host stall ({stolen} ms stolen from the "
+                  f"VM during the run, {missed} releases missed): accepted")
+        else:
+            failures.append(f"{motor} is {c['status']} ({stolen} ms stolen, {missed} releases "
+                            f"missed): {c['messages']}")
     print(f"{motor}: {warm['cycles']} warm-up cycles with {warm['overruns']} overruns kept out; "
           f"{c['counters']['overruns'] - warm['overruns']} after")
 
