@@ -364,6 +364,52 @@ expected<std::size_t, ShmError> ShmRingReader::pop_raw(std::byte* out, std::size
 
 namespace {
 
+struct EachCtx {
+  std::byte* base;
+  const ShmGeometry* g;
+  std::uint64_t read;
+  std::size_t max;
+  ShmRingReader::RecordFn fn;
+  void* ctx;
+  std::uint64_t write = 0;
+  std::size_t n = 0;
+  bool bad = false;
+};
+
+void each_record(void* p) noexcept {
+  auto& c = *static_cast<EachCtx*>(p);
+  auto& h = *reinterpret_cast<ShmSegmentHeader*>(c.base);
+  const std::uint64_t w = at(h.write_index).load(std::memory_order_acquire);
+  c.write = w;
+  if (w < c.read || w - c.read > c.g->capacity) {
+    c.bad = true;
+    return;
+  }
+  const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(w - c.read, c.max));
+  const std::uint64_t mask = c.g->capacity - 1;
+  const std::byte* ring = c.base + c.g->ring_offset;
+  const std::size_t rs = c.g->record_size;
+  std::size_t i = 0;
+  while (i < n && c.fn(c.ctx, ring + ((c.read + i) & mask) * rs)) ++i;
+  c.n = i;
+  // Release: the producer may reuse the slots once it sees the new index.
+  if (i != 0) at(h.read_index).store(c.read + i, std::memory_order_release);
+}
+
+}  // namespace
+
+expected<std::size_t, ShmError> ShmRingReader::pop_each(std::size_t max, RecordFn fn,
+                                                        void* ctx) noexcept {
+  if (max == 0) return std::size_t{0};
+  EachCtx c{base_, &g_, read_, max, fn, ctx};
+  if (!platform::run_guarded(&each_record, &c)) return unexpected<ShmError>(truncated());
+  if (c.bad) return unexpected<ShmError>(indices_error(read_, c.write, g_.capacity));
+  read_ += c.n;
+  return c.n;
+}
+
+namespace {
+
 struct MailCtx {
   std::byte* box;
   std::size_t words;

@@ -358,6 +358,42 @@ TEST_CASE("The reader pops what the producer pushed, in order, across the ring's
   }
 }
 
+TEST_CASE("pop_each hands records in place and consumes only those it accepted", "[shm][segment]") {
+  RealSegment s;
+  for (std::uint64_t i = 1; i <= 5; ++i) REQUIRE(s.producer.push(Small{10 * i}));
+  ShmRingReader ring(s.segment->data(), s.segment->geometry());
+  REQUIRE(ring.attach());
+  struct Seen {
+    std::vector<std::uint64_t> values;
+    std::size_t accept = 0;
+  } seen;
+  const auto take = [](void* ctx, const std::byte* rec) noexcept {
+    auto& c = *static_cast<Seen*>(ctx);
+    if (c.values.size() == c.accept) return false;
+    Small v;
+    std::memcpy(&v, rec + sizeof(ShmRecordHeader), sizeof v);
+    c.values.push_back(v.value);
+    return true;
+  };
+  seen.values.reserve(8);  // nothing allocates inside the guard
+  seen.accept = 3;
+  auto n = ring.pop_each(8, take, &seen);
+  REQUIRE(n);
+  CHECK(*n == 3);
+  CHECK(seen.values == std::vector<std::uint64_t>{10, 20, 30});
+  CHECK(ring.read_index() == 3);
+  CHECK(s.header().read_index == 3);  // published: the producer may reuse three slots
+  seen.accept = 8;
+  n = ring.pop_each(8, take, &seen);
+  REQUIRE(n);
+  CHECK(*n == 2);  // the two left, from where the first call stopped
+  CHECK(seen.values == std::vector<std::uint64_t>{10, 20, 30, 40, 50});
+  CHECK(s.header().read_index == 5);
+  n = ring.pop_each(8, take, &seen);
+  REQUIRE(n);
+  CHECK(*n == 0);
+}
+
 TEST_CASE("A full ring refuses the push, and a drop is counted and kept in the mailbox",
           "[shm][segment]") {
   RealSegment s;
@@ -452,6 +488,21 @@ TEST_CASE("Bad records reject the segment: type, size, sequence, contents", "[sh
     auto n = r.pop(out, nullptr, 8, &check_test);
     REQUIRE_FALSE(n);
     CHECK(n.error().field == "record.seq");
+    CHECK(n.error().message == "sequence 1 does not follow 1");
+    CHECK(r.error().has_value());  // nothing more is read from it
+    CHECK_FALSE(r.pop(out, nullptr, 8, &check_test));
+  }
+  SECTION("an earlier record's contents are judged before a later record's type") {
+    REQUIRE(s.producer.push(Flagged{3, false, "x"}));
+    auto* payload = s.record(1) + sizeof(ShmRecordHeader);
+    payload[offsetof(Flagged, flag)] = std::byte{5};
+    std::memcpy(&h, s.record(2), sizeof h);
+    h.type = 9;
+    std::memcpy(s.record(2), &h, sizeof h);
+    auto r = s.reader();
+    auto n = r.pop(out, nullptr, 8, &check_test);
+    REQUIRE_FALSE(n);
+    CHECK(n.error().field == "record");
   }
   SECTION("contents: a bool that is neither 0 nor 1") {
     auto* payload = s.record(1) + sizeof(ShmRecordHeader);

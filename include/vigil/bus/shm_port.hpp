@@ -207,15 +207,10 @@ class ShmProducer {
   std::uint64_t mailbox_stride_ = 0;
 };
 
-/// Decodes one record (ShmRecordHeader + payload) of a validated segment into `out`: the type
-/// must be an alternative of `Variant` and the size that type's size. The payload's bytes are
-/// copied as they are: validate the message's fields (e.g. bools, enums used as indices,
-/// strings) with the reader's check before using them.
+/// Whether a record's header `h` names an alternative of `Variant` with that alternative's size;
+/// false with the field and the reason in `why` (when not null) otherwise.
 template <class Variant>
-[[nodiscard]] bool decode_shm_record(const std::byte* record, Variant& out,
-                                     ShmError* why) noexcept {
-  ShmRecordHeader h;
-  std::memcpy(&h, record, sizeof h);
+[[nodiscard]] bool shm_record_fits(const ShmRecordHeader& h, ShmError* why) {
   constexpr std::uint32_t n = std::variant_size_v<Variant>;
   if (h.type >= n) {
     if (why != nullptr) {
@@ -233,8 +228,33 @@ template <class Variant>
     }
     return false;
   }
-  return detail::make_alternative(out, h.type, record + sizeof(ShmRecordHeader),
-                                  std::make_index_sequence<n>{});
+  return true;
+}
+
+/// Decodes the payload of a record whose header `h` was already copied out: the type must be an
+/// alternative of `Variant` and the size that type's size (shm_record_fits). The payload's bytes
+/// are copied as they are, once: validate the message's fields (e.g. bools, enums used as
+/// indices, strings) with the reader's check before using them. Allocates nothing and builds no
+/// message, so it may run where a bus error is caught (ShmRingReader::pop_each).
+template <class Variant>
+[[nodiscard]] bool decode_shm_payload(const ShmRecordHeader& h, const std::byte* payload,
+                                      Variant& out) noexcept {
+  constexpr std::uint32_t n = std::variant_size_v<Variant>;
+  if (h.type >= n || h.size != detail::VariantTypes<Variant>::sizes[h.type]) return false;
+  return detail::make_alternative(out, h.type, payload, std::make_index_sequence<n>{});
+}
+
+/// Decodes one record (ShmRecordHeader + payload) of a validated segment into `out`: the type
+/// must be an alternative of `Variant` and the size that type's size. The payload's bytes are
+/// copied as they are: validate the message's fields (e.g. bools, enums used as indices,
+/// strings) with the reader's check before using them.
+template <class Variant>
+[[nodiscard]] bool decode_shm_record(const std::byte* record, Variant& out,
+                                     ShmError* why) noexcept {
+  ShmRecordHeader h;
+  std::memcpy(&h, record, sizeof h);
+  if (why != nullptr && !shm_record_fits<Variant>(h, why)) return false;
+  return decode_shm_payload(h, record + sizeof(ShmRecordHeader), out);
 }
 
 /// The reader end of a shared-memory port (the daemon's): owns the mapping, validated at open.
@@ -287,7 +307,6 @@ class ShmReader {
     r.info_ = std::move(*info);
     r.ring_ = ShmRingReader(r.mem_->data(), r.info_.geometry);
     if (auto a = r.ring_.attach(); !a) return unexpected<ShmError>(a.error());
-    r.raw_.resize(static_cast<std::size_t>(r.info_.geometry.record_size) * kBatch);
     return r;
   }
 
@@ -299,25 +318,33 @@ class ShmReader {
   void heartbeat(std::int64_t now, std::int32_t pid) noexcept { ring_.heartbeat(now, pid); }
 
   /// Pops up to `max` messages into `out` (and their sequence numbers into `seqs` if not null).
-  /// Sequence numbers must increase; the message must pass `check`.
+  /// Sequence numbers must increase; the message must pass `check`. Each record is copied once,
+  /// from the ring straight into `out` (the check then reads that private copy, which the
+  /// producer can no longer change).
   expected<std::size_t, ShmError> pop(Variant* out, std::uint64_t* seqs, std::size_t max,
                                       Check check) {
     if (error_) return unexpected<ShmError>(*error_);
-    std::size_t done = 0;
-    while (done < max) {
-      const std::size_t want = std::min(max - done, kBatch);
-      auto n = ring_.pop_raw(raw_.data(), want);
-      if (!n) return fail(n.error());
+    Decoding d{out, seqs, last_seq_};
+    auto n = ring_.pop_each(max, &decode_one, &d);
+    if (!n) return fail(n.error());
+    if (check != nullptr) {
+      std::string reason;  // one per call, not per message
       for (std::size_t i = 0; i < *n; ++i) {
-        const std::byte* rec = raw_.data() + i * info_.geometry.record_size;
-        std::uint64_t seq = 0;
-        if (auto e = take(rec, out[done], seq, check); !e) return fail(e.error());
-        if (seqs != nullptr) seqs[done] = seq;
-        ++done;
+        if (!check(out[i], reason)) return fail(ShmError{"record", reason});
       }
-      if (*n < want) break;
     }
-    return done;
+    last_seq_ = d.last_seq;
+    if (d.stopped) {
+      // The record that stopped the batch stays in the ring; the segment is corrupt.
+      if (d.bad.seq <= d.last_seq) {
+        return fail(ShmError{"record.seq", "sequence " + std::to_string(d.bad.seq) +
+                                               " does not follow " + std::to_string(d.last_seq)});
+      }
+      ShmError why;
+      (void)shm_record_fits<Variant>(d.bad, &why);
+      return fail(why);
+    }
+    return *n;
   }
 
   /// The mailboxes whose sequence number lies in (after, before), decoded, checked, in
@@ -358,27 +385,30 @@ class ShmReader {
   [[nodiscard]] const std::optional<ShmError>& error() const noexcept { return error_; }
 
  private:
-  static constexpr std::size_t kBatch = 64;
-
   ShmReader() = default;
 
-  expected<void, ShmError> take(const std::byte* rec, Variant& out, std::uint64_t& seq,
-                                Check check) {
+  // pop()'s state, filled by decode_one() where a bus error is caught: nothing in it allocates.
+  struct Decoding {
+    Variant* out;
+    std::uint64_t* seqs;
+    std::uint64_t last_seq;
+    std::size_t done = 0;
+    bool stopped = false;   // a record out of sequence or of a wrong type or size
+    ShmRecordHeader bad{};  // its header
+  };
+  static bool decode_one(void* ctx, const std::byte* rec) noexcept {
+    auto& d = *static_cast<Decoding*>(ctx);
     ShmRecordHeader h;
-    std::memcpy(&h, rec, sizeof h);
-    if (h.seq <= last_seq_) {
-      return unexpected<ShmError>(ShmError{
-          "record.seq",
-          "sequence " + std::to_string(h.seq) + " does not follow " + std::to_string(last_seq_)});
+    std::memcpy(&h, rec, sizeof h);  // read once: the checks and the copy use this header
+    if (h.seq <= d.last_seq || !decode_shm_payload(h, rec + sizeof h, d.out[d.done])) {
+      d.stopped = true;
+      d.bad = h;
+      return false;
     }
-    ShmError why;
-    if (!decode_shm_record(rec, out, &why)) return unexpected<ShmError>(why);
-    std::string reason;
-    if (check != nullptr && !check(out, reason))
-      return unexpected<ShmError>(ShmError{"record", reason});
-    last_seq_ = h.seq;
-    seq = h.seq;
-    return {};
+    if (d.seqs != nullptr) d.seqs[d.done] = h.seq;
+    d.last_seq = h.seq;
+    ++d.done;
+    return true;
   }
 
   expected<void, ShmError> collect(std::vector<std::pair<std::uint64_t, Variant>>& found,
@@ -425,7 +455,6 @@ class ShmReader {
   std::unique_ptr<platform::SharedMemory> mem_;
   ShmSegmentInfo info_;
   ShmRingReader ring_;
-  std::vector<std::byte> raw_;
   std::uint64_t last_seq_ = 0;
   std::optional<ShmError> error_;
 };

@@ -141,6 +141,19 @@ class ShmRingReader {
   /// inconsistent or the mapping shrank.
   [[nodiscard]] expected<std::size_t, ShmError> pop_raw(std::byte* out, std::size_t max) noexcept;
 
+  /// Called by pop_each() for each record, in place in the ring, oldest first. It copies out
+  /// what it keeps (the ring slot is the producer's again once the read index moves) and must
+  /// neither throw nor own anything that needs a destructor: it runs where a bus error (a
+  /// truncated mapping) is caught by a long jump. Returning false stops before that record,
+  /// which is not consumed.
+  using RecordFn = bool (*)(void* ctx, const std::byte* record) noexcept;
+
+  /// Hands up to `max` records, oldest first, to `fn` in place, then advances the read index
+  /// past those it accepted: pop_raw() without its copy. Returns how many were accepted, or an
+  /// error when the indices became inconsistent or the mapping shrank.
+  [[nodiscard]] expected<std::size_t, ShmError> pop_each(std::size_t max, RecordFn fn,
+                                                         void* ctx) noexcept;
+
   /// Copies mailbox `type` (record_size bytes: ShmRecordHeader + payload) into `out`. Returns
   /// false when it is empty (seq 0), being written (retried a few times) or unreadable.
   [[nodiscard]] bool read_mailbox(std::uint32_t type, std::byte* out) const noexcept;
