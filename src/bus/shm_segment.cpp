@@ -316,54 +316,6 @@ expected<void, ShmError> ShmRingReader::attach() noexcept {
 
 namespace {
 
-struct PopCtx {
-  std::byte* base;
-  const ShmGeometry* g;
-  std::uint64_t read;
-  std::size_t max;
-  std::byte* out;
-  std::uint64_t write = 0;
-  std::size_t n = 0;
-  bool bad = false;
-};
-
-void pop_records(void* p) noexcept {
-  auto& c = *static_cast<PopCtx*>(p);
-  auto& h = *reinterpret_cast<ShmSegmentHeader*>(c.base);
-  const std::uint64_t w = at(h.write_index).load(std::memory_order_acquire);
-  c.write = w;
-  if (w < c.read || w - c.read > c.g->capacity) {
-    c.bad = true;
-    return;
-  }
-  const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(w - c.read, c.max));
-  const std::uint64_t mask = c.g->capacity - 1;
-  const std::byte* ring = c.base + c.g->ring_offset;
-  const std::size_t rs = c.g->record_size;
-  // At most two contiguous runs (before and after the end of the ring).
-  const std::uint64_t first = c.read & mask;
-  const std::size_t run1 =
-      static_cast<std::size_t>(std::min<std::uint64_t>(n, c.g->capacity - first));
-  std::memcpy(c.out, ring + first * rs, run1 * rs);
-  if (n > run1) std::memcpy(c.out + run1 * rs, ring, (n - run1) * rs);
-  c.n = n;
-  // Release: the producer may reuse the slots once it sees the new index.
-  at(h.read_index).store(c.read + n, std::memory_order_release);
-}
-
-}  // namespace
-
-expected<std::size_t, ShmError> ShmRingReader::pop_raw(std::byte* out, std::size_t max) noexcept {
-  if (max == 0) return std::size_t{0};
-  PopCtx c{base_, &g_, read_, max, out};
-  if (!platform::run_guarded(&pop_records, &c)) return unexpected<ShmError>(truncated());
-  if (c.bad) return unexpected<ShmError>(indices_error(read_, c.write, g_.capacity));
-  read_ += c.n;
-  return c.n;
-}
-
-namespace {
-
 struct EachCtx {
   std::byte* base;
   const ShmGeometry* g;

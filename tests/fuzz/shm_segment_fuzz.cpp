@@ -115,7 +115,20 @@ void read_image(const std::uint8_t* data, std::size_t size) {
     return;
   }
   std::vector<std::byte> raw(static_cast<std::size_t>(g.record_size) * g.capacity);
-  auto n = reader.pop_raw(raw.data(), g.capacity);
+  struct Copy {
+    std::byte* out;
+    std::size_t size;
+    std::size_t n = 0;
+  } copy{raw.data(), g.record_size};
+  // Every record in place, copied out as they are (the daemon decodes them in place instead).
+  auto n = reader.pop_each(
+      g.capacity,
+      [](void* ctx, const std::byte* rec) noexcept {
+        auto& c = *static_cast<Copy*>(ctx);
+        std::memcpy(c.out + c.n++ * c.size, rec, c.size);
+        return true;
+      },
+      &copy);
   if (n) {
     check(*n <= g.capacity);
     for (std::size_t i = 0; i < *n; ++i) {

@@ -133,13 +133,8 @@ class ShmRingReader {
   /// this reader consumed). An error means the segment is corrupt (or was truncated).
   [[nodiscard]] expected<ShmLiveState, ShmError> live() const noexcept;
 
-  /// Takes the read index from the segment (call once before pop_raw; validated).
+  /// Takes the read index from the segment (call once before pop_each; validated).
   [[nodiscard]] expected<void, ShmError> attach() noexcept;
-
-  /// Copies up to `max` records, oldest first, into `out` (max * record_size bytes) and
-  /// advances the read index. Returns how many, or an error when the indices became
-  /// inconsistent or the mapping shrank.
-  [[nodiscard]] expected<std::size_t, ShmError> pop_raw(std::byte* out, std::size_t max) noexcept;
 
   /// Called by pop_each() for each record, in place in the ring, oldest first. It copies out
   /// what it keeps (the ring slot is the producer's again once the read index moves) and must
@@ -149,8 +144,8 @@ class ShmRingReader {
   using RecordFn = bool (*)(void* ctx, const std::byte* record) noexcept;
 
   /// Hands up to `max` records, oldest first, to `fn` in place, then advances the read index
-  /// past those it accepted: pop_raw() without its copy. Returns how many were accepted, or an
-  /// error when the indices became inconsistent or the mapping shrank.
+  /// past those it accepted. Returns how many were accepted, or an error when the indices became
+  /// inconsistent or the mapping shrank.
   [[nodiscard]] expected<std::size_t, ShmError> pop_each(std::size_t max, RecordFn fn,
                                                          void* ctx) noexcept;
 
