@@ -287,6 +287,14 @@ struct RealSegment {
     return static_cast<std::byte*>(segment->data()) + g.ring_offset +
            (index % g.capacity) * g.record_size;
   }
+  /// Rewrites the header of record `index` in place through `f` (a producer gone wrong).
+  template <class F>
+  void edit_header(std::uint64_t index, F f) const {
+    ShmRecordHeader h;
+    std::memcpy(&h, record(index), sizeof h);
+    f(h);
+    std::memcpy(record(index), &h, sizeof h);
+  }
   [[nodiscard]] ShmReader<TestVariant> reader() const {
     auto r = ShmReader<TestVariant>::open(segment->name(), ShmExpectation{kSchema, name},
                                           platform::effective_uid(), false);
@@ -461,29 +469,22 @@ TEST_CASE("Bad records reject the segment: type, size, sequence, contents", "[sh
   REQUIRE(s.producer.push(Small{1}));
   REQUIRE(s.producer.push(Flagged{2, true, "ok"}));
   TestVariant out[8];
-  ShmRecordHeader h;
   SECTION("type") {
-    std::memcpy(&h, s.record(0), sizeof h);
-    h.type = 7;
-    std::memcpy(s.record(0), &h, sizeof h);
+    s.edit_header(0, [](ShmRecordHeader& h) { h.type = 7; });
     auto r = s.reader();
     auto n = r.pop(out, nullptr, 8, &check_test);
     REQUIRE_FALSE(n);
     CHECK(n.error().field == "record.type");
   }
   SECTION("size") {
-    std::memcpy(&h, s.record(1), sizeof h);
-    h.size = 4000;
-    std::memcpy(s.record(1), &h, sizeof h);
+    s.edit_header(1, [](ShmRecordHeader& h) { h.size = 4000; });
     auto r = s.reader();
     auto n = r.pop(out, nullptr, 8, &check_test);
     REQUIRE_FALSE(n);
     CHECK(n.error().field == "record.size");
   }
   SECTION("sequence") {
-    std::memcpy(&h, s.record(1), sizeof h);
-    h.seq = 1;  // same as the first record's
-    std::memcpy(s.record(1), &h, sizeof h);
+    s.edit_header(1, [](ShmRecordHeader& h) { h.seq = 1; });  // same as the first record's
     auto r = s.reader();
     auto n = r.pop(out, nullptr, 8, &check_test);
     REQUIRE_FALSE(n);
@@ -496,9 +497,7 @@ TEST_CASE("Bad records reject the segment: type, size, sequence, contents", "[sh
     REQUIRE(s.producer.push(Flagged{3, false, "x"}));
     auto* payload = s.record(1) + sizeof(ShmRecordHeader);
     payload[offsetof(Flagged, flag)] = std::byte{5};
-    std::memcpy(&h, s.record(2), sizeof h);
-    h.type = 9;
-    std::memcpy(s.record(2), &h, sizeof h);
+    s.edit_header(2, [](ShmRecordHeader& h) { h.type = 9; });
     auto r = s.reader();
     auto n = r.pop(out, nullptr, 8, &check_test);
     REQUIRE_FALSE(n);
