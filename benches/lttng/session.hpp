@@ -4,9 +4,10 @@
 /// (lttng-tools), as a user would: a session daemon is started if none runs
 /// (`lttng-sessiond --daemonize --no-kernel`), then `lttng create` (output in a temporary
 /// directory), `lttng enable-event --userspace 'vigil_bench:*'`, `lttng start`; `end()` runs
-/// `lttng stop` and `lttng destroy`, removes the trace, and stops the daemon if it started it.
-/// Every step that fails leaves the session unusable with a message saying which step and why,
-/// for the benchmark to skip its row with.
+/// `lttng stop` and `lttng destroy` (each bounded to 60 s), removes the trace, and stops the
+/// daemon if it started it, waiting until it has exited so that the next benchmark process does
+/// not find a dying daemon. Every step that fails leaves the session unusable with a message saying
+/// which step and why, for the benchmark to skip its row with.
 
 #include <signal.h>
 #include <sys/wait.h>
@@ -72,8 +73,9 @@ class LttngSession {
   std::string end() {
     std::string said;
     if (created_) {
-      said = run("lttng stop " + name_).out;
-      (void)run("lttng destroy " + name_);
+      // Bounded: a session daemon that went away under the session must not hang the run.
+      said = run("timeout 60 lttng stop " + name_).out;
+      (void)run("timeout 60 lttng destroy " + name_);
       created_ = false;
     }
     active_ = false;
@@ -82,7 +84,13 @@ class LttngSession {
       std::filesystem::remove_all(dir_, ec);
       dir_.clear();
     }
-    if (started_daemon_ && daemon_pid_ > 0) kill(daemon_pid_, SIGTERM);
+    if (started_daemon_ && daemon_pid_ > 0 && kill(daemon_pid_, SIGTERM) == 0) {
+      // Wait (up to 10 s) until it is gone: a benchmark started right after would otherwise
+      // find the dying daemon, use it, and wait forever in `lttng destroy`.
+      for (int i = 0; i < 500 && alive(daemon_pid_); ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+    }
     started_daemon_ = false;
     return said;
   }
@@ -115,6 +123,15 @@ class LttngSession {
       if (ch == '\n') ch = ' ';
     }
     return r;
+  }
+
+  /// Whether `pid` runs (a zombie does not: where init does not reap, it stays one).
+  static bool alive(pid_t pid) {
+    std::ifstream f("/proc/" + std::to_string(pid) + "/stat");
+    std::string line;
+    if (!std::getline(f, line)) return false;
+    const auto paren = line.rfind(')');
+    return paren != std::string::npos && paren + 2 < line.size() && line[paren + 2] != 'Z';
   }
 
   /// The daemon's pid file: /var/run/lttng for root, $LTTNG_HOME or $HOME/.lttng otherwise.
