@@ -73,7 +73,8 @@ class LttngSession {
   std::string end() {
     std::string said;
     if (created_) {
-      // Bounded: a session daemon that went away under the session must not hang the run.
+      // Bounded: `lttng destroy` once did not return (23 minutes, on a daemon this process had
+      // started); a benchmark must end.
       said = run("timeout 60 lttng stop " + name_).out;
       (void)run("timeout 60 lttng destroy " + name_);
       created_ = false;
@@ -85,8 +86,8 @@ class LttngSession {
       dir_.clear();
     }
     if (started_daemon_ && daemon_pid_ > 0 && kill(daemon_pid_, SIGTERM) == 0) {
-      // Wait (up to 10 s) until it is gone: a benchmark started right after would otherwise
-      // find the dying daemon, use it, and wait forever in `lttng destroy`.
+      // Wait (up to 10 s) until it is gone, so that a benchmark started right after does not
+      // find it still shutting down and make its session there.
       for (int i = 0; i < 500 && alive(daemon_pid_); ++i) {
         std::this_thread::sleep_for(std::chrono::milliseconds(20));
       }
