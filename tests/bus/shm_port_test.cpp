@@ -7,10 +7,12 @@
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "shm_support.hpp"
+#include "support/fake_clock.hpp"
 #include "vigil/bus/shm_port.hpp"
 #include "vigil/deploy/process_supervisor.hpp"
 #include "vigil/exec/manual_activity.hpp"
@@ -211,6 +213,102 @@ TEST_CASE("A component that leaves is drained, reported as left, and its segment
   REQUIRE(events.size() == 2);
   CHECK(events[0].kind == deploy::ProcessEvent::Kind::Joined);
   CHECK(events[1].kind == deploy::ProcessEvent::Kind::Left);
+}
+
+TEST_CASE("Components that come and go between a daemon's cycles are each drained exactly",
+          "[shm][port]") {
+  // The daemon drains segments in the order they joined, a list it rebuilds only when segments
+  // come or go. Segment names end in an index, so that ".10" sorts before ".2": this mixes the
+  // order of names with the order of joining, and every cycle below changes the set.
+  Placed p;
+  auto d = p.daemon();
+  std::vector<std::unique_ptr<Running>> comps;
+  std::vector<int> expected;
+  const auto add = [&](int count) {
+    for (int i = 0; i < count; ++i) {
+      comps.push_back(std::make_unique<Running>("c" + std::to_string(comps.size()), p.registry));
+      expected.push_back(0);
+    }
+  };
+  const auto run_all = [&](int cycles) {
+    for (std::size_t i = 0; i < comps.size(); ++i) {
+      if (!comps[i]) continue;
+      const int n = cycles + static_cast<int>(i);  // a different count for each
+      comps[i]->cycles(n);
+      expected[i] += n;
+    }
+  };
+  const auto check_all = [&] {
+    for (std::size_t i = 0; i < comps.size(); ++i) {
+      const auto s = d->aggregator().find("c" + std::to_string(i));
+      REQUIRE(s.has_value());
+      CHECK(s->alive == (comps[i] != nullptr));
+      CHECK(s->counters.cycles == static_cast<std::uint64_t>(expected[i]));
+    }
+  };
+  add(3);
+  run_all(5);
+  d->step();
+  check_all();
+  add(10);  // indices 3..12
+  run_all(7);
+  d->step();
+  check_all();
+  REQUIRE(comps[1]->activity.stop());
+  comps[1].reset();  // leaves: its segment is drained, then forgotten
+  REQUIRE(comps[11]->activity.stop());
+  comps[11].reset();
+  add(2);
+  run_all(3);
+  d->step();
+  check_all();
+  run_all(4);
+  d->step();
+  d->step();
+  check_all();
+}
+
+TEST_CASE("The daemon keeps where a component that left ran until its own retention ends",
+          "[shm][port]") {
+  Placed p;
+  test::FakeClock clock;
+  deploy::ProcessSupervisorOptions o;
+  o.name = p.name;
+  o.monitor.read_thread_stats = false;
+  o.monitor.clock = clock.clock();
+  o.aggregator.retain_left_ns = kNanosPerSecond;
+  auto created = deploy::ProcessSupervisor::create(o);
+  REQUIRE(created.has_value());
+  auto& d = *created;
+  auto a = std::make_unique<Running>("first_out", p.registry);
+  auto b = std::make_unique<Running>("second_out", p.registry);
+  a->cycles(3);
+  b->cycles(3);
+  d->step();
+  const auto pid_of = [&](const char* name) -> std::string {
+    const ReportSet reports = d->step_monitor();
+    const Report* r = reports.find(name);
+    if (r == nullptr) return "(no report)";
+    const std::string* pid = r->value("pid");
+    return pid != nullptr ? *pid : "(no pid)";
+  };
+  const std::string self = std::to_string(platform::self_identity().pid);
+  REQUIRE(a->activity.stop());
+  a.reset();
+  d->step();  // first_out left at 1 s: kept until 2 s
+  clock.advance(kNanosPerSecond / 2);
+  REQUIRE(b->activity.stop());
+  b.reset();
+  d->step();  // second_out left at 1.5 s: kept until 2.5 s
+  CHECK(pid_of("first_out") == self);
+  CHECK(pid_of("second_out") == self);
+  clock.advance(kNanosPerSecond * 7 / 10);  // 2.2 s
+  d->step();
+  CHECK(pid_of("first_out") == "(no report)");
+  CHECK(pid_of("second_out") == self);  // its own retention has not ended
+  clock.advance(kNanosPerSecond / 2);   // 2.7 s
+  d->step();
+  CHECK(pid_of("second_out") == "(no report)");
 }
 
 TEST_CASE("VIGIL_SUPERVISOR selects shared memory, and a bad name is refused with a message",

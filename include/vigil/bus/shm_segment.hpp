@@ -156,11 +156,33 @@ class ShmRingReader {
   /// Records that daemon `pid` drained the segment at monotonic time `now`.
   void heartbeat(std::int64_t now, std::int32_t pid) noexcept;
 
+  /// Hints the CPU to bring in what the next `live()` reads (the state and write-index lines of
+  /// the header). A hint only: it reads nothing, cannot fault, and is harmless on a segment that
+  /// shrank.
+  void prefetch_state() const noexcept { prefetch_state(base_); }
+  /// The same for the segment mapped at `base`, without reading the reader itself.
+  static void prefetch_state(const void* base) noexcept {
+    const auto* b = static_cast<const std::byte*>(base);
+    __builtin_prefetch(b + kStateOffset, 1);  // written too: the heartbeat
+    __builtin_prefetch(b + kWriteIndexOffset);
+  }
+  /// Hints the CPU to bring in the first `lines` cache lines of the records waiting at the read
+  /// index, and the read index's line (written by the drain). A hint only, as above.
+  void prefetch_records(std::size_t lines) const noexcept {
+    __builtin_prefetch(base_ + kReadIndexOffset, 1);
+    if (g_.capacity == 0) return;
+    const std::byte* rec = base_ + g_.ring_offset + (read_ & (g_.capacity - 1)) * g_.record_size;
+    for (std::size_t i = 0; i < lines; ++i) __builtin_prefetch(rec + 64 * i);
+  }
+
   /// Records consumed by this reader (its read index).
   [[nodiscard]] std::uint64_t read_index() const noexcept { return read_; }
   [[nodiscard]] const ShmGeometry& geometry() const noexcept { return g_; }
 
  private:
+  static constexpr std::size_t kStateOffset = offsetof(ShmSegmentHeader, state);
+  static constexpr std::size_t kWriteIndexOffset = offsetof(ShmSegmentHeader, write_index);
+  static constexpr std::size_t kReadIndexOffset = offsetof(ShmSegmentHeader, read_index);
   std::byte* base_ = nullptr;
   ShmGeometry g_;
   std::uint64_t read_ = 0;
