@@ -17,7 +17,9 @@
 //   these components' narrow distributions), its flight ring (1024 x 32 bytes) and its
 //   ComponentSnapshot, the task and its activity; the measured value also has the rest of the
 //   record (hot fields, the exact total), the allocator's rounding, the names, the registry
-//   entry and the monitor's state.
+//   entry and the monitor's state. Counter `region_tail_bytes`: the part of the value that is
+//   the last huge-page region's unused blocks (flight rings are carved from 2 MiB regions, 64
+//   rings each, beyond the first 64 components), per component.
 // memory/port: sizeof(Port<Message, N>) for the default capacity (computed, not measured).
 // memory/can_sniffer: one Sniffer<1024> with default tables (1024 ids, 256 nodes), registered
 //   with a CanAggregator.
@@ -72,6 +74,7 @@ struct Supervised {
 void supervised_component(benchmark::State& state) {
   const auto n = static_cast<std::size_t>(state.range(0));
   double per = 0;
+  double tail = 0;
   for (auto _ : state) {
     state.PauseTiming();
     Registry<task::Message> registry;
@@ -98,6 +101,13 @@ void supervised_component(benchmark::State& state) {
     // own, outside malloc's count: added.
     per = static_cast<double>(heap_in_use() - heap0 + aggregator.ring_region_bytes()) /
           static_cast<double>(n);
+    // Of which: the last region's blocks that no ring uses yet (a region is mapped whole, 64
+    // rings at a time), spread over the components.
+    const std::size_t ring_bytes =
+        supervisor::FlightRecorderOptions{}.cycles * sizeof(supervisor::PackedCycle);
+    tail = static_cast<double>(aggregator.ring_region_bytes() -
+                               aggregator.rings_on_huge_pages() * ring_bytes) /
+           static_cast<double>(n);
     components.clear();
     state.ResumeTiming();
   }
@@ -108,6 +118,7 @@ void supervised_component(benchmark::State& state) {
       supervisor::FlightRecorderOptions{}.cycles * sizeof(supervisor::PackedCycle) +
       sizeof(supervisor::ComponentSnapshot) + sizeof(Supervised));
   state.counters["sizeof_bytes"] = sizeof_bytes;
+  state.counters["region_tail_bytes"] = tail;
 }
 
 void port_size(benchmark::State& state) {
