@@ -67,8 +67,14 @@ class Port final : public PortReader<Variant> {
 #ifndef NDEBUG
     ProducerGuard guard(producers_);
 #endif
-    if (shm_ != nullptr) [[unlikely]]
-      return push_shm(m);
+    if (shm_ != nullptr) [[unlikely]] {
+      // Inline, as the in-process push below: a component in shared memory takes this branch
+      // every cycle, and each call level cost it ~3 ns (docs/performance.md). A drop is rare.
+      if (shm_->push(m)) [[likely]]
+        return true;
+      shm_drop(m);
+      return false;
+    }
     if (queue_.push(m)) [[likely]]
       return true;
     this->dropped_.store(this->dropped_.load(std::memory_order_relaxed) + 1,
@@ -113,12 +119,10 @@ class Port final : public PortReader<Variant> {
   }
 
  private:
-  bool push_shm(const Variant& m) noexcept {
-    if (shm_->push(m)) return true;
+  [[gnu::noinline]] void shm_drop(const Variant& m) noexcept {
     const std::uint64_t d = this->dropped_.load(std::memory_order_relaxed) + 1;
     this->dropped_.store(d, std::memory_order_relaxed);
     shm_->drop(m, d);
-    return false;
   }
 
 #ifndef NDEBUG
