@@ -373,6 +373,83 @@ struct FilterCompiler {
   }
 };
 
+namespace {
+
+// A program of simple conditions joined by And only (postfix: whatever the tree's shape, it is
+// then the AND of all its conditions), folded into one Conjunction; inactive for any other.
+Filter::Conjunction fold_conjunction(const std::vector<Filter::Instr>& program,
+                                     const std::vector<std::uint32_t>& pool) {
+  using C = Filter::Conjunction;
+  C c;
+  if (program.empty()) return c;
+  std::uint32_t id_hi = ~std::uint32_t{0};
+  std::uint32_t node_hi = ~std::uint32_t{0};
+  const auto want = [&c](std::uint8_t bit, bool value) {
+    const auto v = static_cast<std::uint8_t>(value ? bit : 0);
+    if ((c.flag_mask & bit) != 0 && (c.flag_want & bit) != v) c.never = true;
+    c.flag_mask = static_cast<std::uint8_t>(c.flag_mask | bit);
+    c.flag_want = static_cast<std::uint8_t>(c.flag_want | v);
+  };
+  for (const Filter::Instr& in : program) {
+    switch (static_cast<Op>(in.op)) {
+      case Op::True:
+      case Op::And:
+        break;
+      case Op::False:
+        c.never = true;
+        break;
+      case Op::Bus:
+        for (std::uint32_t w = 0; w < 8; ++w) c.buses[w] &= pool[in.a + w];
+        break;
+      case Op::IdRange:
+        c.id_lo = std::max(c.id_lo, in.a);
+        id_hi = std::min(id_hi, in.b);
+        break;
+      case Op::NodeRange:
+        c.node_lo = std::max(c.node_lo, in.a);
+        node_hi = std::min(node_hi, in.b);
+        break;
+      case Op::IdMask:
+        // (id & m1) == v1 and (id & m2) == v2: (id & (m1 | m2)) == (v1 | v2) when v1 and v2
+        // agree where both masks test; no id otherwise.
+        if ((c.id_value & in.b) != (in.a & c.id_mask)) c.never = true;
+        c.id_mask |= in.b;
+        c.id_value |= in.a;
+        break;
+      case Op::Standard:
+        want(C::kExtended, false);
+        break;
+      case Op::Extended:
+        want(C::kExtended, true);
+        break;
+      case Op::Fd:
+        want(C::kFd, true);
+        break;
+      case Op::Remote:
+        want(C::kRemote, true);
+        break;
+      case Op::Dir:
+        if (in.a > 1) c.never = true;
+        want(C::kTx, in.a == 1);
+        break;
+      case Op::Ids:
+      case Op::Nodes:
+      case Op::Functions:
+      case Op::Payload:
+      case Op::Not:
+      case Op::Or:
+        return C{};  // not a simple conjunction: the program runs
+    }
+  }
+  if (c.id_lo > id_hi || c.node_lo > node_hi) c.never = true;
+  c.id_span = c.id_lo > id_hi ? 0 : id_hi - c.id_lo;
+  c.node_span = c.node_lo > node_hi ? 0 : node_hi - c.node_lo;
+  c.active = true;
+  return c;
+}
+
+}  // namespace
+
 expected<Filter, Error> Filter::compile(const FilterExpr& expr) {
   Filter f;
   if (expr.accepts_all()) return f;  // empty program: the sniffer's fast path
@@ -383,10 +460,11 @@ expected<Filter, Error> Filter::compile(const FilterExpr& expr) {
         Error(EINVAL, fmt::format("filter nested more than {} levels deep", kMaxDepth)));
   }
   f.text_ = expr.to_string();
+  f.conjunction_ = fold_conjunction(f.program_, f.pool_);
   return f;
 }
 
-bool Filter::matches(const Frame& f, Direction d, NodeAddress a) const noexcept {
+bool Filter::run(const Frame& f, Direction d, NodeAddress a) const noexcept {
   if (program_.empty()) return true;
   std::array<bool, kMaxDepth + 1> stack;  // compile() bounds the depth
   std::size_t sp = 0;

@@ -192,3 +192,104 @@ TEST_CASE("A filter built by hand with duplicate operands compiles to a proper s
     CHECK_FALSE(f.matches(Frame::classic(id, {}), Direction::Rx, kIdentity));
   }
 }
+
+TEST_CASE("A filter of simple conditions joined by AND is tested inline, as its program would",
+          "[can][filter]") {
+  SECTION("which filters take the inline test") {
+    CHECK(compiled(match::bus({0}) && match::extended() && match::node_range(0, 0xFD))
+              .is_simple_conjunction());
+    CHECK(compiled(match::id_range(0x100, 0x1FF) && match::id_mask(0x180, 0x780) && match::fd() &&
+                   match::direction(Direction::Tx))
+              .is_simple_conjunction());
+    CHECK(compiled(match::standard()).is_simple_conjunction());
+    CHECK_FALSE(compiled(match::ids({0x181}) && match::standard()).is_simple_conjunction());
+    CHECK_FALSE(compiled(match::standard() || match::fd()).is_simple_conjunction());
+    CHECK_FALSE(compiled(!match::extended()).is_simple_conjunction());
+    CHECK_FALSE(compiled(match::payload_byte(0, 0x2F) && match::bus({0})).is_simple_conjunction());
+    CHECK_FALSE(Filter{}.is_simple_conjunction());  // accept-all has nothing to test
+  }
+  SECTION("contradictions pass no frame") {
+    const auto none = [](const FilterExpr& e) {
+      const Filter f = compiled(e);
+      REQUIRE(f.is_simple_conjunction());
+      for (std::uint32_t id = 0; id < 0x800; id += 7) {
+        for (const bool ext : {false, true}) {
+          const Frame fr = Frame::classic(id, {}, ext ? IdFormat::Extended : IdFormat::Standard);
+          CHECK_FALSE(f.matches(fr, Direction::Rx, kIdentity));
+          CHECK_FALSE(f.run(fr, Direction::Rx, kIdentity.map(fr)));
+        }
+      }
+    };
+    none(match::standard() && match::extended());
+    none(match::id_range(0, 10) && match::id_range(20, 30));
+    none(match::node_range(5, 6) && match::node_range(7, 8));
+    none(match::id_mask(0x100, 0x700) && match::id_mask(0x200, 0x300));  // bit 0x100 disagrees
+    none(match::reject_all() && match::standard());
+    none(match::direction(Direction::Tx) && match::direction(Direction::Rx));
+  }
+  SECTION("two masks that agree are both tested") {
+    const Filter f = compiled(match::id_mask(0x100, 0x700) && match::id_mask(0x001, 0x00F));
+    REQUIRE(f.is_simple_conjunction());
+    CHECK(f.matches(Frame::classic(0x181, {}), Direction::Rx, kIdentity));
+    CHECK_FALSE(f.matches(Frame::classic(0x182, {}), Direction::Rx, kIdentity));
+    CHECK_FALSE(f.matches(Frame::classic(0x281, {}), Direction::Rx, kIdentity));
+  }
+  SECTION("the same answer as the program, on random filters and frames") {
+    std::uint64_t seed = 0x9E3779B97F4A7C15ULL;
+    const auto next = [&seed](std::uint32_t n) {
+      seed ^= seed << 13;
+      seed ^= seed >> 7;
+      seed ^= seed << 17;
+      return static_cast<std::uint32_t>(seed % n);
+    };
+    const auto condition = [&]() -> FilterExpr {
+      const std::uint32_t lo = next(0x800);
+      switch (next(9)) {
+        case 0:
+          return match::bus(
+              {static_cast<std::uint8_t>(next(4)), static_cast<std::uint8_t>(next(4) + 32)});
+        case 1:
+          return match::id_range(lo, lo + next(0x400));
+        case 2:
+          return match::id_mask(next(0x800), 0x700 >> next(4));
+        case 3: {
+          const std::uint32_t n = next(64);
+          return match::node_range(n, n + next(64));
+        }
+        case 4:
+          return match::standard();
+        case 5:
+          return match::extended();
+        case 6:
+          return match::fd();
+        case 7:
+          return match::remote();
+        default:
+          return match::direction(next(2) == 0 ? Direction::Rx : Direction::Tx);
+      }
+    };
+    const NodeMap canopen = NodeMap::canopen();
+    int simple = 0;
+    int passed = 0;
+    for (int k = 0; k < 400; ++k) {
+      FilterExpr e = condition();
+      for (std::uint32_t parts = next(4); parts > 0; --parts) e = e && condition();
+      const Filter f = compiled(e);
+      simple += f.is_simple_conjunction() ? 1 : 0;
+      for (int i = 0; i < 200; ++i) {
+        Frame fr = Frame::classic(next(0x800), {1, 2},
+                                  next(2) == 0 ? IdFormat::Standard : IdFormat::Extended);
+        fr.bus = static_cast<std::uint8_t>(next(2) == 0 ? next(4) : next(256));
+        fr.fd = next(2) == 0;
+        fr.rtr = !fr.fd && next(3) == 0;
+        const Direction d = next(2) == 0 ? Direction::Rx : Direction::Tx;
+        const bool got = f.matches(fr, d, canopen);
+        INFO(e.to_string() << " on id " << fr.id << " bus " << int{fr.bus});
+        REQUIRE(got == f.run(fr, d, canopen.map(fr)));
+        passed += got ? 1 : 0;
+      }
+    }
+    CHECK(simple == 400);  // every filter above is a simple conjunction
+    CHECK(passed > 0);     // and some frames pass: the comparison is not all "no"
+  }
+}
