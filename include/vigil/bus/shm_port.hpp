@@ -327,8 +327,7 @@ class ShmReader {
   [[nodiscard]] expected<ShmLiveState, ShmError> live() const noexcept { return ring_.live(); }
   /// Marks this daemon's drain in the segment.
   void heartbeat(std::int64_t now, std::int32_t pid) noexcept { ring_.heartbeat(now, pid); }
-  /// Prefetch hints for a drain to come (ShmRingReader::prefetch_state, prefetch_records).
-  void prefetch_state() const noexcept { ring_.prefetch_state(); }
+  /// Prefetch hint for a drain to come (ShmRingReader::prefetch_records).
   void prefetch_records(std::size_t lines) const noexcept { ring_.prefetch_records(lines); }
   /// Hints the CPU to bring in this reader's own state (what a pop reads first).
   void prefetch_self() const noexcept {

@@ -156,11 +156,9 @@ class ShmRingReader {
   /// Records that daemon `pid` drained the segment at monotonic time `now`.
   void heartbeat(std::int64_t now, std::int32_t pid) noexcept;
 
-  /// Hints the CPU to bring in what the next `live()` reads (the state and write-index lines of
-  /// the header). A hint only: it reads nothing, cannot fault, and is harmless on a segment that
-  /// shrank.
-  void prefetch_state() const noexcept { prefetch_state(base_); }
-  /// The same for the segment mapped at `base`, without reading the reader itself.
+  /// Hints the CPU to bring in what the next `live()` of the segment mapped at `base` reads (the
+  /// state and write-index lines of the header), without reading the reader itself. A hint only:
+  /// it reads nothing, cannot fault, and is harmless on a segment that shrank.
   static void prefetch_state(const void* base) noexcept {
     const auto* b = static_cast<const std::byte*>(base);
     __builtin_prefetch(b + kStateOffset, 1);  // written too: the heartbeat
