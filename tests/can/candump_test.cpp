@@ -7,13 +7,13 @@
 #include <cstring>
 #include <filesystem>
 #include <map>
-#include <random>
 #include <set>
 #include <sstream>
 #include <streambuf>
 #include <string>
 #include <vector>
 
+#include "support/mutated_lines.hpp"
 #include "support/shared_data.hpp"
 #include "vigil/platform/rt_loss.hpp"
 
@@ -618,45 +618,11 @@ TEST_CASE("candump reader survives mutated input and returns only valid frames",
       "DROPCOUNT: dropped 2 CAN frames",
   };
   const std::string alphabet = "0123456789abcdefABCDEFRrT#._() \t\r-xX:";
-  std::mt19937_64 rng(12345);
-  std::string text;
-  for (int i = 0; i < 200'000; ++i) {
-    std::string l = seeds[rng() % seeds.size()];
-    const int edits = 1 + static_cast<int>(rng() % 3);
-    for (int k = 0; k < edits && !l.empty(); ++k) {
-      const std::size_t at = rng() % l.size();
-      const char c =
-          rng() % 8 == 0 ? static_cast<char>(rng() % 256) : alphabet[rng() % alphabet.size()];
-      switch (rng() % 4) {
-        case 0:
-          l[at] = c;
-          break;
-        case 1:
-          l.insert(l.begin() + static_cast<std::ptrdiff_t>(at), c);
-          break;
-        case 2:
-          l.erase(at, 1 + rng() % 3);
-          break;
-        default:
-          l.resize(at);
-          break;
-      }
-    }
-    text += l;
-    text += '\n';
-  }
-  std::istringstream in(text);
+  std::istringstream in(vigil::test::mutated_lines(seeds, alphabet, 200'000, 12345));
   CandumpReader reader(in, "<fuzz>");
-  std::uint64_t frames = 0;
-  std::uint64_t invalid = 0;
-  for (;;) {
-    auto e = reader.next();
-    REQUIRE(e.has_value());
-    if (!*e) break;
-    ++frames;
-    if (!(*e)->frame.valid()) ++invalid;
-  }
-  CHECK(invalid == 0);
-  CHECK(frames > 1000);
+  const auto read = vigil::test::read_through(reader);
+  REQUIRE(read.every_call_ok);
+  CHECK(read.invalid == 0);
+  CHECK(read.frames > 1000);
   CHECK(reader.malformed_count() > 1000);
 }

@@ -4,12 +4,12 @@
 #include <catch2/catch.hpp>
 #include <charconv>
 #include <cstring>
-#include <random>
 #include <sstream>
 #include <streambuf>
 #include <string>
 #include <vector>
 
+#include "support/mutated_lines.hpp"
 #include "vigil/platform/rt_loss.hpp"
 
 using vigil::Nanos;
@@ -507,47 +507,13 @@ TEST_CASE("TRC reader survives mutated input and returns only valid frames", "[c
   };
   for (const auto& [header, seeds_ptr] : variants) {
     const std::vector<std::string>& seeds = *seeds_ptr;
-    std::mt19937_64 rng(777);
-    std::string text = header;
-    text += seeds[0] + "\n";
-    for (int i = 0; i < 100'000; ++i) {
-      std::string l = seeds[rng() % seeds.size()];
-      const int edits = 1 + static_cast<int>(rng() % 3);
-      for (int k = 0; k < edits && !l.empty(); ++k) {
-        const std::size_t at = rng() % l.size();
-        const char c =
-            rng() % 8 == 0 ? static_cast<char>(rng() % 256) : alphabet[rng() % alphabet.size()];
-        switch (rng() % 4) {
-          case 0:
-            l[at] = c;
-            break;
-          case 1:
-            l.insert(l.begin() + static_cast<std::ptrdiff_t>(at), c);
-            break;
-          case 2:
-            l.erase(at, 1 + rng() % 3);
-            break;
-          default:
-            l.resize(at);
-            break;
-        }
-      }
-      text += l;
-      text += '\n';
-    }
-    std::istringstream in(text);
+    std::istringstream in(header + seeds[0] + "\n" +
+                          vigil::test::mutated_lines(seeds, alphabet, 100'000, 777));
     TrcReader reader(in, "<fuzz>");
-    std::uint64_t frames = 0;
-    std::uint64_t invalid = 0;
-    for (;;) {
-      auto e = reader.next();
-      REQUIRE(e.has_value());
-      if (!*e) break;
-      ++frames;
-      if (!(*e)->frame.valid()) ++invalid;
-    }
-    CHECK(invalid == 0);
-    CHECK(frames > 1000);
+    const auto read = vigil::test::read_through(reader);
+    REQUIRE(read.every_call_ok);
+    CHECK(read.invalid == 0);
+    CHECK(read.frames > 1000);
     CHECK(reader.malformed_count() > 1000);
   }
 }
