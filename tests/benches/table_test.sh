@@ -47,7 +47,7 @@ bench() {  # name family instance run_type aggregate_name repetitions key=value.
   bench ratio_min_under/manual_time_median 0 4 aggregate median 9 ratio=1.4996 goal_ratio_min=1.5 real_time=45
   printf ',\n'
   # Value goals: 5.004 % against "<= 5" is 5.004 FAIL (not "5"); 39.996 M against ">= 40M" is
-  # 39.996M FAIL (not "40M"); 40.2 M is PASS with the usual digits.
+  # 39.996M FAIL (not "40M"); 40.21 M is PASS with the usual digits.
   bench share/iterations:1/manual_time_median 1 0 aggregate median 9 "value=5.004" goal_value_max=5 "label=% of a core" ratio=0.5
   printf ',\n'
   bench rate_under/manual_time_median 1 1 aggregate median 9 value=39996000 goal_value_min=40000000 label=msg/s
