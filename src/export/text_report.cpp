@@ -63,10 +63,6 @@ std::string state_of(const Report& r) {
   return to_string(r.state);
 }
 
-std::string nanos_or_dash(const StatsSummary& s, double v) {
-  return s.count == 0 ? std::string("-") : format_nanos(v);
-}
-
 std::string stats_line(const StatsSummary& s) {
   if (s.count == 0) return "-";
   return fmt::format(
@@ -87,6 +83,11 @@ std::string losses_line(const std::array<std::uint64_t, task::kLossCauses>& loss
 }
 
 constexpr std::size_t kNameWidth = 24;
+// "mean/p99/max" and "p99/max": a duration is at most 7 characters ("-5.00us", "1.50ms").
+constexpr std::size_t kUserWidth = 23;
+constexpr std::size_t kLatencyWidth = 15;
+
+std::string nanos_of(Nanos v) { return format_nanos(static_cast<double>(v)); }
 
 }  // namespace
 
@@ -108,22 +109,27 @@ bool use_color(ColorMode mode, std::FILE* out) {
 }
 
 std::string format_summary_header() {
-  return fmt::format("{:<7} {:<{}} {:<14} {:>10}  {:<19} {:>9} {:>8} {:>7}  {}", "STATUS", "NAME",
-                     kNameWidth, "STATE", "CYCLES", "USER MEAN/P99", "LAT P99", "OVERRUNS",
-                     "LOSSES", "MESSAGES");
+  return fmt::format("{:<7} {:<{}} {:<14} {:>10}  {:<{}} {:>{}} {:>8} {:>7}  {}", "STATUS", "NAME",
+                     kNameWidth, "STATE", "CYCLES", "USER MEAN/P99/MAX", kUserWidth, "LAT P99/MAX",
+                     kLatencyWidth, "OVERRUNS", "LOSSES", "MESSAGES");
 }
 
 std::string format_summary_line(const Report& r, bool color) {
-  const std::string user =
-      r.user_ns.count == 0
-          ? std::string("-")
-          : format_nanos(r.user_ns.mean) + "/" + format_nanos(static_cast<double>(r.user_ns.p99));
-  const std::string latency = nanos_or_dash(r.latency_ns, static_cast<double>(r.latency_ns.p99));
+  // The max beside the p99: one long cycle among thousands puts the mean above the p99, and
+  // the max says why (and it is the latency figure cyclictest users read).
+  const std::string user = r.user_ns.count == 0
+                               ? std::string("-")
+                               : format_nanos(r.user_ns.mean) + "/" + nanos_of(r.user_ns.p99) +
+                                     "/" + nanos_of(r.user_ns.max);
+  const std::string latency = r.latency_ns.count == 0
+                                  ? std::string("-")
+                                  : nanos_of(r.latency_ns.p99) + "/" + nanos_of(r.latency_ns.max);
   std::string line = status_word(r.status.level(), color, 7);
-  line += fmt::format(" {:<{}} {:<14} {:>10}  {:<19} {:>9} {:>8} {:>7}", printable(r.name),
-                      kNameWidth, state_of(r), r.counters.cycles, user, latency,
-                      r.counters.overruns - std::min(r.counters.overruns, r.warmup.overruns),
-                      r.counters.total_losses());
+  line +=
+      fmt::format(" {:<{}} {:<14} {:>10}  {:<{}} {:>{}} {:>8} {:>7}", printable(r.name), kNameWidth,
+                  state_of(r), r.counters.cycles, user, kUserWidth, latency, kLatencyWidth,
+                  r.counters.overruns - std::min(r.counters.overruns, r.warmup.overruns),
+                  r.counters.total_losses());
   const std::string messages = r.status.summary();
   if (!messages.empty()) {
     line += "  ";

@@ -56,11 +56,51 @@ TEST_CASE("The summary has a header and one line per component", "[export][text]
   const std::string arm = format_summary_line(*set.find("arm"), false);
   CHECK(arm.rfind("WARN    arm", 0) == 0);
   CHECK(arm.find("Running") != std::string::npos);
-  CHECK(arm.find("9.50ms/9.50ms") != std::string::npos);  // user mean/p99
+  CHECK(arm.find("9.50ms/9.50ms/9.50ms") != std::string::npos);  // user mean/p99/max
   CHECK(arm.find("near overrun") != std::string::npos);
   // Columns line up: every line has its state at the same offset.
   const std::string motor = format_summary_line(*set.find("motor"), false);
   CHECK(motor.find("Running") == arm.find("Running"));
+}
+
+TEST_CASE("The summary shows the max beside the p99, so one long cycle explains a high mean",
+          "[export][text]") {
+  // 999 cycles of 100 us and one of 50 ms: the mean (~150 us) is above the p99 (100 us); the
+  // max says which cycle put it there. The wake-up latency likewise: p99 and max.
+  test::Harness h;
+  test::PeriodicProbe stall(h, "gripper", 100 * kNanosPerMilli);
+  stall.probe.work_ns = 100 * kNanosPerMicro;
+  for (int i = 1; i <= 999; ++i) {
+    h.cycle(stall.activity);
+    if (i % 100 == 0) (void)h.step();  // within the port's capacity
+  }
+  stall.probe.work_ns = 50 * kNanosPerMilli;
+  h.cycle(stall.activity);
+  const ReportSet set = h.step();
+  const Report& r = *set.find("gripper");
+  REQUIRE(r.user_ns.count == 1000);
+  // A percentile is its bucket's upper bound (within 2^-5 above), the max exact.
+  CHECK(r.user_ns.p99 >= 100 * kNanosPerMicro);
+  CHECK(r.user_ns.p99 < 100 * kNanosPerMicro * 33 / 32);
+  CHECK(r.user_ns.max == 50 * kNanosPerMilli);
+  CHECK(r.user_ns.mean > static_cast<double>(r.user_ns.p99));
+  const std::string line = format_summary_line(r, false);
+  INFO(line);
+  CHECK(line.find(" " + format_nanos(r.user_ns.mean) + "/100us/50.0ms ") != std::string::npos);
+  CHECK(line.find(format_nanos(static_cast<double>(r.latency_ns.p99)) + "/" +
+                  format_nanos(static_cast<double>(r.latency_ns.max))) != std::string::npos);
+  // The header names the columns, and they line up with the line's.
+  const std::string header = format_summary_header();
+  CHECK(header.find("USER MEAN/P99/MAX") != std::string::npos);
+  CHECK(header.find("LAT P99/MAX") != std::string::npos);
+  CHECK(line.find(format_nanos(r.user_ns.mean) + "/") == header.find("USER"));
+
+  // A component with no sample yet shows a dash in both columns.
+  test::Harness idle_h;
+  test::Probe idle("idle", idle_h.registry, idle_h.clock);
+  const ReportSet none = idle_h.step();
+  const std::string dash = format_summary_line(*none.find("idle"), false);
+  CHECK(dash.substr(header.find("USER"), 2) == "- ");
 }
 
 TEST_CASE("Colours: only the status word, only when asked or on a terminal", "[export][text]") {
