@@ -66,8 +66,10 @@
       cell(tr, 3, c.state);
       cell(tr, 4, String(c.counters.cycles), 'num');
       const isComp = c.kind === 'component';
-      cell(tr, 5, isComp && c.timing.user_ns.count ? fmtNs(c.timing.user_ns.p99) : '-', 'num');
-      cell(tr, 6, isComp && c.timing.latency_ns.count ? fmtNs(c.timing.latency_ns.p99) : '-', 'num');
+      // The max beside the p99, as in the text summary: one long cycle shows.
+      const p99Max = (d) => (isComp && d.count ? fmtNs(d.p99) + ' / ' + fmtNs(d.max) : '-');
+      cell(tr, 5, p99Max(c.timing.user_ns), 'num');
+      cell(tr, 6, p99Max(c.timing.latency_ns), 'num');
       cell(tr, 7, isComp ? c.window.overruns + ' / ' + c.counters.overruns : '-', 'num');
       cell(tr, 8, isComp ? String(c.counters.rt_losses) : '-', 'num');
       cell(tr, 9, c.messages.join('; '), 'msg');
