@@ -1,6 +1,5 @@
 #include "vigil/can/log/candump.hpp"
 
-#include <array>
 #include <catch2/catch.hpp>
 #include <charconv>
 #include <cstdio>
@@ -9,10 +8,10 @@
 #include <map>
 #include <set>
 #include <sstream>
-#include <streambuf>
 #include <string>
 #include <vector>
 
+#include "support/line_generator.hpp"
 #include "support/mutated_lines.hpp"
 #include "support/shared_data.hpp"
 #include "vigil/platform/rt_loss.hpp"
@@ -68,28 +67,6 @@ Frame frame_of(const std::string& frame_text) {
   REQUIRE(r.entries.size() == 1);
   return r.entries[0].frame;
 }
-
-// A streambuf that makes up `lines` lines on the fly with `make(i, buffer) -> length`, so that
-// a test can stream gigabytes through a reader without storing them anywhere.
-template <class Make>
-class LineGenerator : public std::streambuf {
- public:
-  LineGenerator(std::uint64_t lines, Make make) : lines_(lines), make_(make) {}
-
- protected:
-  int_type underflow() override {
-    if (next_ == lines_) return traits_type::eof();
-    const std::size_t n = make_(next_++, buffer_.data());
-    setg(buffer_.data(), buffer_.data(), buffer_.data() + n);
-    return traits_type::to_int_type(buffer_[0]);
-  }
-
- private:
-  std::uint64_t lines_;
-  std::uint64_t next_ = 0;
-  Make make_;
-  std::array<char, 256> buffer_{};
-};
 
 char* put_padded(char* p, std::uint64_t v, int width) {
   char tmp[24];
@@ -457,7 +434,7 @@ TEST_CASE("candump reader skips lines longer than the limit without storing them
 TEST_CASE("candump reader streams 2 million generated lines in constant memory",
           "[can][candump][stream]") {
   constexpr std::uint64_t kLines = 2'000'000;
-  LineGenerator gen(kLines, make_candump_line);
+  vigil::test::LineGenerator gen(kLines, make_candump_line);
   std::istream in(&gen);
   CandumpReader reader(in, "<generated>");
   // Warm-up: the interface table fills on the first lines.
@@ -502,7 +479,7 @@ TEST_CASE("candump reader skips a 100 MB line without a newline in constant memo
     std::memset(out, i == 0 ? '(' : '7', 250);
     return 250;
   };
-  LineGenerator gen(kChunks + 1, make);
+  vigil::test::LineGenerator gen(kChunks + 1, make);
   std::istream in(&gen);
   CandumpReader reader(in, "<huge>");
   const std::uint64_t allocations_before = vigil::platform::thread_allocations();

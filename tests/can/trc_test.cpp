@@ -1,14 +1,13 @@
 #include "vigil/can/log/trc.hpp"
 
-#include <array>
 #include <catch2/catch.hpp>
 #include <charconv>
 #include <cstring>
 #include <sstream>
-#include <streambuf>
 #include <string>
 #include <vector>
 
+#include "support/line_generator.hpp"
 #include "support/mutated_lines.hpp"
 #include "vigil/platform/rt_loss.hpp"
 
@@ -72,26 +71,6 @@ ParseError v21_error(const std::string& line) {
   CHECK(r.errors[0].line == 5);
   return r.errors[0];
 }
-
-template <class Make>
-class LineGenerator : public std::streambuf {
- public:
-  LineGenerator(std::uint64_t lines, Make make) : lines_(lines), make_(make) {}
-
- protected:
-  int_type underflow() override {
-    if (next_ == lines_) return traits_type::eof();
-    const std::size_t n = make_(next_++, buffer_.data());
-    setg(buffer_.data(), buffer_.data(), buffer_.data() + n);
-    return traits_type::to_int_type(buffer_[0]);
-  }
-
- private:
-  std::uint64_t lines_;
-  std::uint64_t next_ = 0;
-  Make make_;
-  std::array<char, 256> buffer_{};
-};
 
 }  // namespace
 
@@ -436,7 +415,7 @@ TEST_CASE("TRC reader streams a million generated records in constant memory",
     std::memcpy(p, rest, sizeof rest - 1);
     return static_cast<std::size_t>(p - out) + sizeof rest - 1;
   };
-  LineGenerator gen(kLines + 3, make);
+  vigil::test::LineGenerator gen(kLines + 3, make);
   std::istream in(&gen);
   TrcReader reader(in, "<generated>");
   REQUIRE(reader.next().value().has_value());
