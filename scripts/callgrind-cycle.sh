@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Instructions per cycle of one per-cycle-overhead benchmark row and of its floor, as counted by
-# callgrind (docs/performance.md, "The per-cycle path at the floor"). Repeatable to the
-# instruction, unlike time on a shared machine.
+# callgrind (docs/design/performance-history.md, "The per-cycle path at the floor"). Repeatable
+# to the instruction, unlike time on a shared machine.
 #
 #   scripts/callgrind-cycle.sh BENCH_BINARY FILTER [SUBJECT_FUNCTION]
 #

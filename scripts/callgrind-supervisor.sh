@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Instructions per message of the supervisor's drain, as counted by callgrind: repeatable to the
-# instruction, unlike time on a shared machine (docs/performance.md, "Supervisor scale"). For
-# comparing two builds of a change to the supervisor or the aggregator.
+# instruction, unlike time on a shared machine (docs/design/performance-history.md, "Supervisor
+# scale"). For comparing two builds of a change to the supervisor or the aggregator.
 #
 #   scripts/callgrind-supervisor.sh BENCH_BINARY [COMPONENTS] [PER_PORT]
 #

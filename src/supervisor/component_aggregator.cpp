@@ -246,8 +246,9 @@ static_assert(kSlotHotBytes <= std::size_t{6} * 64,
 // every call inlined (flatten; the statistics' loops are always_inline for it), integer
 // arithmetic, and the same floating point (no FMA in the set): the same results bit for bit
 // (tested). Measured: 1.13x the messages per second at 1,000 components x 10 messages, 1.16x
-// at 10,000 (docs/performance.md). Chosen once, from CPUID; set_instruction_set() changes it. A
-// build that already targets LZCNT and BMI2 has one copy, which is then the LzcntBmi2 one.
+// at 10,000 (docs/design/performance-history.md, "The statistics with LZCNT and BMI2"). Chosen
+// once, from CPUID; set_instruction_set() changes it. A build that already targets LZCNT and
+// BMI2 has one copy, which is then the LzcntBmi2 one.
 namespace {
 using InstructionSet = ComponentAggregator::InstructionSet;
 using TakePending = void (*)(const ComponentAggregator::Slot&) noexcept;
@@ -399,8 +400,9 @@ bool ComponentAggregator::streams_rings(RingStores mode, std::size_t drained_byt
   }
   // Far beyond the cache, a slot written now is evicted before the statistics read it back (a
   // few hundred drains later): reading its line first, as an ordinary store does, is wasted.
-  // Measured (docs/performance.md, "Streaming stores"): at twice the cache (1,000 components,
-  // 65 MB, a 32 MB cache) streaming was 13 % slower, at twenty times 13 % faster.
+  // Measured (docs/design/performance-history.md, "Streaming stores for large systems"): at twice
+  // the cache (1,000 components, 65 MB, a 32 MB cache) streaming was 13 % slower, at twenty
+  // times 13 % faster.
   return cache_bytes > 0 && drained_bytes / kStreamBeyondCaches > cache_bytes;
 }
 

@@ -69,7 +69,8 @@ class Port final : public PortReader<Variant> {
 #endif
     if (shm_ != nullptr) [[unlikely]] {
       // Inline, as the in-process push below: a component in shared memory takes this branch
-      // every cycle, and each call level cost it ~3 ns (docs/performance.md). A drop is rare.
+      // every cycle, and each call level cost it ~3 ns (docs/design/performance-history.md). A
+      // drop is rare.
       if (shm_->push(m)) [[likely]]
         return true;
       shm_drop(m);

@@ -76,7 +76,7 @@ class BasicInstrumentation {
   /// Before the component's update. `release_ns`: the scheduled release, if the loop has one
   /// (0: the cycle starts when released). RT-safe.
   /// Inline (as post_update()): a call and its return cost as much as ~40 instructions before
-  /// the cycle's clock read (docs/performance.md).
+  /// the cycle's clock read (docs/design/performance-history.md).
   [[gnu::always_inline]] void pre_update(Nanos release_ns = 0,
                                          std::uint32_t missed_before = 0) noexcept {
     context_.release_ns = release_ns;
