@@ -20,10 +20,9 @@
 #include "demo_components.hpp"
 #include "vigil/deploy/system.hpp"
 #include "vigil/export/http_server.hpp"
-#include "vigil/export/json_report.hpp"
 #include "vigil/export/log_report.hpp"
+#include "vigil/export/outputs.hpp"
 #include "vigil/export/text_report.hpp"
-#include "vigil/export/trace_event.hpp"
 #include "vigil/log/service.hpp"
 #include "vigil/log/source.hpp"
 #include "vigil/platform/process.hpp"
@@ -90,22 +89,6 @@ void print_view(const deploy::System& sys, const ReportSet& reports, double elap
   std::fflush(stdout);
 }
 
-// The reason a write of `text` to `path` failed (strerror of the failing call), or nullopt.
-// fflush and fclose are checked too: a full disk (ENOSPC, /dev/full) shows only there.
-std::optional<std::string> write_file(const std::string& path, const std::string& text) {
-  errno = 0;
-  std::FILE* f = std::fopen(path.c_str(), "wb");
-  if (f == nullptr) return std::strerror(errno != 0 ? errno : EIO);
-  bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size() && std::fflush(f) == 0;
-  int err = ok ? 0 : errno;
-  if (std::fclose(f) != 0 && ok) {
-    ok = false;
-    err = errno;
-  }
-  if (!ok) return std::strerror(err != 0 ? err : EIO);
-  return std::nullopt;
-}
-
 // Whether `path` can be opened for writing now (opened to append: an existing file is kept).
 std::optional<std::string> probe_writable(const std::string& path) {
   errno = 0;
@@ -117,9 +100,8 @@ std::optional<std::string> probe_writable(const std::string& path) {
 
 // Writes the final reports; on failure says so on stderr, naming the path and the reason.
 bool write_json(const std::string& path, const ReportSet& reports) {
-  if (auto err = write_file(path, to_json(reports, {.indent = 2}) + "\n")) {
-    std::fprintf(stderr, "vigil demo: cannot write the final reports to %s: %s\n", path.c_str(),
-                 err->c_str());
+  if (auto ok = exporter::write_json_file(path, reports); !ok) {
+    std::fprintf(stderr, "vigil demo: %s\n", ok.error().message.c_str());
     return false;
   }
   std::printf("Final reports written to %s\n", path.c_str());
@@ -213,28 +195,19 @@ int run_demo(const DemoOptions& o) {
     ~Detach() { s.aggregator().set_log_consumer(nullptr); }
   } detach{system};
 
-  // Events: the JSON-lines file, the traces, and rate-limited lines for people. Each is a
-  // subscriber with its own thread: none can delay the supervisor.
-  std::unique_ptr<exporter::EventLogWriter> event_file;
+  // Events: the JSON-lines file and the traces are outputs of the system's pipeline (each
+  // writes within milliseconds of an event, on a thread of its own: none can delay the
+  // supervisor); the rate-limited lines for people subscribe to the event stream.
+  exporter::EventLogOutput* event_file = nullptr;
   if (!o.events.empty()) {
-    auto w = exporter::EventLogWriter::start(system.aggregator().events(), o.events);
-    if (!w) {
-      std::fprintf(stderr, "vigil demo: %s\n", w.error().message.c_str());
-      return 1;
-    }
-    event_file = std::move(*w);
+    event_file = &system.service().add_output<exporter::EventLogOutput>(o.events);
   }
-  std::unique_ptr<exporter::TraceWriter> traces;
+  exporter::TraceOutput* traces = nullptr;
   if (!o.trace_dir.empty()) {
-    auto w = exporter::TraceWriter::start(
-        system.aggregator(), {.directory = o.trace_dir, .log = [](const std::string& line) {
-                                std::fprintf(stderr, "vigil demo: %s\n", line.c_str());
-                              }});
-    if (!w) {
-      std::fprintf(stderr, "vigil demo: %s\n", w.error().message.c_str());
-      return 1;
-    }
-    traces = std::move(*w);
+    traces = &system.service().add_output<exporter::TraceOutput>(
+        exporter::TraceWriterOptions{.directory = o.trace_dir, .log = [](const std::string& line) {
+                                       std::fprintf(stderr, "vigil demo: %s\n", line.c_str());
+                                     }});
   }
   const bool events_live = platform::is_terminal(stdout) && !o.no_live;
   auto event_panel = std::make_shared<EventPanel>();
@@ -321,9 +294,8 @@ int run_demo(const DemoOptions& o) {
     std::fflush(stderr);
     std::_Exit(kDemoExitStuck);
   }
-  logs.flush();  // after the last drain: the suppressed counts still pending
-  (void)system.aggregator().events().flush(2 * kNanosPerSecond);  // files and traces written
-  if (event_file) {
+  logs.flush();                 // after the last drain: the suppressed counts still pending
+  if (event_file != nullptr) {  // written up to the stop (the output waited for its writer)
     if (const std::string err = event_file->error(); !err.empty()) {
       std::fprintf(stderr, "vigil demo: %s\n", err.c_str());
     }
@@ -333,7 +305,7 @@ int run_demo(const DemoOptions& o) {
                     ? fmt::format(" ({} lost: the writer fell behind)", event_file->lost()).c_str()
                     : "");
   }
-  if (traces) {
+  if (traces != nullptr) {
     std::printf("%zu trace%s written to %s (open them in https://ui.perfetto.dev)\n",
                 traces->written().size(), traces->written().size() == 1 ? "" : "s",
                 o.trace_dir.c_str());

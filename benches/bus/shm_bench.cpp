@@ -14,8 +14,9 @@
 // daemon_cpu: 100 forked processes with 10 segments each; every 10 ms each process pushes 10
 // CycleSamples into each of its segments (what a 1 kHz component queues between two drains; the
 // producers wake at 100 Hz to keep the machine usable, the daemon's work is the same). The daemon
-// (ProcessSupervisor::start: drain thread at 10 ms + monitor at 1 s) runs in this process, which
-// does nothing else; value = this process's CPU time / wall time over 3 s, in % of one core.
+// (the `vigil supervise` pipeline started: drain thread at 10 ms + monitor at 1 s) runs in this
+// process, which does nothing else; value = this process's CPU time / wall time over 3 s, in % of
+// one core.
 //
 // sigkill_to_error: one forked process with a Task at 1 kHz; the daemon's thread runs; the
 // process is killed with SIGKILL (and reaped at once, as a shell would); value = time from the
@@ -40,10 +41,10 @@
 #include "support/bench_support.hpp"
 #include "vigil/bus/shm_port.hpp"
 #include "vigil/bus/shm_session.hpp"
-#include "vigil/deploy/process_supervisor.hpp"
 #include "vigil/exec/manual_activity.hpp"
 #include "vigil/exec/periodic_activity.hpp"
 #include "vigil/platform/process_watch.hpp"
+#include "vigil/service/supervision_service.hpp"
 #include "vigil/task/shm_messages.hpp"
 #include "vigil/task/task.hpp"
 
@@ -233,6 +234,16 @@ Nanos process_cpu_ns() {
   return static_cast<Nanos>(ts.tv_sec) * kNanosPerSecond + ts.tv_nsec;
 }
 
+// The `vigil supervise` pipeline for `name`, not started (thread stats not read: the benchmark
+// measures the daemon, not /proc).
+std::unique_ptr<service::SupervisionService> make_daemon(const std::string& name) {
+  service::SupervisionServiceOptions o;
+  o.segments = service::SegmentSourceOptions{.name = name};
+  o.monitor.read_thread_stats = false;
+  o.summary_file = nullptr;
+  return std::make_unique<service::SupervisionService>(std::move(o));
+}
+
 void daemon_cpu(benchmark::State& state) {
   const int processes = static_cast<int>(state.range(0));
   const int components = static_cast<int>(state.range(1));
@@ -256,18 +267,15 @@ void daemon_cpu(benchmark::State& state) {
   }
   ::close(fds[0]);
 
-  deploy::ProcessSupervisorOptions o;
-  o.name = name;
-  o.monitor.read_thread_stats = false;
-  auto d = deploy::ProcessSupervisor::create(o);
-  if (!d) std::abort();
+  auto d = make_daemon(name);
+  const Nanos period_ns = d->options().supervisor_period_ns;
   int shown = 0;
-  (*d)->subscribe([&](const deploy::ProcessEvent& e) {
-    if (e.kind == deploy::ProcessEvent::Kind::Rejected && shown++ < 3) {
-      std::fprintf(stderr, "daemon_cpu: %s\n", e.message.c_str());
+  const std::uint64_t sub = d->events().subscribe([&](const Event& e) {
+    if (e.kind == EventKind::SegmentRejected && shown++ < 3) {
+      std::fprintf(stderr, "daemon_cpu: %s\n", e.detail.c_str());
     }
   });
-  if (!(*d)->start()) std::abort();
+  if (!d->start()) std::abort();
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // discovery, first monitor cycle
   std::vector<double> shares;
   for (auto _ : state) {
@@ -279,16 +287,17 @@ void daemon_cpu(benchmark::State& state) {
     shares.push_back(share);
     state.SetIterationTime(3.0);
   }
-  const auto st = (*d)->stats();
-  (*d)->stop();
+  const auto st = d->segments()->stats();
+  (void)d->stop();
+  d->events().unsubscribe(sub);
   children.kill_all();
   // The deaths of all 100 processes at once (a robot's stack that crashes): drained, judged
   // (ERROR reports of their 1,000 components) and reclaimed in one cycle.
   const Nanos deaths_t0 = platform::now_ns();
-  (*d)->step();
+  (void)d->segments()->step();
   const Nanos deaths_ns = platform::now_ns() - deaths_t0;
-  const auto after = (*d)->stats();
-  d->reset();
+  const auto after = d->segments()->stats();
+  d.reset();
   remove_segments(name);
   report(state, "% of a core", median(shares));
   state.counters["segments"] = static_cast<double>(st.segments);
@@ -297,7 +306,7 @@ void daemon_cpu(benchmark::State& state) {
   state.counters["rejected"] = static_cast<double>(st.rejected);
   state.counters["msg_per_s"] =
       static_cast<double>(st.messages) /
-      (static_cast<double>(st.cycles) * static_cast<double>(o.period_ns) / 1e9);
+      (static_cast<double>(st.cycles) * static_cast<double>(period_ns) / 1e9);
   state.counters["cycle_ns_p50"] = static_cast<double>(st.cycle_ns.p50);
   state.counters["deaths_step_ms"] = static_cast<double>(deaths_ns) / 1e6;
   state.counters["deaths_seen"] = static_cast<double>(after.dead_processes);
@@ -331,30 +340,27 @@ class Spin : public Task<Spin> {
 void sigkill_to_error(benchmark::State& state) {
   const std::string name = bench_name("k");
   remove_segments(name);
-  deploy::ProcessSupervisorOptions o;
-  o.name = name;
-  o.monitor.read_thread_stats = false;
-  auto d = deploy::ProcessSupervisor::create(o);
-  if (!d) std::abort();
+  auto d = make_daemon(name);
+  const Nanos period_ns = d->options().supervisor_period_ns;
   std::mutex m;
   std::condition_variable cv;
   std::optional<Nanos> exited_at;
   std::string message;
   std::size_t joined = 0;
-  (*d)->subscribe([&](const deploy::ProcessEvent& e) {
+  const std::uint64_t sub = d->events().subscribe([&](const Event& e) {
     const Nanos t = platform::now_ns();
     std::lock_guard lock(m);
-    if (e.kind == deploy::ProcessEvent::Kind::Exited) {
+    if (e.kind == EventKind::ProcessExited) {
       exited_at = t;
-      message = e.message;
+      message = e.detail;
     }
-    if (e.kind == deploy::ProcessEvent::Kind::Joined) ++joined;
-    if (e.kind == deploy::ProcessEvent::Kind::Rejected) {
-      std::fprintf(stderr, "sigkill_to_error: %s\n", e.message.c_str());
+    if (e.kind == EventKind::Joined) ++joined;
+    if (e.kind == EventKind::SegmentRejected) {
+      std::fprintf(stderr, "sigkill_to_error: %s\n", e.detail.c_str());
     }
     cv.notify_all();
   });
-  if (!(*d)->start()) std::abort();
+  if (!d->start()) std::abort();
   std::vector<double> latencies;
   int timeouts = 0;
   for (auto _ : state) {
@@ -386,7 +392,7 @@ void sigkill_to_error(benchmark::State& state) {
       t1 = exited_at.value_or(t0 + 5 * kNanosPerSecond);
     }
     if (t1 - t0 >= 5 * kNanosPerSecond) {
-      const auto st = (*d)->stats();
+      const auto st = d->segments()->stats();
       std::fprintf(stderr,
                    "sigkill_to_error: no Exited event for pid %d within 5 s (processes %zu, "
                    "dead %zu, segments %zu, rejected %llu)\n",
@@ -397,8 +403,9 @@ void sigkill_to_error(benchmark::State& state) {
     latencies.push_back(static_cast<double>(t1 - t0) / 1e6);
     state.SetIterationTime(static_cast<double>(t1 - t0) * 1e-9);
   }
-  (*d)->stop();
-  d->reset();
+  (void)d->stop();
+  d->events().unsubscribe(sub);
+  d.reset();
   remove_segments(name);
   std::sort(latencies.begin(), latencies.end());
   report(state, "ms", median(latencies));
@@ -406,7 +413,7 @@ void sigkill_to_error(benchmark::State& state) {
       latencies.empty() ? 0.0 : latencies[(latencies.size() * 99 + 99) / 100 - 1];
   state.counters["max_ms"] = latencies.empty() ? 0.0 : latencies.back();
   state.counters["timeouts"] = timeouts;
-  state.counters["goal_value_max"] = 2 * static_cast<double>(o.period_ns) / 1e6;
+  state.counters["goal_value_max"] = 2 * static_cast<double>(period_ns) / 1e6;
   benchmark::DoNotOptimize(message.data());
 }
 

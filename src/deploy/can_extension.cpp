@@ -32,11 +32,8 @@ void CanExtension::stop() {
   supervisor_->stop();
 }
 
-void CanExtension::contribute(ReportSet& reports) { add_reports(reports, nullptr); }
-
-void CanExtension::contribute_metrics(ReportSet& reports,
-                                      std::vector<exporter::CanHistograms>& histograms) {
-  add_reports(reports, &histograms);
+void CanExtension::contribute(exporter::Snapshot& snapshot) {
+  add_reports(snapshot.reports, &snapshot.can_histograms);
 }
 
 void CanExtension::add_reports(ReportSet& reports,

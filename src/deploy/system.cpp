@@ -9,9 +9,9 @@
 namespace vigil::deploy {
 
 System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
-  // The pipeline is a SupervisionService on the system's registry, without outputs of its own:
-  // the system publishes through its exporter (outputs.http/textfile, with the extensions'
-  // reports) and its owner reads the final reports with step_monitor().
+  // The pipeline is a SupervisionService on the system's registry with the deployment's outputs
+  // (added below, with access to the system); its owner reads the final reports with
+  // step_monitor(). The extensions are its contributors (create()).
   const SupervisionSpec& sv = spec_.supervision;
   service::SupervisionServiceOptions o;
   o.registry = &registry_;
@@ -28,8 +28,24 @@ System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
   o.aggregator.auto_clear_ns = sv.auto_clear_ns;
   o.aggregator.state_events = sv.state_events;
   o.supervisor.stack_bytes = sv.supervisor_stack_bytes;
+  const OutputSpec& out = spec_.outputs;
+  if (out.http) {
+    exporter::HttpOptions h;
+    h.listen = out.http->listen;
+    h.threads = out.http->threads;
+    h.dashboard = out.http->dashboard;
+    if (out.http->clear) {  // POST /api/v1/clear: off unless the deployment enables it
+      h.clear = [this](const std::string& name) {
+        return name.empty() ? aggregator().clear_all() : aggregator().clear(name);
+      };
+    }
+    // The server logs at start only (its URL; a warning for a non-loopback address).
+    h.log = [this](const std::string& line) { log_.push_back(line); };
+    o.http = std::move(h);
+  }
   service_ = std::make_unique<service::SupervisionService>(std::move(o));
   service_->monitor().set_thresholds(sv.thresholds);
+  if (out.textfile) textfile_ = &service_->add_output<exporter::TextfileOutput>(*out.textfile);
 }
 
 System::~System() { stop(); }
@@ -70,6 +86,7 @@ expected<std::unique_ptr<System>, config::ConfigErrors> System::create(
     }
     auto ext = maker(section.node, *sys);
     if (!ext) return vigil::unexpected(ext.error());
+    sys->service_->add_contributor(**ext);  // once per monitor cycle, on the monitor's thread
     sys->extensions_.push_back(std::move(*ext));
   }
 
@@ -99,57 +116,27 @@ expected<std::unique_ptr<System>, config::ConfigErrors> System::create(
   return sys;
 }
 
-expected<void, Error> System::start_outputs() {
-  const OutputSpec& o = spec_.outputs;
-  output_error_.clear();
-  if (!o.http && !o.textfile) return {};
-  exporter::ExportOptions e;
-  if (o.http) {
-    e.http.emplace();
-    e.http->listen = o.http->listen;
-    e.http->threads = o.http->threads;
-    e.http->dashboard = o.http->dashboard;
-    if (o.http->clear) {  // POST /api/v1/clear: off unless the deployment enables it
-      e.http->clear = [this](const std::string& name) {
-        return name.empty() ? aggregator().clear_all() : aggregator().clear(name);
-      };
-    }
-    // The server logs at start only (its URL; a warning for a non-loopback address).
-    e.http->log = [this](const std::string& line) { log_.push_back(line); };
-  }
-  if (o.textfile) e.textfile = *o.textfile;
-  // Each monitor cycle with the extensions' reports (CAN nodes, groups) and their buckets.
-  e.augment_metrics = [this](ReportSet& r, std::vector<exporter::CanHistograms>& h) {
-    contribute(r, &h);
-  };
-  auto started = exporter::MonitorExporter::start(monitor(), &aggregator(), std::move(e));
-  if (!started) {
-    return vigil::unexpected(
-        Error{started.error().code, fmt::format("outputs.http: {}", started.error().message)});
-  }
-  exporter_ = std::move(*started);
-  if (o.textfile)
-    log_.push_back(fmt::format("textfile {} rewritten every monitor cycle", o.textfile->string()));
-  return {};
-}
-
-void System::stop_outputs() {
-  if (!exporter_) return;
-  output_error_ = exporter_->textfile_error();
-  exporter_.reset();  // unsubscribes (waits for a publication in progress), stops the server
-}
-
 expected<void, Error> System::start() {
   if (running_) return {};
   log_.clear();
-  // The malloc arenas are bounded before the outputs start their threads (glibc gives every
+  // The malloc arenas are bounded before the pipeline starts its threads (glibc gives every
   // thread that allocates before the bound an arena of its own, for good); the rest of the
-  // real-time set-up comes after them, so that a taken port fails before anything is locked.
+  // real-time set-up comes after it, so that a taken port fails before anything is locked (the
+  // lock covers the pipeline's threads: MCL_CURRENT).
   const platform::RealtimeSetupOptions rt_options;
   if (spec_.supervision.lock_memory)
     (void)platform::bound_malloc_arenas(rt_options.malloc_arena_max);
-  // Outputs first: a taken port fails here, before anything runs.
-  if (auto r = start_outputs(); !r) return r;
+  // The service starts its outputs first (a taken port fails here, before anything runs), then
+  // the supervisor's thread and the monitor's.
+  if (auto r = service_->start(); !r) {
+    return vigil::unexpected(Error{
+        r.error().code, spec_.outputs.http ? fmt::format("outputs.http: {}", r.error().message)
+                                           : r.error().message});
+  }
+  if (spec_.outputs.textfile) {
+    log_.push_back(
+        fmt::format("textfile {} rewritten every monitor cycle", spec_.outputs.textfile->string()));
+  }
   if (spec_.supervision.lock_memory) {
     rt_setup_ = platform::setup_realtime_process(rt_options);
     log_.push_back(rt_setup_.memory_locked
@@ -170,10 +157,6 @@ expected<void, Error> System::start() {
             ? fmt::format("supervision clock: {} ({:.3f} GHz, re-calibrated every second)",
                           platform::to_string(c.active), c.tsc_ghz)
             : fmt::format("supervision clock: {}", c.reason));
-  }
-  if (auto r = service_->start(); !r) {  // the supervisor's thread, then the monitor's
-    stop_outputs();
-    return r;
   }
   log_.push_back(fmt::format("supervisor every {} ms, monitor every {} ms",
                              spec_.supervision.supervisor_period_ns / kNanosPerMilli,
@@ -223,32 +206,18 @@ void System::stop() {
     if (it->activity) it->activity->stop();
   }
   for (auto it = extensions_.rbegin(); it != extensions_.rend(); ++it) (*it)->stop();
-  (void)service_->stop();  // the supervisor joins after a last full drain, then the monitor
-  stop_outputs();
+  (void)service_->stop();  // the supervisor joins after a last drain, the monitor, the outputs
   running_ = false;
 }
 
-ReportSet System::reports() const {
-  ReportSet r = service_->monitor().latest();
-  for (const auto& e : extensions_) e->contribute(r);
-  return r;
-}
-
-void System::contribute(ReportSet& reports,
-                        std::vector<exporter::CanHistograms>* histograms) const {
-  for (const auto& e : extensions_) {
-    if (histograms != nullptr) {
-      e->contribute_metrics(reports, *histograms);
-    } else {
-      e->contribute(reports);
-    }
-  }
-}
+ReportSet System::reports() const { return service_->reports(); }
 
 ReportSet System::step_monitor() {
-  ReportSet r = service_->step();  // drains first when the supervisor's thread does not run
-  for (const auto& e : extensions_) e->contribute(r);
-  return r;
+  return service_->step();  // drains first when the supervisor's thread does not run
+}
+
+std::string System::output_error() const {
+  return textfile_ != nullptr ? textfile_->error() : std::string();
 }
 
 TaskCore* System::component(std::string_view name) const noexcept {

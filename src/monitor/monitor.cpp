@@ -88,7 +88,13 @@ struct Monitor::Impl {
   const supervisor::ComponentAggregator& aggregator;
   const MonitorOptions options;
 
-  // Cycle state: everything down to step_time is guarded by step_mutex, held for a whole cycle.
+  // The monitor's locks. Three threads meet here: the monitor's own thread (run(): a cycle every
+  // period), the callers of step() (a control thread, the service's stop()), and readers of any
+  // thread (latest(), thresholds(), subscribe(), ...).
+  //
+  // step_mutex orders whole cycles: the monitor's thread and step()'s callers, one cycle at a
+  // time, and the changes to what a cycle uses (checks, hooks, the supervisor) against them.
+  // Held for a whole cycle, subscribers' calls included.
   mutable std::mutex step_mutex;
   CheckList checks;
   std::unordered_map<std::uint32_t, Memory> memory;
@@ -98,25 +104,26 @@ struct Monitor::Impl {
   bool supervisor_seen = false;
   std::uint64_t cycle = 0;
   supervisor::RunningStats step_time;
+  std::vector<std::pair<std::uint64_t, CycleHook>> hooks;
 
-  std::vector<std::pair<std::uint64_t, CycleHook>> hooks;  // guarded by step_mutex
-
-  // Configuration: config_mutex guards the fields below and is held only to copy or swap them.
-  mutable std::mutex config_mutex;
+  // state_mutex orders the readers and writers of any thread against the cycle that copies or
+  // swaps the values below: the thresholds and their errors, the latest reports, the
+  // subscribers. Held only for a copy or a swap, never during a call out, so a reader never
+  // waits for a cycle.
+  mutable std::mutex state_mutex;
   std::shared_ptr<const ThresholdSet> thresholds;
   std::uint64_t generation = 0;
   config::ConfigErrors errors;
-
-  mutable std::mutex latest_mutex;  // guards latest; held for one copy
   ReportSet latest;
-
-  std::mutex subscribers_mutex;  // guards subscribers; never held during a call
   std::vector<std::pair<std::uint64_t, Callback>> subscribers;
   std::atomic<std::uint64_t> next_id{1};  // ids of subscribers and cycle hooks
 
-  // The thread. thread_mutex serialises start() and stop().
+  // thread_mutex orders start() and stop() of the monitor's thread against each other (a
+  // control thread and a destructor); wake_mutex orders the thread's sleep against stop()'s
+  // wake-up (quit). Two, because stop() joins the thread while holding thread_mutex and the
+  // thread needs wake_mutex to see quit.
   std::mutex thread_mutex;
-  std::mutex wake_mutex;  // guards quit
+  std::mutex wake_mutex;
   std::condition_variable wake;
   bool quit = false;
   platform::Thread thread;
@@ -124,7 +131,7 @@ struct Monitor::Impl {
   std::atomic<int> thread_tid{0};
 
   std::shared_ptr<const ThresholdSet> current_thresholds() const {
-    std::lock_guard lock(config_mutex);
+    std::lock_guard lock(state_mutex);
     return thresholds;
   }
 
@@ -202,7 +209,7 @@ struct Monitor::Impl {
     std::uint64_t gen = 0;
     config::ConfigErrors errs;
     {
-      std::lock_guard lock(config_mutex);
+      std::lock_guard lock(state_mutex);
       gen = generation;
       errs = errors;
     }
@@ -275,7 +282,7 @@ void Monitor::set_thresholds(ThresholdSet thresholds) {
 void Monitor::set_thresholds(std::shared_ptr<const ThresholdSet> thresholds,
                              std::uint64_t generation) {
   if (!thresholds) return;
-  std::lock_guard lock(impl_->config_mutex);
+  std::lock_guard lock(impl_->state_mutex);
   impl_->thresholds = std::move(thresholds);
   impl_->generation = generation;
   impl_->errors.clear();
@@ -286,17 +293,17 @@ std::shared_ptr<const ThresholdSet> Monitor::thresholds() const {
 }
 
 std::uint64_t Monitor::thresholds_generation() const {
-  std::lock_guard lock(impl_->config_mutex);
+  std::lock_guard lock(impl_->state_mutex);
   return impl_->generation;
 }
 
 void Monitor::set_threshold_errors(config::ConfigErrors errors) {
-  std::lock_guard lock(impl_->config_mutex);
+  std::lock_guard lock(impl_->state_mutex);
   impl_->errors = std::move(errors);
 }
 
 config::ConfigErrors Monitor::threshold_errors() const {
-  std::lock_guard lock(impl_->config_mutex);
+  std::lock_guard lock(impl_->state_mutex);
   return impl_->errors;
 }
 
@@ -383,12 +390,12 @@ ReportSet Monitor::step() {
   if (m.options.self_report) set.components.push_back(m.monitor_report(*th, snaps.size()));
 
   {
-    std::lock_guard latest_lock(m.latest_mutex);
+    std::lock_guard latest_lock(m.state_mutex);
     m.latest = set;
   }
   std::vector<std::pair<std::uint64_t, Callback>> subscribers;
   {
-    std::lock_guard sub_lock(m.subscribers_mutex);
+    std::lock_guard sub_lock(m.state_mutex);
     subscribers = m.subscribers;
   }
   for (auto& [id, callback] : subscribers) {
@@ -438,24 +445,24 @@ void Monitor::stop() {
 bool Monitor::running() const noexcept { return impl_->running.load(std::memory_order_relaxed); }
 
 ReportSet Monitor::latest() const {
-  std::lock_guard lock(impl_->latest_mutex);
+  std::lock_guard lock(impl_->state_mutex);
   return impl_->latest;
 }
 
 std::vector<Report> Monitor::reports() const {
-  std::lock_guard lock(impl_->latest_mutex);
+  std::lock_guard lock(impl_->state_mutex);
   return impl_->latest.components;
 }
 
 std::uint64_t Monitor::subscribe(Callback callback) {
   const std::uint64_t id = impl_->next_id.fetch_add(1);
-  std::lock_guard lock(impl_->subscribers_mutex);
+  std::lock_guard lock(impl_->state_mutex);
   impl_->subscribers.emplace_back(id, std::move(callback));
   return id;
 }
 
 void Monitor::unsubscribe(std::uint64_t id) {
-  std::lock_guard lock(impl_->subscribers_mutex);
+  std::lock_guard lock(impl_->state_mutex);
   std::erase_if(impl_->subscribers, [&](const auto& s) { return s.first == id; });
 }
 

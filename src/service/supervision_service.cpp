@@ -3,89 +3,11 @@
 #include <cstdio>
 #include <exception>
 
-#include "vigil/export/json_report.hpp"
+#include "vigil/export/metrics_snapshot.hpp"
 
 namespace vigil::service {
 
 namespace {
-
-// The text summary (and detail views) on a FILE*: at stop, and after every cycle if asked.
-class TextOutput final : public ReportOutput {
- public:
-  TextOutput(std::FILE* out, bool every_cycle, bool details, ColorMode color)
-      : out_(out), every_cycle_(every_cycle), details_(details), color_(color) {}
-  void on_reports(const ReportSet& reports) override {
-    if (!every_cycle_) return;
-    print_summary(out_, reports, color_);
-    std::fflush(out_);
-  }
-  void stop(const ReportSet& final_reports) override {
-    print_summary(out_, final_reports, color_);
-    if (details_) {
-      std::fputc('\n', out_);
-      print_details(out_, final_reports, color_);
-    }
-    std::fflush(out_);
-  }
-
- private:
-  std::FILE* out_;
-  bool every_cycle_;
-  bool details_;
-  ColorMode color_;
-};
-
-// The final reports as a JSON file.
-class JsonFileOutput final : public ReportOutput {
- public:
-  JsonFileOutput(std::string path, int indent) : path_(std::move(path)), indent_(indent) {}
-  void stop(const ReportSet& final_reports) override {
-    const std::string text = to_json(final_reports, {.indent = indent_});
-    std::FILE* f = std::fopen(path_.c_str(), "w");
-    if (f == nullptr) {
-      std::fprintf(stderr, "vigil: cannot write the JSON report to '%s'\n", path_.c_str());
-      return;
-    }
-    const bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size();
-    if (std::fclose(f) != 0 || !ok) {
-      std::fprintf(stderr, "vigil: writing the JSON report to '%s' failed\n", path_.c_str());
-    }
-  }
-
- private:
-  std::string path_;
-  int indent_;
-};
-
-// The HTTP server and/or the node-exporter textfile (exporter::MonitorExporter), published
-// after every monitor cycle by the exporter's own subscription, and once more at stop with the
-// final reports.
-class ExporterOutput final : public ReportOutput {
- public:
-  ExporterOutput(Monitor& monitor, const supervisor::ComponentAggregator& aggregator,
-                 exporter::ExportOptions options, exporter::MonitorExporter*& slot)
-      : monitor_(monitor), aggregator_(aggregator), options_(std::move(options)), slot_(slot) {}
-  expected<void, Error> start() override {
-    auto e = exporter::MonitorExporter::start(monitor_, &aggregator_, options_);
-    if (!e) return unexpected(e.error());
-    exporter_ = std::move(*e);
-    slot_ = exporter_.get();
-    return {};
-  }
-  void stop(const ReportSet& final_reports) override {
-    if (exporter_ == nullptr) return;
-    exporter_->publish(final_reports);
-    slot_ = nullptr;
-    exporter_.reset();
-  }
-
- private:
-  Monitor& monitor_;
-  const supervisor::ComponentAggregator& aggregator_;
-  exporter::ExportOptions options_;
-  exporter::MonitorExporter*& slot_;
-  std::unique_ptr<exporter::MonitorExporter> exporter_;
-};
 
 supervisor::AggregatorOptions aggregator_options(const SupervisionServiceOptions& o) {
   supervisor::AggregatorOptions a = o.aggregator;
@@ -107,34 +29,59 @@ MonitorOptions monitor_options(const SupervisionServiceOptions& o) {
   return m;
 }
 
+std::unique_ptr<Source> make_source(const SupervisionServiceOptions& o, ComponentRegistry& registry,
+                                    supervisor::ComponentAggregator& aggregator) {
+  if (o.segments) {
+    SegmentSourceOptions s = *o.segments;
+    s.period_ns = o.supervisor_period_ns;
+    return std::make_unique<SegmentSource>(std::move(s), aggregator);
+  }
+  return std::make_unique<RegistrySource>(registry, aggregator, supervisor_options(o));
+}
+
+// Runs `f`, saying on stderr what it threw: one part's failure must not stop the pipeline.
+template <class F>
+void guarded(const char* what, F&& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "vigil: %s threw: %s\n", what, e.what());
+  } catch (...) {
+    std::fprintf(stderr, "vigil: %s threw\n", what);
+  }
+}
+
 }  // namespace
 
 SupervisionService::SupervisionService(SupervisionServiceOptions options)
     : options_(std::move(options)),
       registry_(options_.registry != nullptr ? *options_.registry : default_registry()),
       aggregator_(aggregator_options(options_)),
-      supervisor_(registry_, aggregator_, supervisor_options(options_)),
-      monitor_(aggregator_, monitor_options(options_)) {
-  monitor_.set_supervisor(&supervisor_);
+      source_(make_source(options_, registry_, aggregator_)),
+      monitor_(aggregator_, monitor_options(options_)),
+      latest_(std::make_shared<const exporter::Snapshot>()) {
+  if (auto* s = supervisor(); s != nullptr) monitor_.set_supervisor(s);
+  if (auto* s = segments(); s != nullptr) add_contributor(*s);
   if (options_.summary_file != nullptr) {
-    outputs_.push_back(std::make_unique<TextOutput>(options_.summary_file,
-                                                    options_.summary_every_cycle,
-                                                    options_.details_at_stop, options_.color));
+    add_output<exporter::TextOutput>(
+        exporter::TextOutputOptions{.file = options_.summary_file,
+                                    .every_cycle = options_.summary_every_cycle,
+                                    .details_at_stop = options_.details_at_stop,
+                                    .color = options_.color});
   }
   if (!options_.json_file.empty()) {
-    outputs_.push_back(std::make_unique<JsonFileOutput>(options_.json_file, options_.json_indent));
+    add_output<exporter::JsonFileOutput>(options_.json_file, options_.json_indent);
   }
-  if (options_.http.has_value() || !options_.prom_textfile.empty()) {
-    outputs_.push_back(std::make_unique<ExporterOutput>(
-        monitor_, aggregator_,
-        exporter::ExportOptions{.http = options_.http,
-                                .textfile = options_.prom_textfile,
-                                .augment = [this](ReportSet& r) { r = contribute(r); },
-                                .augment_metrics = {},
-                                .events = true},
-        exporter_));
+  if (options_.http.has_value()) http_ = &add_output<exporter::HttpOutput>(*options_.http);
+  if (!options_.prom_textfile.empty()) {
+    add_output<exporter::TextfileOutput>(options_.prom_textfile);
   }
-  monitor_subscription_ = monitor_.subscribe([this](const ReportSet& r) { publish(r); });
+  // The buckets are read at the start of each monitor cycle, just before the monitor copies the
+  // aggregator's snapshots: the outputs get the reports and the buckets of the same cycle.
+  histogram_hook_ = monitor_.add_cycle_hook([this] {
+    if (!outputs_.empty()) cycle_histograms_ = exporter::collect_histograms(aggregator_);
+  });
+  monitor_subscription_ = monitor_.subscribe([this](const ReportSet& r) { on_cycle(r); });
 }
 
 SupervisionService::~SupervisionService() {
@@ -143,114 +90,129 @@ SupervisionService::~SupervisionService() {
   try {
     stop();
     monitor_.unsubscribe(monitor_subscription_);
+    monitor_.remove_cycle_hook(histogram_hook_);
   } catch (...) {  // NOLINT(bugprone-empty-catch)
+  }
+}
+
+supervisor::TaskSupervisor* SupervisionService::supervisor() noexcept {
+  auto* r = dynamic_cast<RegistrySource*>(source_.get());
+  return r != nullptr ? &r->supervisor() : nullptr;
+}
+
+SegmentSource* SupervisionService::segments() noexcept {
+  return dynamic_cast<SegmentSource*>(source_.get());
+}
+
+exporter::HttpServer* SupervisionService::http() noexcept {
+  return http_ != nullptr ? http_->server() : nullptr;
+}
+
+void SupervisionService::stop_outputs(const exporter::Snapshot& final_snapshot, std::size_t count) {
+  for (std::size_t i = 0; i < count; ++i) {
+    guarded("an output's stop", [&] { outputs_[i]->stop(final_snapshot); });
   }
 }
 
 expected<void, Error> SupervisionService::start() {
   if (running_) return unexpected(Error{"the supervision service is already running"});
+  if (options_.segments) {
+    if (auto ok = validate(*options_.segments); !ok) return ok;
+  }
+  const exporter::Snapshot empty;
+  exporter::OutputContext context{aggregator_};
   std::size_t started = 0;
   for (; started < outputs_.size(); ++started) {
-    if (auto r = outputs_[started]->start(); !r) {
-      for (std::size_t i = 0; i < started; ++i) outputs_[i]->stop(ReportSet{});
+    if (auto r = outputs_[started]->start(context); !r) {
+      stop_outputs(empty, started);
       return r;
     }
   }
-  if (auto r = supervisor_.start(); !r) {
-    for (auto& o : outputs_) o->stop(ReportSet{});
+  last_event_seq_ = aggregator_.events().last_seq();
+  publishing_.store(true, std::memory_order_release);
+  if (auto r = source_->start(); !r) {
+    publishing_.store(false, std::memory_order_release);
+    stop_outputs(empty, outputs_.size());
     return r;
   }
   if (options_.monitor_thread) {
     if (auto r = monitor_.start(); !r) {
-      supervisor_.stop();
-      for (auto& o : outputs_) o->stop(ReportSet{});
+      source_->stop();
+      publishing_.store(false, std::memory_order_release);
+      stop_outputs(empty, outputs_.size());
       return r;
     }
   }
   running_ = true;
-  stopped_ = false;
   return {};
 }
 
 ReportSet SupervisionService::stop() {
   if (!running_) return final_;
-  supervisor_.stop();  // joins after a last full drain
+  source_->stop();  // joins after a last full drain
   monitor_.stop();
   running_ = false;
-  if (options_.final_cycle) {
-    // The last cycle is published here, once, rather than through the monitor's subscription.
-    monitor_.unsubscribe(monitor_subscription_);
-    final_ = contribute(monitor_.step());
-    monitor_subscription_ = monitor_.subscribe([this](const ReportSet& r) { publish(r); });
-  } else {
-    final_ = contribute(monitor_.latest());
-  }
-  std::vector<std::pair<std::uint64_t, Subscriber>> subscribers;
-  {
-    std::lock_guard lock(subscribers_mutex_);
-    subscribers = subscribers_;
-  }
-  if (options_.final_cycle) {
-    for (auto& [id, s] : subscribers) s(final_);
-  }
-  for (auto& o : outputs_) o->stop(final_);
-  stopped_ = true;
+  publishing_.store(false,
+                    std::memory_order_release);  // the last cycle goes to the outputs' stop(), once
+  if (options_.final_cycle) (void)monitor_.step();
+  const std::shared_ptr<const exporter::Snapshot> last = snapshot();
+  final_ = last->reports;
+  stop_outputs(*last, outputs_.size());
   return final_;
 }
 
 ReportSet SupervisionService::step() {
-  if (!supervisor_.running()) supervisor_.step();
-  return contribute(monitor_.step());
+  if (!source_->running()) source_->step();
+  (void)monitor_.step();
+  return reports();
 }
 
-ReportSet SupervisionService::reports() const { return contribute(monitor_.latest()); }
+ReportSet SupervisionService::reports() const { return snapshot()->reports; }
 
-std::uint64_t SupervisionService::subscribe(Subscriber subscriber) {
-  std::lock_guard lock(subscribers_mutex_);
-  const std::uint64_t id = next_subscriber_++;
-  subscribers_.emplace_back(id, std::move(subscriber));
-  return id;
+std::shared_ptr<const exporter::Snapshot> SupervisionService::snapshot() const {
+  std::lock_guard lock(latest_mutex_);
+  return latest_;
 }
 
-void SupervisionService::unsubscribe(std::uint64_t id) {
-  std::lock_guard lock(subscribers_mutex_);
-  std::erase_if(subscribers_, [id](const auto& s) { return s.first == id; });
-}
-
-ReportOutput& SupervisionService::add_output(std::unique_ptr<ReportOutput> output) {
+exporter::Output& SupervisionService::add_output(std::unique_ptr<exporter::Output> output) {
   outputs_.push_back(std::move(output));
   return *outputs_.back();
 }
 
-void SupervisionService::add_contributor(Contributor contributor) {
-  contributors_.push_back(std::move(contributor));
+Contributor& SupervisionService::add_contributor(std::unique_ptr<Contributor> contributor) {
+  owned_contributors_.push_back(std::move(contributor));
+  contributors_.push_back(owned_contributors_.back().get());
+  return *owned_contributors_.back();
 }
 
-ReportSet SupervisionService::contribute(const ReportSet& monitor_reports) const {
-  ReportSet r = monitor_reports;
-  for (const auto& c : contributors_) c(r);
-  return r;
+void SupervisionService::add_contributor(Contributor& contributor) {
+  contributors_.push_back(&contributor);
 }
 
-void SupervisionService::publish(const ReportSet& monitor_reports) {
-  std::vector<std::pair<std::uint64_t, Subscriber>> subscribers;
+// One monitor cycle, on the monitor's thread (or step()'s or stop()'s caller): the snapshot is
+// made once (contributors run once), kept for readers, and handed to every output.
+void SupervisionService::on_cycle(const ReportSet& monitor_reports) {
+  auto s = std::make_shared<exporter::Snapshot>();
+  s->cycle = monitor_reports.cycle;
+  s->reports = monitor_reports;
+  s->histograms = std::move(cycle_histograms_);
+  cycle_histograms_.clear();
+  for (auto& h : s->histograms) h.cycle = s->cycle;
+  supervisor::EventHub& hub = aggregator_.events();
+  s->events = hub.since(last_event_seq_);
+  if (!s->events.empty()) {
+    const std::uint64_t first = s->events.front().seq;
+    s->events_missed = first > last_event_seq_ + 1 ? first - last_event_seq_ - 1 : 0;
+    last_event_seq_ = s->events.back().seq;
+  }
+  for (Contributor* c : contributors_) guarded("a contributor", [&] { c->contribute(*s); });
+  std::shared_ptr<const exporter::Snapshot> done = std::move(s);
   {
-    std::lock_guard lock(subscribers_mutex_);
-    subscribers = subscribers_;
+    std::lock_guard lock(latest_mutex_);
+    latest_ = done;
   }
-  // Nobody listens: no copy, and contributors run only when someone asks (reports(), step()).
-  if (subscribers.empty() && outputs_.empty()) return;
-  const ReportSet r = contribute(monitor_reports);
-  for (auto& [id, s] : subscribers) {
-    try {
-      s(r);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "vigil: a report subscriber threw: %s\n", e.what());
-    } catch (...) {
-      std::fprintf(stderr, "vigil: a report subscriber threw\n");
-    }
-  }
-  for (auto& o : outputs_) o->on_reports(r);
+  if (!publishing_.load(std::memory_order_acquire)) return;
+  for (auto& o : outputs_) guarded("an output", [&] { o->publish(*done); });
 }
 
 }  // namespace vigil::service

@@ -31,6 +31,14 @@ const char* to_string(EventKind k) noexcept {
       return "recovered";
     case EventKind::Cleared:
       return "cleared";
+    case EventKind::Joined:
+      return "joined";
+    case EventKind::Left:
+      return "left";
+    case EventKind::ProcessExited:
+      return "process_exited";
+    case EventKind::SegmentRejected:
+      return "segment_rejected";
   }
   return "?";
 }

@@ -13,8 +13,8 @@
 
 #include "shm_support.hpp"
 #include "support/fake_clock.hpp"
+#include "support/segment_daemon.hpp"
 #include "vigil/bus/shm_port.hpp"
-#include "vigil/deploy/process_supervisor.hpp"
 #include "vigil/exec/manual_activity.hpp"
 #include "vigil/platform/process_watch.hpp"
 #include "vigil/task/shm_messages.hpp"
@@ -46,11 +46,11 @@ struct Placed {
     REQUIRE(r.has_value());
     return std::move(*r);
   }
-  [[nodiscard]] std::unique_ptr<deploy::ProcessSupervisor> daemon() const {
-    deploy::ProcessSupervisorOptions o;
+  [[nodiscard]] std::unique_ptr<test::Daemon> daemon() const {
+    test::DaemonOptions o;
     o.name = name;
     o.monitor.read_thread_stats = false;
-    auto d = deploy::ProcessSupervisor::create(o);
+    auto d = test::Daemon::create(o);
     REQUIRE(d.has_value());
     return std::move(*d);
   }
@@ -136,12 +136,12 @@ TEST_CASE("A daemon started after the process gets its identity and exact counte
 TEST_CASE("A daemon without the inotify watch finds new segments at its full listings",
           "[shm][port]") {
   Placed p;
-  deploy::ProcessSupervisorOptions o;
+  test::DaemonOptions o;
   o.name = p.name;
   o.monitor.read_thread_stats = false;
   o.watch_directory = false;
   o.rescan_ns = 3600 * kNanosPerSecond;
-  auto d = deploy::ProcessSupervisor::create(o);
+  auto d = test::Daemon::create(o);
   REQUIRE(d.has_value());
   Running first("first", p.registry);
   first.cycles(10);
@@ -153,7 +153,7 @@ TEST_CASE("A daemon without the inotify watch finds new segments at its full lis
   CHECK_FALSE((*d)->aggregator().find("second").has_value());  // no listing due, no watch
 
   o.rescan_ns = 0;  // a listing at every step
-  auto e = deploy::ProcessSupervisor::create(o);
+  auto e = test::Daemon::create(o);
   REQUIRE(e.has_value());
   (*e)->step();
   Running third("third", p.registry);
@@ -196,8 +196,6 @@ TEST_CASE("A component that leaves is drained, reported as left, and its segment
           "[shm][port]") {
   Placed p;
   auto d = p.daemon();
-  std::vector<deploy::ProcessEvent> events;
-  d->subscribe([&](const deploy::ProcessEvent& e) { events.push_back(e); });
   {
     Running r("leaver", p.registry);
     d->step();
@@ -210,9 +208,14 @@ TEST_CASE("A component that leaves is drained, reported as left, and its segment
   CHECK_FALSE(s->alive);
   CHECK(s->counters.cycles == 7);
   CHECK(p.cleanup.count() == 0);
+  // What happened to the segment reaches the one event stream, with the process named.
+  std::vector<Event> events = d->take_events();
+  std::erase_if(events, [](const Event& e) { return e.kind == EventKind::StateChange; });
   REQUIRE(events.size() == 2);
-  CHECK(events[0].kind == deploy::ProcessEvent::Kind::Joined);
-  CHECK(events[1].kind == deploy::ProcessEvent::Kind::Left);
+  CHECK(events[0].kind == EventKind::Joined);
+  CHECK(events[1].kind == EventKind::Left);
+  CHECK(events[1].component == "leaver");
+  CHECK(events[1].pid == platform::self_identity().pid);
 }
 
 TEST_CASE("Components that come and go between a daemon's cycles are each drained exactly",
@@ -272,12 +275,12 @@ TEST_CASE("The daemon keeps where a component that left ran until its own retent
           "[shm][port]") {
   Placed p;
   test::FakeClock clock;
-  deploy::ProcessSupervisorOptions o;
+  test::DaemonOptions o;
   o.name = p.name;
   o.monitor.read_thread_stats = false;
   o.monitor.clock = clock.clock();
   o.aggregator.retain_left_ns = kNanosPerSecond;
-  auto created = deploy::ProcessSupervisor::create(o);
+  auto created = test::Daemon::create(o);
   REQUIRE(created.has_value());
   auto& d = *created;
   auto a = std::make_unique<Running>("first_out", p.registry);

@@ -88,10 +88,10 @@ can:
   CHECK(arm->status.level() == StatusLevel::Error);
 
   // The gap buckets of the same reports, matched by name (what /metrics serves).
-  ReportSet with = (*sys)->monitor().latest();
-  std::vector<exporter::CanHistograms> histograms;
-  (*sys)->contribute(with, &histograms);
-  CHECK(with.find("can0/drive_1") != nullptr);
+  const auto snapshot = (*sys)->service().snapshot();  // the cycle of r, contributions included
+  REQUIRE(snapshot->cycle == r.cycle);
+  CHECK(snapshot->reports.find("can0/drive_1") != nullptr);
+  const std::vector<exporter::CanHistograms>& histograms = snapshot->can_histograms;
   const auto find = [&](std::string_view name) -> const exporter::CanHistograms* {
     for (const auto& h : histograms) {
       if (h.name == name) return &h;

@@ -41,10 +41,10 @@ class Counter : public Extension {
   }
   void stopping() override { calls().push_back("stopping"); }
   void stop() override { calls().push_back("stop"); }
-  void contribute(ReportSet& reports) override {
+  void contribute(exporter::Snapshot& snapshot) override {
     Report r;
     r.name = "counter" + std::to_string(value_);
-    reports.components.push_back(r);
+    snapshot.reports.components.push_back(r);
   }
   int value() const { return value_; }
 

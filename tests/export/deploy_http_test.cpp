@@ -128,13 +128,13 @@ TEST_CASE("A System serves its deployment's outputs.http and textfile", "[export
   auto sys = System::create(std::move(*spec), factory());
   REQUIRE(sys);
   System& system = **sys;
-  CHECK(system.exporter() == nullptr);  // started by start(), not by create()
+  CHECK(system.http() == nullptr);  // started by start(), not by create()
   REQUIRE(system.start());
-  REQUIRE(system.exporter() != nullptr);
-  REQUIRE(system.exporter()->http() != nullptr);
-  const int port = system.exporter()->http()->address().port;
+  REQUIRE(system.http() != nullptr);
+  REQUIRE(system.http() != nullptr);
+  const int port = system.http()->address().port;
   CHECK(port > 0);
-  CHECK(system.exporter()->http()->options().threads == 2);
+  CHECK(system.http()->options().threads == 2);
   // The server's announcement is in the start log.
   bool announced = false;
   for (const auto& line : system.log()) {
@@ -181,7 +181,7 @@ TEST_CASE("A System serves its deployment's outputs.http and textfile", "[export
   CHECK(text.find("vigil_component_status{component=\"c\"") != std::string::npos);
 
   system.stop();
-  CHECK(system.exporter() == nullptr);  // stopped last
+  CHECK(system.http() == nullptr);  // stopped last
   CHECK(system.output_error().empty());
   CHECK_FALSE(client.Get("/healthz"));  // nobody listens any more
   std::filesystem::remove_all(dir);
@@ -195,7 +195,7 @@ TEST_CASE("A taken port fails System::start() naming the address, before anythin
   auto first = System::create(std::move(*first_spec), factory());
   REQUIRE(first);
   REQUIRE((*first)->start());
-  const int port = (*first)->exporter()->http()->address().port;
+  const int port = (*first)->http()->address().port;
 
   const std::string address = "127.0.0.1:" + std::to_string(port);
   auto second_spec =
@@ -212,7 +212,7 @@ TEST_CASE("A taken port fails System::start() naming the address, before anythin
   CHECK_FALSE((*second)->running());
   CHECK_FALSE((*second)->monitor().running());
   CHECK((*second)->component("c")->state() != TaskState::Running);
-  CHECK((*second)->exporter() == nullptr);
+  CHECK((*second)->http() == nullptr);
 
   // The first still serves.
   httplib::Client client("127.0.0.1", port);

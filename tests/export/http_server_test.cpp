@@ -14,10 +14,11 @@
 #include "monitor/harness.hpp"
 #include "support/json_reader.hpp"
 #include "vigil/export/diagnostics.hpp"
-#include "vigil/export/http_service.hpp"
+#include "vigil/export/outputs.hpp"
 #include "vigil/export/textfile.hpp"
 #include "vigil/platform/thread.hpp"
 #include "vigil/platform/thread_stats.hpp"
+#include "vigil/service/supervision_service.hpp"
 
 using namespace vigil;
 using namespace vigil::exporter;
@@ -394,31 +395,34 @@ TEST_CASE("The dashboard can be turned off", "[export][http]") {
   CHECK(r->status == 404);
 }
 
-TEST_CASE("MonitorExporter publishes every monitor cycle and the textfile", "[export][http]") {
+TEST_CASE("The HTTP and textfile outputs publish each snapshot", "[export][http]") {
   Fixture f;
   const auto dir = std::filesystem::temp_directory_path() /
                    ("vigil_textfile_" + std::to_string(reinterpret_cast<std::uintptr_t>(&f)));
   std::filesystem::create_directories(dir);
-  ExportOptions eo;
-  eo.http = quiet_options();
-  eo.textfile = dir / "vigil.prom";
-  eo.augment = [](ReportSet& r) {
-    Report extra;
-    extra.kind = ReportKind::CanGroup;
-    extra.name = "can group extra";
-    r.components.push_back(extra);
-  };
-  auto e = MonitorExporter::start(f.h.monitor, &f.h.aggregator, std::move(eo));
-  REQUIRE(e);
-  HttpServer* http = (*e)->http();
+  HttpOutput http_output(quiet_options());
+  TextfileOutput textfile(dir / "vigil.prom");
+  OutputContext context{f.h.aggregator};
+  REQUIRE(http_output.start(context));
+  REQUIRE(textfile.start(context));
+  HttpServer* http = http_output.server();
   REQUIRE(http != nullptr);
   CHECK(http->snapshot() == nullptr);
-  f.h.step();  // the subscription publishes
+  Snapshot s;
+  s.reports = f.h.step();  // drains, then a monitor cycle
+  s.histograms = collect_histograms(f.h.aggregator);
+  s.cycle = s.reports.cycle;
+  Report extra;  // what a contributor adds
+  extra.kind = ReportKind::CanGroup;
+  extra.name = "can group extra";
+  s.reports.components.push_back(extra);
+  http_output.publish(s);
+  textfile.publish(s);
   auto snap = http->snapshot();
   REQUIRE(snap != nullptr);
   CHECK(snap->reports.find("can group extra") != nullptr);
   CHECK(snap->histograms.size() == 2);
-  CHECK((*e)->textfile_error().empty());
+  CHECK(textfile.error().empty());
   std::ifstream in(dir / "vigil.prom");
   std::stringstream text;
   text << in.rdbuf();
@@ -426,8 +430,8 @@ TEST_CASE("MonitorExporter publishes every monitor cycle and the textfile", "[ex
         std::string::npos);
   CHECK(!std::filesystem::exists(dir / "vigil.prom.tmp"));
   (void)test::parse_exposition(text.str(), false);
-  e->reset();  // unsubscribes
-  f.h.step();  // no crash: nobody publishes any more
+  http_output.stop(s);
+  CHECK(http_output.server() == nullptr);
   std::filesystem::remove_all(dir);
 
   // A textfile in a missing directory: the error names it.
@@ -491,19 +495,16 @@ TEST_CASE("Diagnostics map reports onto a ROS 2 DiagnosticArray", "[export][diag
   CHECK(neg["header"]["stamp"]["nanosec"].number_text() == "999999999");
 }
 
-TEST_CASE("serve_http: one call in a program with real threads", "[export][http]") {
+TEST_CASE("HTTP in a program's pipeline with real threads", "[export][http]") {
   Registry<task::Message> registry;
-  supervisor::ComponentAggregator aggregator;
-  supervisor::TaskSupervisor supervisor(
-      registry, aggregator, supervisor::SupervisorOptions{.period_ns = 5 * kNanosPerMilli});
-  Monitor monitor(aggregator, MonitorOptions{.period_ns = 20 * kNanosPerMilli});
-  monitor.set_supervisor(&supervisor);
-  HttpOptions o = quiet_options();
-  auto http = serve_http(monitor, aggregator, o);
-  REQUIRE(http);
-  REQUIRE(supervisor.start());
-  REQUIRE(monitor.start());
-  auto c = client(*(*http)->http());
+  service::SupervisionService service({.registry = &registry,
+                                       .supervisor_period_ns = 5 * kNanosPerMilli,
+                                       .monitor_period_ns = 20 * kNanosPerMilli,
+                                       .summary_file = nullptr,
+                                       .http = quiet_options()});
+  REQUIRE(service.start());
+  REQUIRE(service.http() != nullptr);
+  auto c = client(*service.http());
   int status = 0;
   for (int i = 0; i < 200 && status != 200; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
@@ -513,9 +514,7 @@ TEST_CASE("serve_http: one call in a program with real threads", "[export][http]
   auto r = c.Get("/api/v1/reports/vigil.supervisor");
   REQUIRE(r);
   CHECK(r->status == 200);
-  http->reset();  // while the monitor runs: unsubscribes, waits for a publication in progress
-  monitor.stop();
-  supervisor.stop();
+  service.stop();  // while clients may still ask: the server stops last
 }
 
 TEST_CASE("The server's threads run SCHED_OTHER even when started from a FIFO thread",

@@ -5,7 +5,7 @@
 //    (validate_shm_image), then the ring (indices, records) and the mailboxes, each record
 //    decoded and checked (check_shm_message) and aggregated. (2) As a real segment
 //    (/dev/shm/vigil.<name>.<pid>.0, owner-only, like a process's) read by the daemon itself:
-//    deploy::ProcessSupervisor::step() (discovery, file and header checks, attach, sticky
+//    service::SegmentSource::step() (discovery, file and header checks, attach, sticky
 //    mailboxes, drain, settle, end of a dead process) and a monitor cycle on what it aggregated.
 //    Placeholders keep the daemon's path reachable from a fixed image: a supervisor name "fuzz"
 //    stands for this process's daemon name, and pid 4242 with start ticks 123 for this process
@@ -32,9 +32,9 @@
 
 #include "vigil/bus/shm_port.hpp"
 #include "vigil/bus/shm_segment.hpp"
-#include "vigil/deploy/process_supervisor.hpp"
 #include "vigil/platform/process_watch.hpp"
 #include "vigil/platform/shm.hpp"
+#include "vigil/service/supervision_service.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 #include "vigil/task/shm_messages.hpp"
 
@@ -178,19 +178,17 @@ void supervise(const std::byte* image, std::size_t size) {
   std::memcpy(mem->data(), image, size);
   substitute(static_cast<std::byte*>(mem->data()), size);
 
-  deploy::ProcessSupervisorOptions o;
-  o.name = me.supervisor;
+  service::SupervisionServiceOptions o;
   // No inotify instance per input (closing one sleeps in the kernel for milliseconds: the
   // fuzzer spent ~90 % of its time there); a full listing at every step instead.
-  o.watch_directory = false;
-  o.rescan_ns = 0;
-  auto daemon = deploy::ProcessSupervisor::create(o);
-  check(daemon.has_value());
-  std::vector<deploy::ProcessEvent> events;
-  (*daemon)->subscribe([&](const deploy::ProcessEvent& e) { events.push_back(e); });
-  (void)(*daemon)->step();
-  (void)(*daemon)->step();
-  const ReportSet reports = (*daemon)->step_monitor();
+  o.segments = service::SegmentSourceOptions{
+      .name = me.supervisor, .rescan_ns = 0, .watch_directory = false};
+  o.summary_file = nullptr;
+  check(service::validate(*o.segments).has_value());
+  auto daemon = std::make_unique<service::SupervisionService>(std::move(o));
+  (void)daemon->segments()->step();
+  const ReportSet reports = daemon->step();  // a second drain, then a monitor cycle
+  const std::vector<Event> events = daemon->events().since(0);
   for (const Report& r : reports.components) (void)r.name.size();
   static const bool verbose = std::getenv("VIGIL_FUZZ_VERBOSE") != nullptr;
   if (verbose) {
@@ -199,15 +197,18 @@ void supervise(const std::byte* image, std::size_t size) {
                    to_string(r.status.level()), static_cast<unsigned long long>(r.counters.cycles));
     }
   }
-  for (const deploy::ProcessEvent& e : events) {
-    if (verbose) std::fprintf(stderr, "  event: %s\n", e.message.c_str());
-    check(!e.message.empty());
-    if (e.kind == deploy::ProcessEvent::Kind::Rejected) {
+  for (const Event& e : events) {
+    if (verbose) std::fprintf(stderr, "  event: %s\n", format_event(e).c_str());
+    if (e.kind == EventKind::SegmentRejected) {
       // "segment /vigil... rejected: <field>: <why>"
-      check(e.message.find("rejected: ") != std::string::npos);
+      check(e.detail.find("rejected: ") != std::string::npos);
+    }
+    if (e.kind == EventKind::Joined || e.kind == EventKind::Left ||
+        e.kind == EventKind::ProcessExited) {
+      check(!e.detail.empty());
     }
   }
-  daemon->reset();
+  daemon.reset();
   (void)platform::unlink_shared_memory(me.segment);
 }
 

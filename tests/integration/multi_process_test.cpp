@@ -1,8 +1,9 @@
 // Supervision across processes, end to end: child processes (fork) whose components are placed
-// in shared memory, and a ProcessSupervisor (the `vigil supervise` daemon) in the test process.
-// Processes killed with SIGKILL, exiting with a code, dying of a signal, restarted, started before
-// the daemon, and a daemon restarted while they run. Timing goals are not asserted here (see
-// benches/bus/shm_bench.cpp); only that what must happen happens, with generous time limits.
+// in shared memory, and the `vigil supervise` pipeline (a SupervisionService on a SegmentSource) in
+// the test process. Processes killed with SIGKILL, exiting with a code, dying of a signal,
+// restarted, started before the daemon, and a daemon restarted while they run. Timing goals are not
+// asserted here (see benches/bus/shm_bench.cpp); only that what must happen happens, with generous
+// time limits.
 #include <poll.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -20,8 +21,8 @@
 #include <vector>
 
 #include "../bus/shm_support.hpp"
+#include "support/segment_daemon.hpp"
 #include "vigil/bus/shm_port.hpp"
-#include "vigil/deploy/process_supervisor.hpp"
 #include "vigil/deploy/system.hpp"
 #include "vigil/exec/manual_activity.hpp"
 #include "vigil/exec/periodic_activity.hpp"
@@ -141,25 +142,28 @@ void run_components(const ChildLink& link, const std::string& sup,
 
 struct Daemon {
   explicit Daemon(const std::string& name, bool thread = true) : threaded(thread) {
-    deploy::ProcessSupervisorOptions o;
+    test::DaemonOptions o;
     o.name = name;
     o.monitor.read_thread_stats = false;
-    auto d = deploy::ProcessSupervisor::create(o);
+    auto d = test::Daemon::create(o);
     REQUIRE(d.has_value());
     sup = std::move(*d);
-    sup->subscribe([this](const deploy::ProcessEvent& e) {
+    subscription = sup->service().events().subscribe([this](const Event& e) {
       std::lock_guard lock(mutex);
       events.push_back(e);
     });
     if (thread) REQUIRE(sup->start().has_value());
   }
   // The daemon first: its thread calls the subscriber, which uses the members below.
-  ~Daemon() { sup.reset(); }
+  ~Daemon() {
+    sup->service().events().unsubscribe(subscription);
+    sup.reset();
+  }
   Daemon(const Daemon&) = delete;
   Daemon& operator=(const Daemon&) = delete;
   // Waits until an event of kind `k` (about `pid` if not 0) arrived; returns it.
-  std::optional<deploy::ProcessEvent> wait_event(deploy::ProcessEvent::Kind k, int pid = 0,
-                                                 std::chrono::milliseconds timeout = 10s) {
+  std::optional<Event> wait_event(EventKind k, int pid = 0,
+                                  std::chrono::milliseconds timeout = 10s) {
     const auto end = std::chrono::steady_clock::now() + timeout;
     while (std::chrono::steady_clock::now() < end) {
       if (!threaded) sup->step();
@@ -173,7 +177,7 @@ struct Daemon {
     }
     return std::nullopt;
   }
-  std::size_t count(deploy::ProcessEvent::Kind k) {
+  std::size_t count(EventKind k) {
     std::lock_guard lock(mutex);
     return static_cast<std::size_t>(
         std::count_if(events.begin(), events.end(), [&](const auto& e) { return e.kind == k; }));
@@ -181,18 +185,18 @@ struct Daemon {
   // Waits until `n` components have joined.
   void wait_joined(std::size_t n) {
     const auto end = std::chrono::steady_clock::now() + 10s;
-    while (count(deploy::ProcessEvent::Kind::Joined) < n &&
-           std::chrono::steady_clock::now() < end) {
+    while (count(EventKind::Joined) < n && std::chrono::steady_clock::now() < end) {
       if (!threaded) sup->step();
       std::this_thread::sleep_for(2ms);
     }
-    REQUIRE(count(deploy::ProcessEvent::Kind::Joined) >= n);
+    REQUIRE(count(EventKind::Joined) >= n);
   }
 
   bool threaded;  // false: the test steps the daemon (wait_event and wait_joined do)
-  std::unique_ptr<deploy::ProcessSupervisor> sup;
+  std::unique_ptr<test::Daemon> sup;
+  std::uint64_t subscription = 0;
   std::mutex mutex;
-  std::vector<deploy::ProcessEvent> events;
+  std::vector<Event> events;
 };
 
 std::size_t segments_of(const std::string& sup, pid_t pid) {
@@ -215,13 +219,13 @@ TEST_CASE("A process killed with SIGKILL: ERROR with pid and signal, others stay
   std::this_thread::sleep_for(100ms);
   REQUIRE(segments_of(name, a->pid) == 2);
   a->kill_and_reap(SIGKILL);
-  const auto e = d.wait_event(deploy::ProcessEvent::Kind::Exited, a->pid);
+  const auto e = d.wait_event(EventKind::ProcessExited, a->pid);
   REQUIRE(e.has_value());
-  INFO(e->message);
-  CHECK_THAT(e->message, Catch::StartsWith("process " + std::to_string(a->pid) + " ("));
+  INFO(e->detail);
+  CHECK_THAT(e->detail, Catch::StartsWith("process " + std::to_string(a->pid) + " ("));
   // Linux >= 6.15 tells a pidfd holder the signal; older kernels cannot (docs/design).
-  CHECK((e->message.find("killed by signal 9 (SIGKILL)") != std::string::npos ||
-         e->message.find("vanished without recording an exit") != std::string::npos));
+  CHECK((e->detail.find("killed by signal 9 (SIGKILL)") != std::string::npos ||
+         e->detail.find("vanished without recording an exit") != std::string::npos));
   const ReportSet r = d.sup->step_monitor();  // a monitor cycle that saw b.x for sure
   for (const char* n : {"a.x", "a.y"}) {
     const Report* rep = r.find(n);
@@ -230,7 +234,7 @@ TEST_CASE("A process killed with SIGKILL: ERROR with pid and signal, others stay
     CHECK_FALSE(rep->alive);
     CHECK(rep->counters.cycles >= 20);  // its last counters are kept
     REQUIRE_FALSE(rep->status.messages().empty());
-    CHECK(rep->status.messages().front().text == e->message);
+    CHECK(rep->status.messages().front().text == e->detail);
     REQUIRE(rep->value("pid") != nullptr);
     CHECK(*rep->value("pid") == std::to_string(a->pid));
   }
@@ -262,13 +266,13 @@ TEST_CASE("A process that exits with a code or dies of a signal is reported so",
   d.wait_joined(2);
   a->go();
   b->go();
-  const auto ea = d.wait_event(deploy::ProcessEvent::Kind::Exited, a->pid);
-  const auto eb = d.wait_event(deploy::ProcessEvent::Kind::Exited, b->pid);
+  const auto ea = d.wait_event(EventKind::ProcessExited, a->pid);
+  const auto eb = d.wait_event(EventKind::ProcessExited, b->pid);
   REQUIRE(ea.has_value());
   REQUIRE(eb.has_value());
-  CHECK(ea->message == "process " + std::to_string(a->pid) + " (" + d.sup->processes().back().name +
-                           ") exited with code 3");
-  CHECK_THAT(eb->message, Catch::Contains("killed by signal 10 (SIGUSR1)"));
+  CHECK(ea->detail == "process " + std::to_string(a->pid) + " (" + d.sup->processes().back().name +
+                          ") exited with code 3");
+  CHECK_THAT(eb->detail, Catch::Contains("killed by signal 10 (SIGUSR1)"));
   CHECK(d.sup->reports().find("e.code")->status.level() == StatusLevel::Error);
   a->reap();
   b->reap();
@@ -298,9 +302,9 @@ TEST_CASE("A process records its own end in its segments (for a daemon that come
   // A daemon started now reports it, then removes the segment.
   Daemon d(name, false);
   d.sup->step();
-  const auto e = d.wait_event(deploy::ProcessEvent::Kind::Exited, a->pid, 100ms);
+  const auto e = d.wait_event(EventKind::ProcessExited, a->pid, 100ms);
   REQUIRE(e.has_value());
-  CHECK_THAT(e->message, Catch::Contains("killed by signal 10 (SIGUSR1)"));
+  CHECK_THAT(e->detail, Catch::Contains("killed by signal 10 (SIGUSR1)"));
   const ReportSet reports = d.sup->reports();
   const Report* rep = reports.find("self.rec");
   REQUIRE(rep != nullptr);
@@ -319,7 +323,7 @@ TEST_CASE("A restarted process rejoins as a new incarnation", "[integration][mul
   REQUIRE(first->wait_ready());
   d.wait_joined(1);
   first->kill_and_reap(SIGKILL);
-  REQUIRE(d.wait_event(deploy::ProcessEvent::Kind::Exited, first->pid).has_value());
+  REQUIRE(d.wait_event(EventKind::ProcessExited, first->pid).has_value());
   CHECK(d.sup->reports().find("r.x")->status.level() == StatusLevel::Error);
   auto second = spawn([&](const ChildLink& l) { run_components(l, name, {"r.x"}); });
   REQUIRE(second->wait_ready());

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
+#include <set>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -33,22 +35,47 @@ std::string read_file(const std::filesystem::path& p) {
   return s.str();
 }
 
-// Counts what the service tells an output.
-struct CountingOutput final : ReportOutput {
+// A new output: one interface (exporter::Output), one registration (add_output). It counts
+// what the service tells it.
+struct CountingOutput final : exporter::Output {
   int starts = 0;
   int cycles = 0;
   int stops = 0;
   std::uint64_t final_cycles = 0;  // the probe's cycles in the final reports
   bool fail_start = false;
-  expected<void, Error> start() override {
+  bool had_extra = true;
+  std::thread::id publisher;
+  expected<void, Error> start(exporter::OutputContext& /*context*/) override {
     ++starts;
     if (fail_start) return unexpected(Error{"output refused"});
     return {};
   }
-  void on_reports(const ReportSet& /*r*/) override { ++cycles; }
-  void stop(const ReportSet& r) override {
+  void publish(const exporter::Snapshot& s) override {
+    ++cycles;
+    had_extra = had_extra && s.reports.find("extra") != nullptr;
+    publisher = std::this_thread::get_id();
+  }
+  void stop(const exporter::Snapshot& s) override {
     ++stops;
-    if (const auto* p = r.find("probe")) final_cycles = p->counters.cycles;
+    if (const auto* p = s.reports.find("probe")) final_cycles = p->counters.cycles;
+  }
+};
+
+// A contributor adding one report, "extra", counting its calls and the threads it ran on.
+struct Extra final : service::Contributor {
+  std::atomic<int> calls{0};
+  std::mutex mutex;
+  std::set<std::thread::id> threads;
+  void contribute(exporter::Snapshot& s) override {
+    ++calls;
+    {
+      std::lock_guard lock(mutex);
+      threads.insert(std::this_thread::get_id());
+    }
+    Report extra;
+    extra.kind = ReportKind::Component;
+    extra.name = "extra";
+    s.reports.components.push_back(std::move(extra));
   }
 };
 
@@ -100,23 +127,12 @@ TEST_CASE("The service supervises, then prints the summary and writes the JSON f
   std::filesystem::remove(json);
 }
 
-TEST_CASE("Subscribers, outputs and contributors see every cycle and the final reports",
-          "[service]") {
+TEST_CASE("Outputs and contributors see every cycle and the final reports", "[service]") {
   ComponentRegistry reg;
   SupervisionService service({.registry = &reg, .monitor_thread = false, .summary_file = nullptr});
-  auto& out = static_cast<CountingOutput&>(service.add_output(std::make_unique<CountingOutput>()));
-  int seen = 0;
-  bool had_extra = true;
-  const auto id = service.subscribe([&](const ReportSet& r) {
-    ++seen;
-    had_extra = had_extra && r.find("extra") != nullptr;
-  });
-  service.add_contributor([](ReportSet& r) {
-    Report extra;
-    extra.kind = ReportKind::Component;
-    extra.name = "extra";
-    r.components.push_back(std::move(extra));
-  });
+  auto& out = service.add_output<CountingOutput>();
+  auto& extra = static_cast<Extra&>(service.add_contributor(std::make_unique<Extra>()));
+  CHECK(service.reports().components.empty());  // no cycle yet
   REQUIRE(service.start());
   CHECK(out.starts == 1);
   test::Probe probe("probe", {}, reg);
@@ -124,28 +140,109 @@ TEST_CASE("Subscribers, outputs and contributors see every cycle and the final r
   const ReportSet stepped = service.step();  // one monitor cycle in this thread
   CHECK(stepped.find("extra") != nullptr);
   CHECK(service.reports().find("extra") != nullptr);
-  CHECK(seen == 1);
+  CHECK(service.snapshot()->cycle == stepped.cycle);
   CHECK(out.cycles == 1);
+  CHECK(extra.calls == 1);  // reading the reports runs no contributor again
   const ReportSet final_reports = service.stop();
-  CHECK(seen == 2);  // the final cycle too
-  CHECK(had_extra);
-  CHECK(out.cycles == 1);  // the final reports go to stop(), not on_reports()
+  CHECK(out.had_extra);
+  CHECK(out.cycles == 1);  // the final snapshot goes to stop(), not publish()
   CHECK(out.stops == 1);
   CHECK(out.final_cycles == 10);
+  CHECK(extra.calls == 2);  // the final cycle
   CHECK(final_reports.find("extra") != nullptr);
-  service.unsubscribe(id);
+}
+
+TEST_CASE("With HTTP on, each contributor runs once per monitor cycle, on the monitor's thread",
+          "[service][http]") {
+  ComponentRegistry reg;
+  exporter::HttpOptions http;
+  http.listen.port = 0;
+  http.threads = 1;
+  http.log = [](const std::string&) {};
+  SupervisionService service({.registry = &reg,
+                              .supervisor_period_ns = kNanosPerMilli,
+                              .monitor_period_ns = 20 * kNanosPerMilli,
+                              .summary_file = nullptr,
+                              .http = http});
+  auto& extra = static_cast<Extra&>(service.add_contributor(std::make_unique<Extra>()));
+  auto& out = service.add_output<CountingOutput>();
+  REQUIRE(service.start());
+  REQUIRE(service.http() != nullptr);
+  // Readers of every kind while the monitor cycles: the service, the HTTP endpoints.
+  for (int i = 0; i < 30; ++i) {
+    (void)service.reports();
+    (void)service.http()->answer("GET /api/v1/reports HTTP/1.1\r\nHost: localhost\r\n\r\n");
+    (void)service.http()->answer("GET /metrics HTTP/1.1\r\nHost: localhost\r\n\r\n");
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  const ReportSet final_reports = service.stop();
+  // One call per monitor cycle, the final one included: the monitor's cycles are counted by
+  // the monitor's own report.
+  const Report* mon = final_reports.find("vigil.monitor");
+  REQUIRE(mon != nullptr);
+  CHECK(extra.calls == static_cast<int>(mon->counters.cycles));
+  CHECK(out.cycles + 1 == extra.calls);  // every published cycle, and the final one
+  std::lock_guard lock(extra.mutex);
+  CHECK(extra.threads.size() == 2);  // the monitor's thread, and stop()'s caller for the last
+  CHECK(extra.threads.count(out.publisher) == 1);
+}
+
+TEST_CASE("The HTTP snapshot's buckets are of the same monitor cycle as its reports",
+          "[service][http]") {
+  ComponentRegistry reg;
+  exporter::HttpOptions http;
+  http.listen.port = 0;
+  http.threads = 1;
+  http.log = [](const std::string&) {};
+  SupervisionServiceOptions options{
+      .registry = &reg, .monitor_thread = false, .summary_file = nullptr, .http = http};
+  options.aggregator.warmup_ns = 0;  // every cycle in the statistics
+  SupervisionService service(std::move(options));
+  test::Probe probe("probe", {}, reg);
+  REQUIRE(probe.configure());
+  ManualActivity act(probe, {.name = "manual"});
+  REQUIRE(act.start());
+  // The supervisor's thread drains; the monitor runs only when stepped.
+  REQUIRE(service.start());
+  const auto drained = [&](std::uint64_t n) {
+    for (int i = 0; i < 2000; ++i) {
+      const auto p = service.aggregator().find("probe");
+      if (p && p->counters.cycles == n) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    return false;
+  };
+  for (int i = 0; i < 5; ++i) act.step();
+  REQUIRE(drained(5));
+  const ReportSet stepped = service.step();
+  // More cycles are drained after that monitor cycle: the snapshot served must not mix them in.
+  for (int i = 0; i < 7; ++i) act.step();
+  REQUIRE(drained(12));
+  const auto snap = service.http()->snapshot();
+  REQUIRE(snap != nullptr);
+  CHECK(snap->reports.cycle == stepped.cycle);
+  CHECK(service.snapshot()->cycle == stepped.cycle);
+  const Report* rep = snap->reports.find("probe");
+  REQUIRE(rep != nullptr);
+  const auto* buckets = snap->histograms_of(*rep);
+  REQUIRE(buckets != nullptr);
+  CHECK(buckets->cycle == stepped.cycle);
+  CHECK(rep->user_ns.count == 5);
+  CHECK(buckets->execution.count == rep->user_ns.count);
+  REQUIRE(act.stop());
+  service.stop();
 }
 
 TEST_CASE("An output that fails to start fails start() and leaves nothing running", "[service]") {
   ComponentRegistry reg;
   SupervisionService service({.registry = &reg, .summary_file = nullptr});
-  auto& out = static_cast<CountingOutput&>(service.add_output(std::make_unique<CountingOutput>()));
+  auto& out = service.add_output<CountingOutput>();
   out.fail_start = true;
   const auto r = service.start();
   REQUIRE_FALSE(r);
   CHECK(r.error().message == "output refused");
   CHECK_FALSE(service.running());
-  CHECK_FALSE(service.supervisor().running());
+  CHECK_FALSE(service.supervisor()->running());
   CHECK_FALSE(service.monitor().running());
 }
 
@@ -158,12 +255,12 @@ TEST_CASE("The monitor runs on its own thread by default and the destructor stop
                                 .supervisor_period_ns = kNanosPerMilli,
                                 .monitor_period_ns = 5 * kNanosPerMilli,
                                 .summary_file = nullptr});
-    REQUIRE(service.start());
-    CHECK(service.supervisor().running());
-    CHECK(service.monitor().running());
-    service.subscribe([&](const ReportSet& r) {
-      if (r.find("probe") != nullptr) ++finals;
+    service.add_output<exporter::CallbackOutput>([&](const exporter::Snapshot& s) {
+      if (s.reports.find("probe") != nullptr) ++finals;
     });
+    REQUIRE(service.start());
+    CHECK(service.supervisor()->running());
+    CHECK(service.monitor().running());
     test::Probe probe("probe", {}, reg);
     run_cycles(probe, 3);
     for (int i = 0; i < 2000 && finals == 0; ++i) {
@@ -178,7 +275,7 @@ TEST_CASE("start() twice is refused while running, the service starts again afte
           "[service]") {
   ComponentRegistry reg;
   SupervisionService service({.registry = &reg, .monitor_thread = false, .summary_file = nullptr});
-  auto& out = static_cast<CountingOutput&>(service.add_output(std::make_unique<CountingOutput>()));
+  auto& out = service.add_output<CountingOutput>();
   REQUIRE(service.start());
   const auto again = service.start();
   REQUIRE_FALSE(again);
@@ -193,7 +290,7 @@ TEST_CASE("start() twice is refused while running, the service starts again afte
   CHECK(out.stops == 2);
 }
 
-TEST_CASE("The HTTP exporter and the textfile are outputs of the service", "[service][http]") {
+TEST_CASE("The HTTP server and the textfile are outputs of the service", "[service][http]") {
   ComponentRegistry reg;
   const auto prom = std::filesystem::temp_directory_path() / "vigil_supervision_service_test.prom";
   std::filesystem::remove(prom);
@@ -207,18 +304,12 @@ TEST_CASE("The HTTP exporter and the textfile are outputs of the service", "[ser
                               .summary_file = nullptr,
                               .http = http,
                               .prom_textfile = prom});
-  service.add_contributor([](ReportSet& r) {
-    Report extra;
-    extra.kind = ReportKind::Component;
-    extra.name = "extra";
-    r.components.push_back(std::move(extra));
-  });
-  CHECK(service.exporter() == nullptr);  // before start
+  service.add_contributor(std::make_unique<Extra>());
+  CHECK(service.http() == nullptr);  // before start
   REQUIRE(service.start());
-  REQUIRE(service.exporter() != nullptr);
-  REQUIRE(service.exporter()->http() != nullptr);
-  CHECK(service.exporter()->http()->running());
-  CHECK(service.exporter()->http()->address().port != 0);
+  REQUIRE(service.http() != nullptr);
+  CHECK(service.http()->running());
+  CHECK(service.http()->address().port != 0);
   test::Probe probe("probe", {}, reg);
   run_cycles(probe, 5);
   // step() runs the monitor on what the supervisor's thread has drained so far: wait for it.
@@ -228,7 +319,7 @@ TEST_CASE("The HTTP exporter and the textfile are outputs of the service", "[ser
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
   service.step();
-  const auto snap = service.exporter()->http()->snapshot();
+  const auto snap = service.http()->snapshot();
   REQUIRE(snap != nullptr);
   CHECK(snap->reports.find("probe") != nullptr);
   CHECK(snap->reports.find("extra") != nullptr);  // the contributors' reports are served too
@@ -237,15 +328,15 @@ TEST_CASE("The HTTP exporter and the textfile are outputs of the service", "[ser
 
   // A second service cannot bind the same port: its start() fails and nothing runs.
   exporter::HttpOptions taken = http;
-  taken.listen.port = service.exporter()->http()->address().port;
+  taken.listen.port = service.http()->address().port;
   SupervisionService other({.registry = &reg, .summary_file = nullptr, .http = taken});
   const auto r = other.start();
   CHECK_FALSE(r);
   CHECK_FALSE(other.running());
-  CHECK_FALSE(other.supervisor().running());
-  CHECK(other.exporter() == nullptr);
+  CHECK_FALSE(other.supervisor()->running());
+  CHECK(other.http() == nullptr);
 
   service.stop();
-  CHECK(service.exporter() == nullptr);
+  CHECK(service.http() == nullptr);
   std::filesystem::remove(prom);
 }

@@ -48,12 +48,10 @@ class CanExtension : public Extension {
   void stopping() override;
   /// Stops the CAN supervisor after a last drain.
   void stop() override;
-  /// Adds one report per CAN node and one per group to `reports`.
-  void contribute(ReportSet& reports) override;
-  /// The same, plus the gap buckets of every node (rx and tx) and group from the CAN
-  /// aggregator's histograms (its samples in exact mode), taken right after the reports.
-  void contribute_metrics(ReportSet& reports,
-                          std::vector<exporter::CanHistograms>& histograms) override;
+  /// Adds one report per CAN node and one per group to the cycle's reports, and the gap
+  /// buckets of every node (rx and tx) and group from the CAN aggregator's histograms (its
+  /// samples in exact mode), taken right after the reports. Once per monitor cycle.
+  void contribute(exporter::Snapshot& snapshot) override;
 
   /// Where the deployment's sniffers join. Thread-safe.
   [[nodiscard]] can::CanRegistry& registry() noexcept { return registry_; }

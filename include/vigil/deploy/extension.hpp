@@ -28,20 +28,21 @@
 #include "vigil/config/node.hpp"
 #include "vigil/error.hpp"
 #include "vigil/expected.hpp"
-#include "vigil/export/metrics_snapshot.hpp"
+#include "vigil/export/output.hpp"
 #include "vigil/monitor/report.hpp"
+#include "vigil/service/contributor.hpp"
 
 namespace vigil::deploy {
 
 class System;
 
 /// A service that lives with the system (e.g. CAN supervision), configured by a top-level
-/// section of the deployment file. Its members are called from the thread that drives the
-/// System (`start`, `stopping`, `stop`) and from the threads that read reports (`contribute`,
-/// which must therefore be thread-safe against the others).
-class Extension {
+/// section of the deployment file. An extension is a contributor of the system's pipeline
+/// (vigil/service/contributor.hpp): `contribute()` adds its units (e.g. one report per CAN node,
+/// with its gap buckets) to every monitor cycle, once, on the monitor's thread. Its other
+/// members are called from the thread that drives the System (`start`, `stopping`, `stop`).
+class Extension : public service::Contributor {
  public:
-  virtual ~Extension() = default;
   /// Called after the supervisor and monitor started, before any component is configured.
   /// A failure stops the system's start.
   virtual expected<void, Error> start() { return {}; }
@@ -50,16 +51,8 @@ class Extension {
   virtual void stopping() {}
   /// Called after the components stopped.
   virtual void stop() {}
-  /// Adds the extension's reports (e.g. one per CAN node) to a monitor cycle's reports.
-  virtual void contribute(ReportSet& /*reports*/) {}
-  /// Like `contribute`, and also adds the gap distributions of those reports as Prometheus
-  /// buckets, matched by report name (the CAN extension: one per node and group), for the
-  /// HTTP exporter's `/metrics`. Runs on the thread that publishes (the monitor's). Default:
-  /// `contribute(reports)` alone.
-  virtual void contribute_metrics(ReportSet& reports,
-                                  std::vector<exporter::CanHistograms>& /*histograms*/) {
-    contribute(reports);
-  }
+  /// Adds the extension's units to a monitor cycle (default: none).
+  void contribute(exporter::Snapshot& /*snapshot*/) override {}
 };
 
 /// Makes an extension from its deployment section. Errors are the section's configuration

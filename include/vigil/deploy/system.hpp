@@ -5,14 +5,16 @@
 /// components of a DeploymentSpec, configures and starts everything in the right order, and stops
 /// it in reverse; the user never orders anything by hand.
 ///
-/// Start order: the outputs of the deployment (`outputs.http`, `outputs.textfile`: a
-/// `vigil::exporter::MonitorExporter` publishing every monitor cycle with the extensions'
-/// reports; a taken port fails start() here, before anything runs) -> process set-up for real
-/// time (memory locking, prefault) -> supervisor and monitor threads (so that nothing a component
-/// sends is missed) -> extensions (e.g. CAN) -> every component configured, in file order (all
-/// before any starts: a failure leaves nothing running) -> every activity started, in file order of
-/// its components. Stop order: activities (reverse), extensions, a last supervisor drain, the
-/// monitor, the outputs.
+/// The system's pipeline is a `SupervisionService`: the deployment's outputs (`outputs.http`,
+/// `outputs.textfile`) are outputs of that service and its extensions (e.g. CAN) are
+/// contributors of it, run once per monitor cycle; the system keeps no exporter of its own.
+///
+/// Start order: the service (its outputs first: a taken port fails start() here, before anything
+/// runs; then the supervisor and monitor threads, so that nothing a component sends is missed)
+/// -> process set-up for real time (memory locking, prefault) -> extensions -> every component
+/// configured, in file order (all before any starts: a failure leaves nothing running) -> every
+/// activity started, in file order of its components. Stop order: activities (reverse),
+/// extensions, a last supervisor drain, the monitor, the outputs.
 ///
 /// Not RT-safe; call from one control thread.
 
@@ -26,7 +28,7 @@
 #include "vigil/deploy/deployment.hpp"
 #include "vigil/deploy/extension.hpp"
 #include "vigil/error.hpp"
-#include "vigil/export/http_service.hpp"
+#include "vigil/export/outputs.hpp"
 #include "vigil/monitor/monitor.hpp"
 #include "vigil/monitor/threshold_file.hpp"
 #include "vigil/platform/memory.hpp"
@@ -54,14 +56,10 @@ class System {
   void stop();
   [[nodiscard]] bool running() const noexcept { return running_; }
 
-  /// The latest reports: the monitor's, plus the extensions'.
+  /// The latest monitor cycle's reports, the extensions' included. Any thread.
   [[nodiscard]] ReportSet reports() const;
-  /// Adds the extensions' reports to `reports` (one monitor cycle's) and, when `histograms` is
-  /// given, the gap buckets of those reports (`Extension::contribute_metrics`). Any thread.
-  void contribute(ReportSet& reports,
-                  std::vector<exporter::CanHistograms>* histograms = nullptr) const;
-  /// Runs one monitor cycle now and returns its reports with the extensions' (e.g. final
-  /// reports after stop()).
+  /// Runs one monitor cycle now (the extensions contribute to it) and returns its reports (e.g.
+  /// final reports after stop()).
   ReportSet step_monitor();
 
   /// What start() did, one line per step (including downgrades such as SCHED_OTHER instead
@@ -79,15 +77,17 @@ class System {
   [[nodiscard]] supervisor::ComponentAggregator& aggregator() noexcept {
     return service_->aggregator();
   }
-  [[nodiscard]] supervisor::TaskSupervisor& supervisor() noexcept { return service_->supervisor(); }
+  [[nodiscard]] supervisor::TaskSupervisor& supervisor() noexcept {
+    return *service_->supervisor();
+  }
   [[nodiscard]] Monitor& monitor() noexcept { return service_->monitor(); }
-  /// The exporter serving `outputs.http` / `outputs.textfile` while the system runs (e.g.
-  /// `exporter()->http()->address()` for the port chosen for `listen: 0`); null when the
-  /// deployment has neither or the system is stopped. Control thread.
-  [[nodiscard]] exporter::MonitorExporter* exporter() noexcept { return exporter_.get(); }
+  /// The server of `outputs.http` while the system runs (e.g. `http()->address()` for the port
+  /// chosen for `listen: 0`); null when the deployment has none or the system is stopped.
+  /// Control thread.
+  [[nodiscard]] exporter::HttpServer* http() noexcept { return service_->http(); }
   /// The latest textfile write error (kept after stop()); empty when every write succeeded
   /// or no textfile is written. Control thread.
-  [[nodiscard]] const std::string& output_error() const noexcept { return output_error_; }
+  [[nodiscard]] std::string output_error() const;
   /// The watched thresholds file (`supervision: {thresholds: FILE}`), or null when the
   /// thresholds are embedded. The monitor polls it at each cycle; `reload()` it to apply an edit
   /// at once.
@@ -107,8 +107,6 @@ class System {
 
  private:
   explicit System(DeploymentSpec spec);
-  expected<void, Error> start_outputs();
-  void stop_outputs();
 
   struct Slot {
     std::unique_ptr<TaskCore> task;
@@ -123,9 +121,7 @@ class System {
       thresholds_file_;  // after service_: detached before its monitor dies
   std::vector<std::unique_ptr<Extension>> extensions_;
   std::vector<Slot> slots_;
-  // After service_ and extensions_ (its publication uses both): destroyed before them.
-  std::unique_ptr<exporter::MonitorExporter> exporter_;
-  std::string output_error_;
+  exporter::TextfileOutput* textfile_ = nullptr;  // among the service's outputs
   std::vector<std::string> log_;
   platform::RealtimeSetupReport rt_setup_;
   bool running_ = false;

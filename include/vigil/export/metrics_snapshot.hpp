@@ -25,6 +25,8 @@ namespace vigil::exporter {
 /// The timing distributions of one component as Prometheus buckets.
 struct ComponentHistograms {
   std::uint32_t id = 0;  ///< the registry id (`Report::id`)
+  /// The monitor cycle whose reports these buckets go with (`ReportSet::cycle`; 0: not set).
+  std::uint64_t cycle = 0;
   std::string name;
   BucketCounts execution;  ///< on_update() alone (`Report::user_ns`)
   BucketCounts total;      ///< user + supervision overhead (`Report::total_ns`)

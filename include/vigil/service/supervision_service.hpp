@@ -1,9 +1,8 @@
 #pragma once
 /// @file
-/// `SupervisionService`: the whole supervision pipeline of a program as one object. It owns the
-/// component aggregator, the task supervisor's thread (draining every component's port), the
-/// monitor (checks and reports, on its own thread or stepped), and the outputs that publish the
-/// reports (a text summary, a JSON file, and any `ReportOutput` added).
+/// `SupervisionService`: the whole supervision pipeline as one object. It owns the source (the
+/// thread draining every component's port), the component aggregator, the monitor (checks and
+/// reports, on its own thread or stepped), the contributors and the outputs.
 ///
 /// ```cpp
 /// int main() {
@@ -16,23 +15,29 @@
 /// ```
 ///
 /// Components may be created before or after the service starts and may come and go while it
-/// runs: the supervisor finds them in the registry (the process's default one unless the options
+/// runs: the source finds them in the registry (the process's default one unless the options
 /// name another).
 ///
-/// Extension points (where later features plug in):
-///  - `subscribe()`: report subscribers, called with every cycle's reports (a robot's state
-///    machine, an event log);
-///  - `add_output()`: a `ReportOutput` started with the service, told about every cycle and
-///    stopped with the final reports (the built-in text, JSON and HTTP/textfile outputs are
-///    ones; `SupervisionServiceOptions::http` turns the HTTP exporter on);
-///  - `add_contributor()`: code that adds its own reports to each set handed out (CAN nodes);
-///  - `monitor()` / `aggregator()` / `supervisor()`: the parts, for custom checks and thresholds.
+/// The one pipeline of vigil: a program's own components, a deployment's `deploy::System` and
+/// the `vigil supervise` daemon are all this class (docs/design/modules.md, "One pipeline").
 ///
-/// Threads: start(), stop(), step() and the add_* functions from one control thread. Subscribers
-/// and outputs run on the monitor's thread (or step()'s or stop()'s caller), one cycle at a time;
-/// contributors also run on any thread that calls reports(), so they must be thread-safe.
-/// Nothing here is RT-safe.
+///   source ──> aggregator ──> monitor ──> contributors ──> outputs
+///
+///  - the **source** drains messages into the aggregator: this process's registry (default), or
+///    other processes' shared-memory segments (`SupervisionServiceOptions::segments`);
+///  - the **monitor** runs the checks once per monitor period and makes the cycle's reports;
+///  - **contributors** (`add_contributor()`, vigil/service/contributor.hpp) add units of their
+///    own to each cycle: CAN nodes, the processes of the segment source;
+///  - **outputs** (`add_output()`, vigil/export/output.hpp) get one snapshot per cycle (the
+///    reports, their buckets, the cycle's events) and the final one at stop: the text summary,
+///    the JSON file, HTTP, the textfile, the event log, traces, and any output of a program's.
+///  - events reach subscribers within milliseconds through `events()` (one event stream).
+///
+/// Threads: start(), stop(), step() and the add_* functions from one control thread. The
+/// contributors and outputs run on the monitor's thread (or step()'s or stop()'s caller), one
+/// cycle at a time. Nothing here is RT-safe.
 
+#include <atomic>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
@@ -47,11 +52,15 @@
 #include "vigil/error.hpp"
 #include "vigil/expected.hpp"
 #include "vigil/export/http_server.hpp"
-#include "vigil/export/http_service.hpp"
+#include "vigil/export/output.hpp"
+#include "vigil/export/outputs.hpp"
 #include "vigil/export/text_report.hpp"
 #include "vigil/monitor/monitor.hpp"
 #include "vigil/monitor/report.hpp"
 #include "vigil/platform/clock.hpp"
+#include "vigil/service/contributor.hpp"
+#include "vigil/service/segment_source.hpp"
+#include "vigil/service/source.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 #include "vigil/supervisor/running_stats.hpp"
 #include "vigil/task/default_registry.hpp"
@@ -64,9 +73,13 @@ namespace vigil::service {
 struct SupervisionServiceOptions {
   /// The registry whose components are supervised; null: the process's `default_registry()`,
   /// which every Task<Derived> and Instrumentation joins unless told otherwise. Must outlive the
-  /// service.
+  /// service. Not used with `segments`.
   ComponentRegistry* registry = nullptr;
-  /// Period of the supervisor's thread, which drains every component's port. 10 ms: at 1 kHz a
+  /// Drain the shared-memory segments of other processes (what `vigil supervise` does) instead
+  /// of this process's registry; `segments->period_ns` is set from `supervisor_period_ns`.
+  /// Invalid options (name, group) make start() fail.
+  std::optional<SegmentSourceOptions> segments{};
+  /// Period of the source's thread, which drains every component's port. 10 ms: at 1 kHz a
   /// component queues about 10 messages per period.
   Nanos supervisor_period_ns = 10 * kNanosPerMilli;
   /// Period of the monitor's cycles (checks and reports). 1 s, the pace of a monitoring GUI.
@@ -111,30 +124,8 @@ struct SupervisionServiceOptions {
   Clock clock = Clock::system();
 };
 
-/// Something that publishes reports: started with the service, told about each monitor cycle,
-/// stopped with the final reports. The text summary and the JSON file are outputs; an HTTP
-/// exporter would be one. Implementations must not call the service's start(), stop() or step().
-class ReportOutput {
- public:
-  virtual ~ReportOutput() = default;
-  /// Called by SupervisionService::start() before the monitor's first cycle (e.g. to bind a
-  /// socket). An error makes start() fail with it.
-  virtual expected<void, Error> start() { return {}; }
-  /// Called after every monitor cycle with its reports, on the monitor's thread (or step()'s
-  /// caller). Keep it short: the next cycle waits for it.
-  virtual void on_reports(const ReportSet& /*reports*/) {}
-  /// Called once by SupervisionService::stop() with the final reports (after the last drain and
-  /// the last monitor cycle), on stop()'s caller.
-  virtual void stop(const ReportSet& /*final_reports*/) {}
-};
-
 class SupervisionService {
  public:
-  /// A report subscriber: called with every cycle's reports and with the final ones at stop.
-  using Subscriber = std::function<void(const ReportSet&)>;
-  /// Adds reports of its own to a cycle's set before subscribers and outputs see it.
-  using Contributor = std::function<void(ReportSet&)>;
-
   /// Builds the pipeline (no thread yet) with the built-in outputs the options ask for. Not
   /// RT-safe.
   explicit SupervisionService(SupervisionServiceOptions options = {});
@@ -143,74 +134,92 @@ class SupervisionService {
   SupervisionService(const SupervisionService&) = delete;
   SupervisionService& operator=(const SupervisionService&) = delete;
 
-  /// Starts the outputs, the supervisor's thread and (unless `monitor_thread` is false) the
+  /// Starts the outputs, the source's thread and (unless `monitor_thread` is false) the
   /// monitor's thread. On failure nothing is left running and the error says what failed. Fails
   /// when already running ("already running"); a stopped service may be started again.
   expected<void, Error> start();
-  /// Stops the threads after a last full drain, runs a last monitor cycle, and hands its reports
-  /// to the subscribers and to every output's stop() (the summary, the JSON file). Returns those
-  /// final reports. Idempotent: a second call returns the same reports and publishes nothing.
+  /// Stops the threads after a last full drain, runs a last monitor cycle (its contributors
+  /// included), and hands its snapshot to every output's stop() (the summary, the JSON file).
+  /// Returns those final reports. Idempotent: a second call returns the same reports and
+  /// publishes nothing.
   ReportSet stop();
   /// Whether start() succeeded and stop() was not called since.
   [[nodiscard]] bool running() const noexcept { return running_; }
 
-  /// Runs one cycle now in the calling thread: drains the ports (when the supervisor's thread
-  /// does not run) and runs the monitor; returns its reports (contributions included), which
-  /// subscribers and outputs also get.
+  /// Runs one cycle now in the calling thread: drains (when the source's thread does not run),
+  /// runs the monitor and the contributors, publishes the snapshot to the outputs; returns its
+  /// reports.
   ReportSet step();
-  /// A copy of the latest cycle's reports, with the contributors' reports as of now. Any thread.
+  /// The latest cycle's reports (contributions included, as the outputs got them; empty before
+  /// the first cycle). Any thread: a copy, no contributor runs again.
   [[nodiscard]] ReportSet reports() const;
+  /// The latest cycle's snapshot (never null: an empty one before the first cycle). Any thread.
+  [[nodiscard]] std::shared_ptr<const exporter::Snapshot> snapshot() const;
 
-  // --- extension points (call before start(), from the control thread) ---
+  // --- the one way in and the one way out (call before start(), from the control thread) ---
 
-  /// Adds a report subscriber; returns its id.
-  std::uint64_t subscribe(Subscriber subscriber);
-  /// Removes a subscriber; unknown ids are ignored.
-  void unsubscribe(std::uint64_t id);
-  /// Adds an output (started by start(), stopped by stop()). Returns it.
-  ReportOutput& add_output(std::unique_ptr<ReportOutput> output);
-  /// Adds a contributor of reports, run in the order added on every set handed out (to
-  /// subscribers and outputs, and by step() and reports()).
-  void add_contributor(Contributor contributor);
+  /// Adds an output (started by start(), published every cycle, stopped by stop()). Returns it.
+  exporter::Output& add_output(std::unique_ptr<exporter::Output> output);
+  /// Adds an output of type O built from `args`; returns it. Example:
+  /// `auto& http = service.add_output<exporter::HttpOutput>(exporter::HttpOptions{});`
+  template <class O, class... A>
+  O& add_output(A&&... args) {
+    return static_cast<O&>(add_output(std::make_unique<O>(std::forward<A>(args)...)));
+  }
+  /// Adds a contributor (owned by the service), run in the order added on every cycle.
+  Contributor& add_contributor(std::unique_ptr<Contributor> contributor);
+  /// Adds a contributor owned elsewhere (it must outlive the service or be stopped with it).
+  void add_contributor(Contributor& contributor);
 
   // --- the parts ---
 
+  /// The events of the pipeline, within milliseconds of their detection (faults of components,
+  /// processes and segments): subscribe here to act on one. The same hub as aggregator().events().
+  [[nodiscard]] supervisor::EventHub& events() noexcept { return aggregator_.events(); }
   [[nodiscard]] ComponentRegistry& registry() noexcept { return registry_; }
   [[nodiscard]] supervisor::ComponentAggregator& aggregator() noexcept { return aggregator_; }
-  [[nodiscard]] supervisor::TaskSupervisor& supervisor() noexcept { return supervisor_; }
+  /// The source (a RegistrySource, or a SegmentSource with `segments`).
+  [[nodiscard]] Source& source() noexcept { return *source_; }
+  /// The in-process supervisor (the registry source's), or null with `segments`.
+  [[nodiscard]] supervisor::TaskSupervisor* supervisor() noexcept;
+  /// The segment source with `segments` (its processes, its statistics), or null.
+  [[nodiscard]] SegmentSource* segments() noexcept;
   /// The monitor: add checks, set or watch thresholds here.
   [[nodiscard]] Monitor& monitor() noexcept { return monitor_; }
   [[nodiscard]] const SupervisionServiceOptions& options() const noexcept { return options_; }
-  /// The HTTP/textfile exporter while the service runs with `http` or `prom_textfile` set (its
-  /// server: `exporter()->http()`); null otherwise.
-  [[nodiscard]] exporter::MonitorExporter* exporter() noexcept { return exporter_; }
+  /// The HTTP server while the service runs with `http` set; null otherwise.
+  [[nodiscard]] exporter::HttpServer* http() noexcept;
 
  private:
-  void publish(const ReportSet& monitor_reports);
-  ReportSet contribute(const ReportSet& monitor_reports) const;
+  void on_cycle(const ReportSet& monitor_reports);
+  void stop_outputs(const exporter::Snapshot& final_snapshot, std::size_t count);
 
   SupervisionServiceOptions options_;
   ComponentRegistry& registry_;
   supervisor::ComponentAggregator aggregator_;
-  supervisor::TaskSupervisor supervisor_;
+  std::unique_ptr<Source> source_;
   Monitor monitor_;
   std::uint64_t monitor_subscription_ = 0;
-  std::vector<std::unique_ptr<ReportOutput>> outputs_;
-  std::vector<Contributor> contributors_;
-  mutable std::mutex subscribers_mutex_;
-  std::vector<std::pair<std::uint64_t, Subscriber>> subscribers_;
-  std::uint64_t next_subscriber_ = 1;
-  exporter::MonitorExporter* exporter_ = nullptr;  // owned by its output, while running
+  std::uint64_t histogram_hook_ = 0;
+  std::vector<std::unique_ptr<exporter::Output>> outputs_;
+  std::vector<std::unique_ptr<Contributor>> owned_contributors_;
+  std::vector<Contributor*> contributors_;
+  exporter::HttpOutput* http_ = nullptr;  // among outputs_, when options_.http
+  // Cycle state, on the monitor's thread (or step()'s or stop()'s caller): the buckets read at
+  // the start of the cycle, the last event handed out, whether outputs get the cycle.
+  std::vector<exporter::ComponentHistograms> cycle_histograms_;
+  std::uint64_t last_event_seq_ = 0;
+  std::atomic<bool> publishing_{false};  // set by the control thread, read by the monitor's
+  mutable std::mutex latest_mutex_;      // guards latest_: held for a pointer copy
+  std::shared_ptr<const exporter::Snapshot> latest_;
   ReportSet final_;
   bool running_ = false;
-  bool stopped_ = false;
 };
 
 }  // namespace vigil::service
 
 // The names a program writes, also in vigil (docs/design/modules.md).
 namespace vigil {
-using service::ReportOutput;
 using service::SupervisionService;
 using service::SupervisionServiceOptions;
 }  // namespace vigil

@@ -41,6 +41,11 @@ enum class EventKind : std::uint8_t {
   Deadline,      ///< the watchdog: no cycle arrived before the component's deadline
   Recovered,     ///< cycles arrive again after a Deadline event
   Cleared,       ///< a latched fault was cleared (API, auto-clear, HTTP)
+  // What `vigil supervise` (a SegmentSource) sees of other processes:
+  Joined,           ///< a component of another process appeared (its segment)
+  Left,             ///< a component of another process left normally (segment closed, drained)
+  ProcessExited,    ///< a supervised process ended; `detail` says how
+  SegmentRejected,  ///< a segment failed validation; `detail` names the field and why
 };
 /// Lower-case name of a kind ("exception", "overrun_limit", ...), as written in JSON.
 [[nodiscard]] const char* to_string(EventKind k) noexcept;
@@ -57,6 +62,9 @@ struct Event {
   EventSeverity severity = EventSeverity::Info;
   std::uint32_t component_id = 0;  ///< registry id (0 for the hub's own events)
   std::string component;
+  /// The process an event of another process is about (`vigil supervise`: joined, left,
+  /// process_exited, segment_rejected); 0 for this process's own components.
+  std::int32_t pid = 0;
   /// The component's cycle number of the fault (the faulting cycle; for Deadline the latest
   /// cycle received; 0 when not known).
   std::uint64_t cycle = 0;

@@ -1,5 +1,5 @@
-// The `vigil supervise` daemon: segment discovery, draining, process death, reclaiming.
-#include "vigil/deploy/process_supervisor.hpp"
+// The source of `vigil supervise`: segment discovery, draining, process death, reclaiming.
+#include "vigil/service/segment_source.hpp"
 
 #include <fmt/format.h>
 
@@ -21,21 +21,7 @@
 #include "vigil/supervisor/running_stats.hpp"
 #include "vigil/task/shm_messages.hpp"
 
-namespace vigil::deploy {
-
-const char* to_string(ProcessEvent::Kind k) noexcept {
-  switch (k) {
-    case ProcessEvent::Kind::Joined:
-      return "joined";
-    case ProcessEvent::Kind::Left:
-      return "left";
-    case ProcessEvent::Kind::Exited:
-      return "exited";
-    case ProcessEvent::Kind::Rejected:
-      return "rejected";
-  }
-  return "?";
-}
+namespace vigil::service {
 
 namespace {
 
@@ -99,15 +85,9 @@ std::optional<std::int32_t> pid_of_segment(const std::string& name) {
 
 }  // namespace
 
-struct ProcessSupervisor::Impl {
-  explicit Impl(ProcessSupervisorOptions o)
-      : options(std::move(o)),
-        aggregator([&] {
-          supervisor::AggregatorOptions a = options.aggregator;
-          a.clock = options.monitor.clock;  // silences compare the two
-          return a;
-        }()),
-        monitor(aggregator, options.monitor) {
+struct SegmentSource::Impl {
+  Impl(SegmentSourceOptions o, supervisor::ComponentAggregator& a)
+      : options(std::move(o)), aggregator(a) {
     expectation.schema = task::kShmMessageSchema;
     expectation.supervisor_name = options.name;
     segment_prefix = bus::shm_segment_prefix(options.name);
@@ -119,9 +99,8 @@ struct ProcessSupervisor::Impl {
 
   static constexpr std::size_t kShmMaxBatch = 256;
 
-  ProcessSupervisorOptions options;
-  supervisor::ComponentAggregator aggregator;
-  Monitor monitor;
+  SegmentSourceOptions options;
+  supervisor::ComponentAggregator& aggregator;
   bus::ShmExpectation expectation;
   std::uint32_t uid = 0;
   std::int32_t self_pid = 0;
@@ -160,7 +139,6 @@ struct ProcessSupervisor::Impl {
   std::uint32_t next_id = 1;
   std::vector<task::Message> buffer;
   std::vector<std::uint64_t> seqs;
-  std::vector<ProcessEvent> events;
   // Statistics.
   std::uint64_t cycles = 0;
   std::uint64_t messages = 0;
@@ -168,21 +146,27 @@ struct ProcessSupervisor::Impl {
   std::uint64_t reclaimed = 0;
   supervisor::RunningStats cycle_time;
 
-  // Subscribers.
-  std::mutex subscribers_mutex;
-  std::vector<std::pair<std::uint64_t, EventCallback>> subscribers;
-  std::uint64_t next_subscriber = 1;
-
   // The drain thread.
   std::mutex thread_mutex;
   platform::Thread thread;
   std::atomic<bool> quit{false};
   std::atomic<bool> running{false};
 
-  [[nodiscard]] Nanos now() const { return options.monitor.clock.now(); }
+  [[nodiscard]] Nanos now() const { return aggregator.options().clock.now(); }
 
-  void event(ProcessEvent::Kind k, std::int32_t pid, std::string component, std::string message) {
-    events.push_back(ProcessEvent{k, now(), pid, std::move(component), std::move(message)});
+  // An event of the aggregator's hub, as the supervisor's own: the fault time is when it was
+  // noticed (a process's death has no earlier stamp the source could trust).
+  void event(EventKind k, std::int32_t pid, std::string component, std::string message) {
+    Event e;
+    e.kind = k;
+    e.severity = k == EventKind::ProcessExited     ? EventSeverity::Error
+                 : k == EventKind::SegmentRejected ? EventSeverity::Warn
+                                                   : EventSeverity::Info;
+    e.component = component.empty() ? fmt::format("pid {}", pid) : std::move(component);
+    e.pid = pid;
+    e.fault_ns = e.detected_ns = now();
+    e.detail = std::move(message);
+    (void)aggregator.events().publish(std::move(e));
   }
 
   // --- messages into the aggregator -------------------------------------------------------------
@@ -291,8 +275,7 @@ struct ProcessSupervisor::Impl {
     const std::string why = e.to_string();
     rejected[name] = why;
     ++rejected_total;
-    event(ProcessEvent::Kind::Rejected, pid, name,
-          fmt::format("segment {} rejected: {}", name, why));
+    event(EventKind::SegmentRejected, pid, name, fmt::format("segment {} rejected: {}", name, why));
   }
 
   void open_segment(const std::string& name) {
@@ -359,7 +342,7 @@ struct ProcessSupervisor::Impl {
     p.segments.push_back(seg.get());
     segments.emplace(name, std::move(seg));
     order_stale = true;
-    event(ProcessEvent::Kind::Joined, p.info.pid, info.component_name,
+    event(EventKind::Joined, p.info.pid, info.component_name,
           fmt::format("component {} of process {} ({}) joined{}", info.component_name, p.info.pid,
                       p.info.name,
                       s.incarnation > 1 ? fmt::format(", incarnation {}", s.incarnation) : ""));
@@ -410,7 +393,7 @@ struct ProcessSupervisor::Impl {
     aggregator.on_leave(*s.entry);
     if (auto it = placements.find(s.entry->id); it != placements.end()) {
       it->second.dead = dead;
-      it->second.forget_at = now() + options.aggregator.retain_left_ns;
+      it->second.forget_at = now() + aggregator.options().retain_left_ns;
       next_forget = std::min(next_forget, it->second.forget_at);
     }
     if (s.process != nullptr) std::erase(s.process->segments, &s);
@@ -507,7 +490,7 @@ struct ProcessSupervisor::Impl {
     const bool first = p.info.exit.empty();
     if (first) settle_exit(p);
     const std::string msg = death_message(p);
-    if (first) event(ProcessEvent::Kind::Exited, p.info.pid, "", msg);
+    if (first) event(EventKind::ProcessExited, p.info.pid, "", msg);
     p.dead_reports.push_back(dead_report(s, msg));
     unlink(s);
     forget(s, true);
@@ -517,7 +500,7 @@ struct ProcessSupervisor::Impl {
     const std::string msg = death_message(p);
     std::vector<Segment*> segs = p.segments;
     for (Segment* s : segs) p.dead_reports.push_back(dead_report(*s, msg));
-    event(ProcessEvent::Kind::Exited, p.info.pid, "", msg);
+    event(EventKind::ProcessExited, p.info.pid, "", msg);
     for (Segment* s : segs) {
       unlink(*s);
       forget(*s, true);
@@ -616,7 +599,7 @@ struct ProcessSupervisor::Impl {
         const std::string component = s->entry->name;
         unlink(*s);
         forget(*s, false);
-        event(ProcessEvent::Kind::Left, pid, component,
+        event(EventKind::Left, pid, component,
               fmt::format("component {} of process {} left", component, pid));
       }
     }
@@ -652,7 +635,7 @@ struct ProcessSupervisor::Impl {
   Report self_report(Nanos t) const {
     Report r;
     r.kind = ReportKind::Supervisor;
-    r.name = "vigil.supervise";
+    r.name = options.report_name;
     r.configured = true;
     r.activity = options.thread_name;
     r.period_ns = options.period_ns;
@@ -683,10 +666,11 @@ struct ProcessSupervisor::Impl {
     return r;
   }
 
-  ReportSet compose(const ReportSet& base) const {
+  void contribute(ReportSet& set) const {
     ReportSet out;
-    out.cycle = base.cycle;
-    out.time_ns = base.time_ns;
+    out.cycle = set.cycle;
+    out.time_ns = set.time_ns;
+    const ReportSet& base = set;
     std::lock_guard lock(mutex);
     for (const Report& r : base.components) {
       if (r.kind != ReportKind::Component) continue;
@@ -703,34 +687,12 @@ struct ProcessSupervisor::Impl {
     for (const Report& r : base.components) {
       if (r.kind != ReportKind::Component) out.components.push_back(r);
     }
-    return out;
+    set = std::move(out);
   }
 
   // The daemon goes away: its processes must not count on it to remove their segments.
   void detach() {
     for (auto& [name, s] : segments) s->reader.heartbeat(0, 0);
-  }
-
-  void dispatch() {
-    std::vector<ProcessEvent> evs;
-    {
-      std::lock_guard lock(mutex);
-      evs.swap(events);
-    }
-    if (evs.empty()) return;
-    std::vector<std::pair<std::uint64_t, EventCallback>> subs;
-    {
-      std::lock_guard lock(subscribers_mutex);
-      subs = subscribers;
-    }
-    for (const ProcessEvent& e : evs) {
-      for (auto& [id, cb] : subs) {
-        try {
-          cb(e);
-        } catch (...) {
-        }
-      }
-    }
   }
 
   void run() {
@@ -742,7 +704,6 @@ struct ProcessSupervisor::Impl {
         std::lock_guard lock(mutex);
         step();
       }
-      dispatch();
       const Nanos t = platform::now_ns();
       // A regular cycle schedules the next one; an early one (a death, a new segment) leaves the
       // regular cycle where it was. (Advancing `next` on every wake-up had let a busy /dev/shm
@@ -794,8 +755,7 @@ struct ProcessSupervisor::Impl {
   }
 };
 
-expected<std::unique_ptr<ProcessSupervisor>, Error> ProcessSupervisor::create(
-    ProcessSupervisorOptions options) {
+expected<void, Error> validate(const SegmentSourceOptions& options) {
   if (!bus::valid_supervisor_name(options.name)) {
     return unexpected<Error>(Error(EINVAL, fmt::format("supervisor name '{}' is not 1 to 31 of "
                                                        "A-Z a-z 0-9 _ -",
@@ -806,29 +766,30 @@ expected<std::unique_ptr<ProcessSupervisor>, Error> ProcessSupervisor::create(
         Error(EINVAL, fmt::format("group '{}' does not exist", options.group)));
   }
   if (options.period_ns <= 0) return unexpected<Error>(Error(EINVAL, "period must be positive"));
-  return std::unique_ptr<ProcessSupervisor>(
-      new ProcessSupervisor(std::make_unique<Impl>(std::move(options))));
+  return {};
 }
 
-ProcessSupervisor::ProcessSupervisor(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+SegmentSource::SegmentSource(SegmentSourceOptions options,
+                             supervisor::ComponentAggregator& aggregator)
+    : impl_(std::make_unique<Impl>(std::move(options), aggregator)) {}
 
-ProcessSupervisor::~ProcessSupervisor() {
-  stop();
-  detach();
-}
-
-std::size_t ProcessSupervisor::step() {
-  std::size_t n = 0;
-  {
-    std::lock_guard lock(impl_->mutex);
-    n = impl_->step();
+SegmentSource::~SegmentSource() {
+  // The last drain may allocate: out of memory there must not terminate the process.
+  try {
+    stop();
+    detach();
+  } catch (...) {  // NOLINT(bugprone-empty-catch): nothing left to report it to
   }
-  impl_->dispatch();
-  return n;
 }
 
-expected<void, Error> ProcessSupervisor::start() {
+std::size_t SegmentSource::step() {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->step();
+}
+
+expected<void, Error> SegmentSource::start() {
   Impl& m = *impl_;
+  if (auto ok = validate(m.options); !ok) return ok;
   std::lock_guard lock(m.thread_mutex);
   if (m.thread.joinable()) return {};
   m.quit.store(false, std::memory_order_relaxed);
@@ -839,39 +800,34 @@ expected<void, Error> ProcessSupervisor::start() {
     return unexpected<Error>(t.error());
   }
   m.thread = std::move(*t);
-  if (auto r = m.monitor.start(); !r) {
+  return {};
+}
+
+void SegmentSource::stop() {
+  Impl& m = *impl_;
+  {
+    std::lock_guard lock(m.thread_mutex);
+    if (!m.thread.joinable()) return;
     m.quit.store(true, std::memory_order_release);
     m.thread.join();
     m.thread = platform::Thread();
     m.running.store(false, std::memory_order_relaxed);
-    return unexpected<Error>(r.error());
   }
-  return {};
+  step();  // a last drain: what the processes sent before the stop is reported
 }
 
-void ProcessSupervisor::stop() {
-  Impl& m = *impl_;
-  std::lock_guard lock(m.thread_mutex);
-  m.monitor.stop();
-  if (!m.thread.joinable()) return;
-  m.quit.store(true, std::memory_order_release);
-  m.thread.join();
-  m.thread = platform::Thread();
-  m.running.store(false, std::memory_order_relaxed);
-}
+bool SegmentSource::running() const { return impl_->running.load(std::memory_order_relaxed); }
 
-void ProcessSupervisor::detach() {
+void SegmentSource::detach() {
   std::lock_guard lock(impl_->mutex);
   impl_->detach();
 }
 
-ReportSet ProcessSupervisor::reports() const { return impl_->compose(impl_->monitor.latest()); }
+void SegmentSource::contribute(exporter::Snapshot& snapshot) {
+  impl_->contribute(snapshot.reports);
+}
 
-ReportSet ProcessSupervisor::compose(const ReportSet& base) const { return impl_->compose(base); }
-
-ReportSet ProcessSupervisor::step_monitor() { return impl_->compose(impl_->monitor.step()); }
-
-std::vector<ProcessInfo> ProcessSupervisor::processes() const {
+std::vector<ProcessInfo> SegmentSource::processes() const {
   std::lock_guard lock(impl_->mutex);
   std::vector<ProcessInfo> alive;
   std::vector<ProcessInfo> dead;
@@ -882,21 +838,9 @@ std::vector<ProcessInfo> ProcessSupervisor::processes() const {
   return alive;
 }
 
-std::uint64_t ProcessSupervisor::subscribe(EventCallback callback) {
-  std::lock_guard lock(impl_->subscribers_mutex);
-  const std::uint64_t id = impl_->next_subscriber++;
-  impl_->subscribers.emplace_back(id, std::move(callback));
-  return id;
-}
-
-void ProcessSupervisor::unsubscribe(std::uint64_t id) {
-  std::lock_guard lock(impl_->subscribers_mutex);
-  std::erase_if(impl_->subscribers, [&](const auto& s) { return s.first == id; });
-}
-
-ProcessSupervisorStats ProcessSupervisor::stats() const {
+SegmentSourceStats SegmentSource::stats() const {
   std::lock_guard lock(impl_->mutex);
-  ProcessSupervisorStats s;
+  SegmentSourceStats s;
   s.cycles = impl_->cycles;
   s.messages = impl_->messages;
   s.segments = impl_->segments.size();
@@ -908,12 +852,6 @@ ProcessSupervisorStats ProcessSupervisor::stats() const {
   return s;
 }
 
-const ProcessSupervisorOptions& ProcessSupervisor::options() const noexcept {
-  return impl_->options;
-}
-Monitor& ProcessSupervisor::monitor() noexcept { return impl_->monitor; }
-const supervisor::ComponentAggregator& ProcessSupervisor::aggregator() const noexcept {
-  return impl_->aggregator;
-}
+const SegmentSourceOptions& SegmentSource::options() const noexcept { return impl_->options; }
 
-}  // namespace vigil::deploy
+}  // namespace vigil::service
