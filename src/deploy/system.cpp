@@ -2,7 +2,11 @@
 
 #include <fmt/format.h>
 
+#include <chrono>
 #include <exception>
+#include <future>
+#include <memory>
+#include <thread>
 
 #include "vigil/task/shm_messages.hpp"
 
@@ -10,14 +14,15 @@ namespace vigil::deploy {
 
 System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
   // The pipeline is a SupervisionService on the system's registry with the deployment's outputs
-  // (added below, with access to the system); its owner reads the final reports with
-  // step_monitor(). The extensions are its contributors (create()).
+  // (added below, with access to the system); stop() ends with a last monitor cycle that the
+  // outputs get, and reports() is that cycle's afterwards. The extensions are its contributors
+  // (create()).
   const SupervisionSpec& sv = spec_.supervision;
   service::SupervisionServiceOptions o;
   o.registry = &registry_;
   o.supervisor_period_ns = sv.supervisor_period_ns;
   o.monitor_period_ns = sv.monitor_period_ns;
-  o.final_cycle = false;
+  o.final_cycle = true;  // the outputs get a last cycle after the last drain
   o.ewma_weight = sv.ewma_weight;
   o.summary_file = nullptr;
   o.monitor.stack_bytes = sv.monitor_stack_bytes;
@@ -46,6 +51,7 @@ System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
   service_ = std::make_unique<service::SupervisionService>(std::move(o));
   service_->monitor().set_thresholds(sv.thresholds);
   if (out.textfile) textfile_ = &service_->add_output<exporter::TextfileOutput>(*out.textfile);
+  if (out.json) json_ = &service_->add_output<exporter::JsonFileOutput>(*out.json, 2);
 }
 
 System::~System() { stop(); }
@@ -208,6 +214,16 @@ void System::stop() {
   for (auto it = extensions_.rbegin(); it != extensions_.rend(); ++it) (*it)->stop();
   (void)service_->stop();  // the supervisor joins after a last drain, the monitor, the outputs
   running_ = false;
+}
+
+bool System::stop_within(Nanos timeout_ns) {
+  auto done = std::make_shared<std::promise<void>>();
+  std::future<void> stopped = done->get_future();
+  std::thread([this, done] {
+    stop();
+    done->set_value();
+  }).detach();
+  return stopped.wait_for(std::chrono::nanoseconds(timeout_ns)) == std::future_status::ready;
 }
 
 ReportSet System::reports() const { return service_->reports(); }

@@ -43,29 +43,112 @@ expected<void, Error> write_json_file(const std::filesystem::path& path, const R
 
 // --- text --------------------------------------------------------------------------------------
 
+expected<void, Error> TextOutput::start(OutputContext& context) {
+  started_ns_ = context.aggregator.options().clock.now();
+  return {};
+}
+
 void TextOutput::publish(const Snapshot& snapshot) {
   if (!options_.every_cycle || options_.file == nullptr) return;
-  print_summary(options_.file, snapshot.reports, options_.color);
+  const bool color = use_color(options_.color, options_.file);
+  std::string out;
+  if (options_.redraw) out += "\x1b[H\x1b[2J";  // home + clear: redraw in place
+  if (!options_.title.empty()) {
+    out += fmt::format("{} — {:.0f} s — worst: {}\n", options_.title,
+                       static_cast<double>(snapshot.reports.time_ns - started_ns_) / 1e9,
+                       to_string(snapshot.reports.worst()));
+  }
+  out += format_summary(snapshot.reports, color);
+  // The panels stay below the table: a line written to a terminal between two redraws would
+  // push the view down.
+  for (const TextPanel* p : options_.panels) p->append(out);
+  if (!options_.redraw) out += '\n';
+  std::fwrite(out.data(), 1, out.size(), options_.file);
   std::fflush(options_.file);
 }
 
 void TextOutput::stop(const Snapshot& final_snapshot) {
   if (options_.file == nullptr) return;
-  print_summary(options_.file, final_snapshot.reports, options_.color);
-  if (options_.details_at_stop) {
-    std::fputc('\n', options_.file);
-    print_details(options_.file, final_snapshot.reports, options_.color);
+  const bool color = use_color(options_.color, options_.file);
+  std::string out;
+  if (!options_.final_title.empty()) {
+    out += fmt::format("\n{} after {:.1f} s. Final report:\n", options_.final_title,
+                       static_cast<double>(final_snapshot.reports.time_ns - started_ns_) / 1e9);
   }
+  out += format_summary(final_snapshot.reports, color);
+  for (const TextPanel* p : options_.panels) p->append(out);
+  if (options_.details_at_stop) out += "\n" + format_details(final_snapshot.reports, color);
+  std::fwrite(out.data(), 1, out.size(), options_.file);
   std::fflush(options_.file);
 }
 
+// --- event lines -------------------------------------------------------------------------------
+
+expected<void, Error> EventLineOutput::start(OutputContext& context) {
+  hub_ = &context.aggregator.events();
+  subscription_ = hub_->subscribe([this](const Event& e) { on_event(e); });
+  return {};
+}
+
+void EventLineOutput::stop(const Snapshot& /*final_snapshot*/) {
+  if (hub_ == nullptr) return;
+  (void)hub_->flush(kNanosPerSecond);
+  hub_->unsubscribe(subscription_);
+  hub_ = nullptr;
+}
+
+void EventLineOutput::on_event(const Event& e) {
+  if (e.kind == EventKind::StateChange) return;  // the lifecycle is in the table
+  std::string line = limiter_.line(e);
+  if (line.empty()) return;
+  if (options_.file != nullptr) {
+    std::fprintf(options_.file, "event: %s\n", line.c_str());
+    return;
+  }
+  std::lock_guard lock(mutex_);
+  lines_.push_back(std::move(line));
+  if (lines_.size() > options_.lines) lines_.erase(lines_.begin());
+  ++total_;
+}
+
+void EventLineOutput::append(std::string& out) const {
+  std::lock_guard lock(mutex_);
+  if (total_ == 0) return;
+  out += fmt::format("\nevents ({} line{}; the last {} here):\n", total_, total_ == 1 ? "" : "s",
+                     options_.lines);
+  for (const auto& l : lines_) out += "  " + l + '\n';
+}
+
 // --- JSON file ---------------------------------------------------------------------------------
+
+expected<void, Error> JsonFileOutput::start(OutputContext& /*context*/) {
+  // Say at once when the path cannot be written (opened to append: an existing file is kept);
+  // supervision goes on, and the write is tried again at stop.
+  errno = 0;
+  std::FILE* f = std::fopen(path_.c_str(), "ab");
+  if (f == nullptr) {
+    const int err = errno;
+    std::fprintf(stderr,
+                 "vigil: cannot write %s: %s; supervision goes on, the final reports will be "
+                 "printed and written there again at the end\n",
+                 path_.c_str(), reason(err).c_str());
+  } else {
+    std::fclose(f);
+  }
+  return {};
+}
 
 void JsonFileOutput::stop(const Snapshot& final_snapshot) {
   auto ok = write_json_file(path_, final_snapshot.reports, indent_);
   std::lock_guard lock(mutex_);
   error_ = ok ? std::string() : ok.error().message;
+  written_ = ok.has_value();
   if (!ok) std::fprintf(stderr, "vigil: %s\n", error_.c_str());
+}
+
+bool JsonFileOutput::written() const {
+  std::lock_guard lock(mutex_);
+  return written_;
 }
 
 std::string JsonFileOutput::error() const {

@@ -175,6 +175,8 @@ std::shared_ptr<const exporter::Snapshot> SupervisionService::snapshot() const {
 }
 
 exporter::Output& SupervisionService::add_output(std::unique_ptr<exporter::Output> output) {
+  // A part that is both (the components' log) is registered once, as both.
+  if (auto* c = dynamic_cast<Contributor*>(output.get()); c != nullptr) contributors_.push_back(c);
   outputs_.push_back(std::move(output));
   return *outputs_.back();
 }

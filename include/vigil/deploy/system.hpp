@@ -52,8 +52,14 @@ class System {
   /// returns what failed (e.g. "outputs.http: HTTP server: cannot listen on 127.0.0.1:9479: the
   /// port is taken ...").
   expected<void, Error> start();
-  /// Stops everything in reverse order. Idempotent.
+  /// Stops everything in reverse order: the outputs get the final monitor cycle, after a last
+  /// drain. Idempotent.
   void stop();
+  /// stop(), waiting at most `timeout_ns`: a component stuck in on_update never returns, and its
+  /// activity's thread cannot be joined. False when the time passed: the stopping thread is then
+  /// left blocked, and the caller must leave the process without destroying the system (the
+  /// monitor, which stops after the activities, still runs: reports() is its latest view).
+  [[nodiscard]] bool stop_within(Nanos timeout_ns);
   [[nodiscard]] bool running() const noexcept { return running_; }
 
   /// The latest monitor cycle's reports, the extensions' included. Any thread.
@@ -88,6 +94,9 @@ class System {
   /// The latest textfile write error (kept after stop()); empty when every write succeeded
   /// or no textfile is written. Control thread.
   [[nodiscard]] std::string output_error() const;
+  /// The output of `outputs.json` (the final reports, written at stop), or null. Its `error()`
+  /// says why a write failed.
+  [[nodiscard]] const exporter::JsonFileOutput* json_output() const noexcept { return json_; }
   /// The watched thresholds file (`supervision: {thresholds: FILE}`), or null when the
   /// thresholds are embedded. The monitor polls it at each cycle; `reload()` it to apply an edit
   /// at once.
@@ -122,6 +131,7 @@ class System {
   std::vector<std::unique_ptr<Extension>> extensions_;
   std::vector<Slot> slots_;
   exporter::TextfileOutput* textfile_ = nullptr;  // among the service's outputs
+  exporter::JsonFileOutput* json_ = nullptr;
   std::vector<std::string> log_;
   platform::RealtimeSetupReport rt_setup_;
   bool running_ = false;

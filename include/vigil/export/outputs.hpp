@@ -32,6 +32,15 @@ namespace vigil::exporter {
 expected<void, Error> write_json_file(const std::filesystem::path& path, const ReportSet& reports,
                                       int indent = 2);
 
+/// Lines a live text view shows under its table (the latest events, the components' log).
+class TextPanel {
+ public:
+  virtual ~TextPanel() = default;
+  /// Appends the panel (a blank line, a title line, its lines) to `out`; nothing when empty.
+  /// Any thread.
+  virtual void append(std::string& out) const = 0;
+};
+
 /// The text summary (and, if asked, every report's detail view) on a FILE*.
 struct TextOutputOptions {
   std::FILE* file = stdout;
@@ -40,25 +49,72 @@ struct TextOutputOptions {
   /// Write the detail views after the summary at stop.
   bool details_at_stop = false;
   ColorMode color = ColorMode::Auto;
+  /// The live view's first line: "<title> — <seconds since start> s — worst: <level>"; empty:
+  /// no such line.
+  std::string title{};
+  /// Redraw the live view in place (cursor home, clear): for a terminal.
+  bool redraw = false;
+  /// Shown under the table of every view, the final one included, in order (they must outlive
+  /// the output: e.g. other outputs of the same service).
+  std::vector<const TextPanel*> panels{};
+  /// The line written before the final summary ("Stopped after 20.0 s. Final report:" when it
+  /// is "Stopped"); empty: none.
+  std::string final_title{};
 };
 
 class TextOutput final : public Output {
  public:
-  explicit TextOutput(TextOutputOptions options) : options_(options) {}
+  explicit TextOutput(TextOutputOptions options) : options_(std::move(options)) {}
+  expected<void, Error> start(OutputContext& context) override;
   void publish(const Snapshot& snapshot) override;
   void stop(const Snapshot& final_snapshot) override;
+  /// Changes the final title (e.g. to "Interrupted" on Ctrl-C) before stop. Control thread.
+  void set_final_title(std::string title) { options_.final_title = std::move(title); }
 
  private:
   TextOutputOptions options_;
+  Nanos started_ns_ = 0;
+};
+
+/// Events as rate-limited lines for people (`supervisor::EventLineLimiter`: at most one per
+/// component per second, folded counts never lost; lifecycle changes left out, the summary shows
+/// the state): written to a FILE as each event arrives ("event: ..."), or kept, the latest
+/// `lines`, for a live view's panel (`file` null).
+class EventLineOutput final : public Output, public TextPanel {
+ public:
+  struct Options {
+    std::FILE* file = stderr;  ///< null: keep the lines for the panel
+    std::size_t lines = 6;     ///< lines kept for the panel
+  };
+  explicit EventLineOutput(Options options) : options_(options) {}
+  expected<void, Error> start(OutputContext& context) override;
+  void stop(const Snapshot& final_snapshot) override;
+  /// "events (N lines; the last 6 here):" and the lines.
+  void append(std::string& out) const override;
+
+ private:
+  void on_event(const Event& e);
+
+  Options options_;
+  supervisor::EventHub* hub_ = nullptr;
+  std::uint64_t subscription_ = 0;
+  supervisor::EventLineLimiter limiter_;
+  mutable std::mutex mutex_;
+  std::vector<std::string> lines_;  // the latest, oldest first
+  std::uint64_t total_ = 0;
 };
 
 /// The final reports as a JSON file, written at stop (`write_json_file`). A file that cannot be
-/// written is said on stderr and in `error()`, never thrown.
+/// written is said on stderr and in `error()`, never thrown: at start, when the path cannot be
+/// opened for writing then (supervision goes on, the write is tried again at stop), and at stop.
 class JsonFileOutput final : public Output {
  public:
   JsonFileOutput(std::filesystem::path path, int indent)
       : path_(std::move(path)), indent_(indent) {}
+  expected<void, Error> start(OutputContext& context) override;
   void stop(const Snapshot& final_snapshot) override;
+  /// Whether the write at stop succeeded (false before stop).
+  [[nodiscard]] bool written() const;
   /// The error of the write at stop; empty when it succeeded (or before stop).
   [[nodiscard]] std::string error() const;
 
@@ -67,6 +123,7 @@ class JsonFileOutput final : public Output {
   int indent_;
   mutable std::mutex mutex_;
   std::string error_;
+  bool written_ = false;
 };
 
 /// The HTTP server (Prometheus `/metrics`, `/api/v1/reports`, events, traces, the dashboard;

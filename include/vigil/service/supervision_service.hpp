@@ -159,6 +159,8 @@ class SupervisionService {
   // --- the one way in and the one way out (call before start(), from the control thread) ---
 
   /// Adds an output (started by start(), published every cycle, stopped by stop()). Returns it.
+  /// An output that is also a `Contributor` (the components' log, vigil/service/component_log.hpp)
+  /// is registered as both.
   exporter::Output& add_output(std::unique_ptr<exporter::Output> output);
   /// Adds an output of type O built from `args`; returns it. Example:
   /// `auto& http = service.add_output<exporter::HttpOutput>(exporter::HttpOptions{});`
