@@ -35,6 +35,15 @@ std::string read_file(const std::filesystem::path& p) {
   return s.str();
 }
 
+// HTTP on any free port, one thread, nothing said.
+exporter::HttpOptions quiet_http() {
+  exporter::HttpOptions http;
+  http.listen.port = 0;
+  http.threads = 1;
+  http.log = [](const std::string&) {};
+  return http;
+}
+
 // A new output: one interface (exporter::Output), one registration (add_output). It counts
 // what the service tells it.
 struct CountingOutput final : exporter::Output {
@@ -155,10 +164,7 @@ TEST_CASE("Outputs and contributors see every cycle and the final reports", "[se
 TEST_CASE("With HTTP on, each contributor runs once per monitor cycle, on the monitor's thread",
           "[service][http]") {
   ComponentRegistry reg;
-  exporter::HttpOptions http;
-  http.listen.port = 0;
-  http.threads = 1;
-  http.log = [](const std::string&) {};
+  const exporter::HttpOptions http = quiet_http();
   SupervisionService service({.registry = &reg,
                               .supervisor_period_ns = kNanosPerMilli,
                               .monitor_period_ns = 20 * kNanosPerMilli,
@@ -190,10 +196,7 @@ TEST_CASE("With HTTP on, each contributor runs once per monitor cycle, on the mo
 TEST_CASE("The HTTP snapshot's buckets are of the same monitor cycle as its reports",
           "[service][http]") {
   ComponentRegistry reg;
-  exporter::HttpOptions http;
-  http.listen.port = 0;
-  http.threads = 1;
-  http.log = [](const std::string&) {};
+  const exporter::HttpOptions http = quiet_http();
   SupervisionServiceOptions options{
       .registry = &reg, .monitor_thread = false, .summary_file = nullptr, .http = http};
   options.aggregator.warmup_ns = 0;  // every cycle in the statistics
