@@ -125,15 +125,15 @@ struct Timing {
   }
 
   void add(const FrameRecord& r, Nanos gap_ns) {
-    if (records == 0) first_record = r.end_ns;
+    if (records == 0) first_record = r.time_ns;
     ++records;
-    last_record = std::max(last_record, r.end_ns);
+    last_record = std::max(last_record, r.time_ns);
     if (live) {
-      io.add(r.io_ns());
+      io.add(r.io_ns);
       if (gap_ns >= 0) gap.add(gap_ns);
       return;
     }
-    io_exact.add(r.io_ns());
+    io_exact.add(r.io_ns);
     if (gap_ns >= 0) {
       gap_exact.add(gap_ns);
       gaps.push_back(gap_ns);
