@@ -413,6 +413,9 @@ void CanAggregator::end(const Entry& /*e*/, const supervisor::PortDrain& d) {
   if (m.current != nullptr) {
     m.current->info.totals.dropped = d.dropped;
     m.read_tables(*m.current);
+    // The tables were read after the cycle began: every frame handled before then is counted.
+    m.current->info.observed_ns = d.cycle_ns;
+    if (d.emptied) m.current->info.drained_ns = d.cycle_ns;
   }
   m.current = nullptr;
   m.mutex.unlock();
@@ -500,6 +503,13 @@ CanSnapshot CanAggregator::snapshot(std::span<const GroupSpec> groups) const {
   for (const SnifferSlot& s : m.sniffers) {
     snap.sniffers.push_back(s.info);
     add_totals(snap.totals, s.info.totals);
+    if (!s.info.alive) continue;  // gone and read a last time: nothing of it waits anywhere
+    // A sniffer not read yet (it joined in a cycle still under way) counts from its first read.
+    const auto earliest = [](Nanos a, Nanos b) {
+      return a < 0 || b < 0 ? std::max(a, b) : std::min(a, b);
+    };
+    snap.observed_ns = earliest(snap.observed_ns, s.info.observed_ns);
+    snap.drained_ns = earliest(snap.drained_ns, s.info.drained_ns);
   }
 
   snap.ids.reserve(m.ids.size());
