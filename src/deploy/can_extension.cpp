@@ -12,10 +12,15 @@ namespace vigil::deploy {
 
 CanExtension::CanExtension(can::CanConfig config) : config_(std::move(config)) {
   statistics_ = std::make_unique<can::CanAggregator>(registry_);
+  // Its clock is the frames' (platform::now_ns, as the sniffers' callers and SocketCan stamp
+  // them, even when supervision reads the TSC): the start of its cycles is the time node
+  // silences are judged up to.
   supervisor_ = std::make_unique<can::CanSupervisor>(
       registry_.ports(), *statistics_,
-      supervisor::SupervisorOptions{.period_ns = 100 * kNanosPerMilli,
-                                    .thread_name = "vigil-can-sup"});
+      supervisor::SupervisorOptions{
+          .period_ns = 100 * kNanosPerMilli,
+          .thread_name = "vigil-can-sup",
+          .clock = Clock{[](const void*) noexcept { return platform::now_ns(); }, nullptr}});
   monitor_ = std::make_unique<can::CanMonitor>(config_);
 }
 
