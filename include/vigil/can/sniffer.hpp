@@ -15,12 +15,11 @@
 ///    `kMaxProbe` slots, so every call is O(1). A frame whose key finds no room (the table holds
 ///    `max_ids` / `max_nodes` keys, or its probe run is full) is counted in `untracked_ids` /
 ///    `untracked_nodes`, exactly, and never blocks.
-///  - The accepted frame's timing (`FrameRecord`: its time and the call's duration, the exact gap
-///  since the
-///    previous frame of the same id and of the same node, the first 8 data bytes) is pushed to
-///    the sniffer's `Port`. When the port is full the record is dropped and counted: timing
-///    distributions are sampled under load, but counts and liveness come from the tables and
-///    stay exact, so no node can starve (the original's weakness).
+///  - The accepted frame's timing (`FrameRecord`: its time and the call's duration, the exact
+///    gap since the previous frame of the same id and of the same node, the first 8 data bytes)
+///    is pushed to the sniffer's `Port`. When the port is full the record is dropped and
+///    counted: timing distributions are sampled under load, but counts and liveness come from
+///    the tables and stay exact, so no node can starve (the original's weakness).
 ///  - The table counters are written by the I/O thread only and read by the supervisor side
 ///    with relaxed atomics (single writer: no read-modify-write, no tearing; 64-bit atomics are
 ///    lock-free on the supported targets, which a static_assert checks).
