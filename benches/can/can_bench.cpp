@@ -249,8 +249,8 @@ class CanFloor {
     empty_read();
     const Nanos t1 = platform::now_ns();
     can::FrameRecord r;
-    r.begin_ns = t0;
-    r.end_ns = t1;
+    r.time_ns = t1;
+    r.io_ns = t1 - t0;
     r.id = f.id;
     (void)queue_.push(can::CanMessage{r});
   }

@@ -63,9 +63,18 @@ std::uint32_t asked_node(const IdStats& s) {
   return (s.flags & node_flags::kToNode) != 0 ? s.node : s.peer;
 }
 
+// The time up to which the frames of id key `s` have been seen: the tables were read then (the
+// records were drained then, for a key the sniffer's table could not hold). Silence is measured
+// up to it, never up to the monitor's clock: a frame handled after it may wait unread.
+Nanos observed_for(const CanReport& r, const IdStats& s) {
+  if (s.exact_count || r.snapshot.drained_ns < 0) return r.observed_ns;
+  return std::min(r.observed_ns, r.snapshot.drained_ns);
+}
+
 // Where the ids of one (bus, node) are, and what the monitor learns from them.
 struct NodeIds {
   std::vector<std::size_t> from;  // Rx data ids the node sent
+  Nanos observed = -1;            // the earliest time up to which the ids below were seen
   Nanos last_from = -1;           // latest of them
   Nanos last_answer = -1;         // latest answer among them
   Nanos last_request = -1;        // latest request to the node (any direction)
@@ -74,7 +83,7 @@ struct NodeIds {
 };
 
 // Classifies every id key and learns the periods of the periodic ones (CanReport::ids).
-void judge_ids(CanReport& r, const CanConfig& cfg, Nanos now) {
+void judge_ids(CanReport& r, const CanConfig& cfg) {
   const auto& ids = r.snapshot.ids;
   // Ids whose remote frames were seen: their data frames answer those requests.
   std::set<std::tuple<std::uint8_t, std::uint32_t, bool>> asked;
@@ -85,7 +94,9 @@ void judge_ids(CanReport& r, const CanConfig& cfg, Nanos now) {
   for (std::size_t i = 0; i < ids.size(); ++i) {
     const IdStats& s = ids[i];
     IdVerdict& v = r.ids[i];
-    if (s.direction == Direction::Rx) v.silence_ns = std::max<Nanos>(0, now - s.last_ns);
+    if (s.direction == Direction::Rx) {
+      v.silence_ns = std::max<Nanos>(0, observed_for(r, s) - s.last_ns);
+    }
     if (s.error) {
       v.traffic = Traffic::Errors;
     } else if (s.node == kNoNode) {
@@ -121,7 +132,12 @@ NodeIds ids_of(const CanReport& r, std::optional<std::uint8_t> bus, std::uint32_
     const IdStats& s = ids[i];
     if (s.error || (bus && s.bus != *bus)) continue;
     const IdVerdict& v = r.ids[i];
+    const auto seen = [&] {
+      const Nanos t = observed_for(r, s);
+      n.observed = n.observed < 0 ? t : std::min(n.observed, t);
+    };
     if (s.request() && asked_node(s) == node) {
+      seen();
       n.last_request = std::max(n.last_request, s.last_ns);
       n.requests += s.frames;
     }
@@ -129,6 +145,7 @@ NodeIds ids_of(const CanReport& r, std::optional<std::uint8_t> bus, std::uint32_
     if (v.traffic == Traffic::ToNode || v.traffic == Traffic::Sent) n.to_node += s.frames;
     if (v.traffic == Traffic::Periodic || v.traffic == Traffic::Learning ||
         v.traffic == Traffic::OnRequest || v.traffic == Traffic::Requests) {
+      seen();
       n.from.push_back(i);
       n.last_from = std::max(n.last_from, s.last_ns);
       if (v.traffic == Traffic::OnRequest) n.last_answer = std::max(n.last_answer, s.last_ns);
@@ -142,15 +159,15 @@ void not_responding(NodeReport& n, std::string message) {
   n.status.merge(n.thresholds.not_responding_level, std::move(message));
 }
 
-void builtin_checks(NodeReport& n, const CanReport& r, Nanos now) {
+void builtin_checks(NodeReport& n, const CanReport& r) {
   const NodeThresholds& t = n.thresholds;
   const NodeIds ids = ids_of(r, n.bus, n.node);
   n.to_node_frames = ids.to_node;
   const bool heard = ids.last_from >= 0;
-  if (heard) n.silence_ns = std::max<Nanos>(0, now - ids.last_from);
+  if (heard) n.silence_ns = std::max<Nanos>(0, ids.observed - ids.last_from);
   // A request is answered by a later answer of the node (a response, an RTR answer).
   const bool pending = ids.last_request >= 0 && ids.last_request > ids.last_answer;
-  if (pending) n.unanswered_ns = std::max<Nanos>(0, now - ids.last_request);
+  if (pending) n.unanswered_ns = std::max<Nanos>(0, ids.observed - ids.last_request);
   const bool unanswered = pending && n.unanswered_ns > t.answer_within_ns;
 
   if (!heard) {
@@ -232,8 +249,15 @@ void builtin_checks(NodeReport& n, const CanReport& r, Nanos now) {
   check_limit(n.status, "tx gap", t.tx_gap, n.tx, false);
 }
 
-void overall(CanReport& r) {
+void overall(CanReport& r, const CanMonitorOptions& options) {
   const SnifferTotals& t = r.snapshot.totals;
+  if (options.stale_after_ns > 0 && r.observer_lag_ns > options.stale_after_ns) {
+    // The observer's delay is its own finding: the nodes are judged up to what was observed.
+    r.status.merge(StatusLevel::Stale,
+                   fmt::format("CAN supervisor late: frames observed up to {} ago (limit {}); "
+                               "node silences are judged up to then",
+                               duration(r.observer_lag_ns), duration(options.stale_after_ns)));
+  }
   if (t.frames == 0) {
     r.status.merge(StatusLevel::Warn, "no frames: nothing to judge");
   } else if (t.accepted == 0) {
@@ -372,8 +396,8 @@ const NodeReport* CanReport::find(std::string_view name) const noexcept {
   return nullptr;
 }
 
-CanMonitor::CanMonitor(CanConfig config)
-    : config_(std::make_shared<const CanConfig>(std::move(config))) {}
+CanMonitor::CanMonitor(CanConfig config, CanMonitorOptions options)
+    : options_(options), config_(std::make_shared<const CanConfig>(std::move(config))) {}
 
 void CanMonitor::set_config(CanConfig config) {
   set_config(std::make_shared<const CanConfig>(std::move(config)));
@@ -411,9 +435,13 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
   }
   CanReport r;
   r.time_ns = now;
+  // Silence is judged up to the time the sniffers' tables were read, and no later than `now`:
+  // a late CAN supervisor makes silences shorter, never longer (see the file comment).
+  r.observed_ns = snapshot.observed_ns < 0 ? now : std::min(now, snapshot.observed_ns);
+  r.observer_lag_ns = now - r.observed_ns;
   r.node_map = snapshot.sniffers.empty() ? cfg->node_map : snapshot.sniffers.front().node_map;
   r.snapshot = std::move(snapshot);
-  judge_ids(r, *cfg, now);
+  judge_ids(r, *cfg);
 
   std::map<std::pair<std::uint8_t, std::uint32_t>, NodeReport> seen;
   for (const NodeStats& s : r.snapshot.nodes) {
@@ -485,7 +513,7 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
       if (member) n.groups.push_back(g.members.name);
     }
     n.thresholds = resolve(*cfg, n.bus, n.node);
-    builtin_checks(n, r, now);
+    builtin_checks(n, r);
   }
   for (const auto& [name, check] : checks) {
     for (NodeReport& n : r.nodes) {
@@ -499,7 +527,7 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
       }
     }
   }
-  overall(r);
+  overall(r, options_);
   return r;
 }
 

@@ -125,15 +125,15 @@ struct Timing {
   }
 
   void add(const FrameRecord& r, Nanos gap_ns) {
-    if (records == 0) first_record = r.end_ns;
+    if (records == 0) first_record = r.time_ns;
     ++records;
-    last_record = std::max(last_record, r.end_ns);
+    last_record = std::max(last_record, r.time_ns);
     if (live) {
-      io.add(r.io_ns());
+      io.add(r.io_ns);
       if (gap_ns >= 0) gap.add(gap_ns);
       return;
     }
-    io_exact.add(r.io_ns());
+    io_exact.add(r.io_ns);
     if (gap_ns >= 0) {
       gap_exact.add(gap_ns);
       gaps.push_back(gap_ns);
@@ -413,6 +413,9 @@ void CanAggregator::end(const Entry& /*e*/, const supervisor::PortDrain& d) {
   if (m.current != nullptr) {
     m.current->info.totals.dropped = d.dropped;
     m.read_tables(*m.current);
+    // The tables were read after the cycle began: every frame handled before then is counted.
+    m.current->info.observed_ns = d.cycle_ns;
+    if (d.emptied) m.current->info.drained_ns = d.cycle_ns;
   }
   m.current = nullptr;
   m.mutex.unlock();
@@ -500,6 +503,13 @@ CanSnapshot CanAggregator::snapshot(std::span<const GroupSpec> groups) const {
   for (const SnifferSlot& s : m.sniffers) {
     snap.sniffers.push_back(s.info);
     add_totals(snap.totals, s.info.totals);
+    if (!s.info.alive) continue;  // gone and read a last time: nothing of it waits anywhere
+    // A sniffer not read yet (it joined in a cycle still under way) counts from its first read.
+    const auto earliest = [](Nanos a, Nanos b) {
+      return a < 0 || b < 0 ? std::max(a, b) : std::min(a, b);
+    };
+    snap.observed_ns = earliest(snap.observed_ns, s.info.observed_ns);
+    snap.drained_ns = earliest(snap.drained_ns, s.info.drained_ns);
   }
 
   snap.ids.reserve(m.ids.size());

@@ -56,7 +56,7 @@ struct LogReplay::Impl {
     }
     first = std::min(first, f.timestamp);
     last = std::max(last, f.timestamp);
-    clock_ns = last;
+    clock_ns = std::max(clock_ns, last);
     ++frames;
     sniffer.on_frame(f, d, f.timestamp, f.timestamp);
     // Each frame pushes at most one record: step before the port can be full, so that the
@@ -100,6 +100,9 @@ CanSnapshot LogReplay::snapshot(std::span<const GroupSpec> groups) {
 CanReport LogReplay::report(const CanMonitor& monitor) { return report(monitor, impl_->last); }
 
 CanReport LogReplay::report(const CanMonitor& monitor, Nanos now) {
+  // The log has been read up to `now` (the caller fed every frame before it): the supervisor's
+  // cycle, and so the time silences are judged up to, is `now`.
+  impl_->clock_ns = std::max(impl_->clock_ns, now);
   flush();
   CanReport r = monitor.evaluate(impl_->aggregator, now);
   std::uint64_t malformed = 0;

@@ -3,10 +3,13 @@
 // The only place in vigil with SocketCAN and socket headers (STYLE rule 4).
 #include <linux/can.h>
 #include <linux/can/raw.h>
+#include <linux/net_tstamp.h>
 #include <net/if.h>
 #include <sys/ioctl.h>
 #include <sys/socket.h>
 #include <sys/time.h>
+#include <sys/uio.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <fmt/format.h>
@@ -75,7 +78,42 @@ void from_kernel(const can_frame& c, Frame& f) noexcept {
   if (!f.rtr) std::memcpy(f.data.data(), c.data, len);
 }
 
+Nanos to_nanos(const timespec& t) noexcept {
+  return static_cast<Nanos>(t.tv_sec) * kNanosPerSecond + static_cast<Nanos>(t.tv_nsec);
+}
+
+// Room for SCM_TIMESTAMPING (three timespecs) and SCM_TIMESTAMPNS, whichever the kernel sends.
+constexpr std::size_t kControlBytes =
+    CMSG_SPACE(3 * sizeof(timespec)) + CMSG_SPACE(sizeof(timespec));
+
 }  // namespace
+
+namespace detail {
+
+RxStamp receive_stamp(const void* control, std::size_t size, bool hardware) noexcept {
+  // A msghdr over the buffer, only to walk it with the CMSG macros (which take a msghdr).
+  msghdr msg{};
+  msg.msg_control = const_cast<void*>(control);  // NOLINT(cppcoreguidelines-pro-type-const-cast)
+  msg.msg_controllen = size;
+  RxStamp software;
+  for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
+    if (c->cmsg_level != SOL_SOCKET) continue;
+    if (c->cmsg_type == SCM_TIMESTAMPNS && c->cmsg_len >= CMSG_LEN(sizeof(timespec))) {
+      timespec t;
+      std::memcpy(&t, CMSG_DATA(c), sizeof t);
+      software.ns = to_nanos(t);
+    } else if (c->cmsg_type == SCM_TIMESTAMPING && c->cmsg_len >= CMSG_LEN(3 * sizeof(timespec))) {
+      // ts[0]: software (CLOCK_REALTIME), ts[1]: unused, ts[2]: raw hardware.
+      timespec t[3];
+      std::memcpy(t, CMSG_DATA(c), sizeof t);
+      if (hardware && (t[2].tv_sec != 0 || t[2].tv_nsec != 0)) return {to_nanos(t[2]), true};
+      if (t[0].tv_sec != 0 || t[0].tv_nsec != 0) software.ns = to_nanos(t[0]);
+    }
+  }
+  return software;
+}
+
+}  // namespace detail
 
 expected<void, Error> socketcan_available() {
   const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
@@ -125,6 +163,18 @@ expected<SocketCan, Error> SocketCan::open(std::string_view interface, SocketCan
       return fail("setsockopt(SO_RCVTIMEO)");
     }
   }
+  if (options.timestamp == RxTimestamp::Kernel &&
+      ::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on) < 0) {
+    return fail("setsockopt(SO_TIMESTAMPNS)");
+  }
+  if (options.timestamp == RxTimestamp::Hardware) {
+    // The software stamp too: it stands in for frames the controller did not stamp.
+    const int flags = SOF_TIMESTAMPING_RX_HARDWARE | SOF_TIMESTAMPING_RAW_HARDWARE |
+                      SOF_TIMESTAMPING_RX_SOFTWARE | SOF_TIMESTAMPING_SOFTWARE;
+    if (::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPING, &flags, sizeof flags) < 0) {
+      return fail("setsockopt(SO_TIMESTAMPING)");
+    }
+  }
   sockaddr_can addr{};
   addr.can_family = AF_CAN;
   addr.can_ifindex = ifr.ifr_ifindex;
@@ -139,7 +189,9 @@ SocketCan::SocketCan(SocketCan&& other) noexcept
     : fd_(std::exchange(other.fd_, -1)),
       errno_(other.errno_),
       interface_(std::move(other.interface_)),
-      options_(other.options_) {}
+      options_(other.options_),
+      software_stamps_(other.software_stamps_),
+      hardware_stamps_(other.hardware_stamps_) {}
 
 SocketCan& SocketCan::operator=(SocketCan&& other) noexcept {
   if (this != &other) {
@@ -148,6 +200,8 @@ SocketCan& SocketCan::operator=(SocketCan&& other) noexcept {
     errno_ = other.errno_;
     interface_ = std::move(other.interface_);
     options_ = other.options_;
+    software_stamps_ = other.software_stamps_;
+    hardware_stamps_ = other.hardware_stamps_;
   }
   return *this;
 }
@@ -159,9 +213,19 @@ SocketCan::~SocketCan() {
 IoStatus SocketCan::read(Frame& out) noexcept {
   // Large enough for either struct; the kernel says which one by the size it returns.
   alignas(canfd_frame) unsigned char buffer[CANFD_MTU];
+  alignas(cmsghdr) unsigned char control[kControlBytes];
   for (;;) {
-    const ssize_t n = ::read(fd_, buffer, sizeof buffer);
+    iovec iov{buffer, sizeof buffer};
+    msghdr msg{};
+    msg.msg_iov = &iov;
+    msg.msg_iovlen = 1;
+    if (options_.timestamp != RxTimestamp::Read) {
+      msg.msg_control = control;
+      msg.msg_controllen = sizeof control;
+    }
+    const ssize_t n = ::recvmsg(fd_, &msg, 0);
     if (n == static_cast<ssize_t>(CAN_MTU) || n == static_cast<ssize_t>(CANFD_MTU)) {
+      const Nanos read_ns = platform::now_ns();
       if (n == static_cast<ssize_t>(CANFD_MTU)) {
         canfd_frame k;
         std::memcpy(&k, buffer, sizeof k);
@@ -172,7 +236,14 @@ IoStatus SocketCan::read(Frame& out) noexcept {
         from_kernel(c, out);
       }
       out.bus = options_.bus;
-      out.timestamp = platform::now_ns();
+      out.timestamp = read_ns;
+      if (msg.msg_control != nullptr) {
+        const detail::RxStamp s = detail::receive_stamp(
+            control, msg.msg_controllen, options_.timestamp == RxTimestamp::Hardware);
+        if (s.ns >= 0) {
+          out.timestamp = (s.hardware ? hardware_stamps_ : software_stamps_).map(s.ns, read_ns);
+        }
+      }
       return IoStatus::Ok;
     }
     if (n < 0 && errno == EINTR) continue;

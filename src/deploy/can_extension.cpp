@@ -12,10 +12,15 @@ namespace vigil::deploy {
 
 CanExtension::CanExtension(can::CanConfig config) : config_(std::move(config)) {
   statistics_ = std::make_unique<can::CanAggregator>(registry_);
+  // Its clock is the frames' (platform::now_ns, as the sniffers' callers and SocketCan stamp
+  // them, even when supervision reads the TSC): the start of its cycles is the time node
+  // silences are judged up to.
   supervisor_ = std::make_unique<can::CanSupervisor>(
       registry_.ports(), *statistics_,
-      supervisor::SupervisorOptions{.period_ns = 100 * kNanosPerMilli,
-                                    .thread_name = "vigil-can-sup"});
+      supervisor::SupervisorOptions{
+          .period_ns = 100 * kNanosPerMilli,
+          .thread_name = "vigil-can-sup",
+          .clock = Clock{[](const void*) noexcept { return platform::now_ns(); }, nullptr}});
   monitor_ = std::make_unique<can::CanMonitor>(config_);
 }
 
@@ -36,17 +41,51 @@ void CanExtension::contribute(exporter::Snapshot& snapshot) {
   add_reports(snapshot.reports, &snapshot.can_histograms);
 }
 
+Report CanExtension::supervisor_report(const can::CanReport& r, bool running) const {
+  const supervisor::SupervisorStats st = supervisor_->stats();
+  Report s;
+  s.kind = ReportKind::Supervisor;
+  s.name = std::string(kCanSupervisorName);
+  s.configured = true;
+  s.activity = supervisor_->options().thread_name;
+  s.period_ns = supervisor_->options().period_ns;
+  s.state = running ? TaskState::Running : TaskState::Stopped;
+  s.counters.cycles = st.cycles;
+  s.samples = st.cycles;
+  s.total_ns = st.drain_ns;
+  s.port_high_water = st.max_occupancy;
+  s.silence_ns = r.observer_lag_ns;  // how long ago the frames judged were read
+  s.add("messages", std::to_string(st.messages));
+  s.add("ports", std::to_string(st.ports));
+  s.add("observer_lag", format_nanos(static_cast<double>(r.observer_lag_ns)));
+  const Nanos limit = monitor_->options().stale_after_ns;
+  if (limit > 0 && r.observer_lag_ns > limit) {
+    // Its own finding: the nodes are judged up to what it read, so none of them turns ERROR.
+    s.merge(StatusLevel::Stale,
+            fmt::format("not draining: CAN frames read up to {} ago (limit {}); CAN node "
+                        "silences are judged up to then",
+                        format_nanos(static_cast<double>(r.observer_lag_ns)),
+                        format_nanos(static_cast<double>(limit))));
+  }
+  return s;
+}
+
 void CanExtension::add_reports(ReportSet& reports,
                                std::vector<exporter::CanHistograms>* histograms) {
+  bool running = false;
   {
     const std::lock_guard lock(step_mutex_);
-    if (!supervisor_->running()) supervisor_->step();
+    running = supervisor_->running();
+    if (!running) supervisor_->step();
   }
   // After a stop, nodes are judged as of the moment the system began to stop: the bus went quiet
-  // because the system stopped, not because a node failed.
+  // because the system stopped, not because a node failed. Either way a node's silence is judged
+  // up to the time the CAN supervisor read the sniffers (CanMonitor): its own delay is reported
+  // apart, in the CAN supervisor's report.
   const Nanos stopped = stopped_at_.load(std::memory_order_relaxed);
   const Nanos now = stopped != 0 ? stopped : platform::now_ns();
   const can::CanReport r = monitor_->evaluate(*statistics_, now);
+  reports.components.push_back(supervisor_report(r, running));
   std::map<std::string, Report> groups;
   std::map<std::pair<std::uint8_t, std::uint32_t>, std::string> names;  // of the nodes seen
   for (const auto& n : r.nodes) {

@@ -252,3 +252,124 @@ TEST_CASE("CAN monitor: custom checks and reloaded thresholds", "[can][monitor]"
   CHECK(has_message(r.nodes[0].status, "check throws failed: boom"));
   std::filesystem::remove_all(dir);
 }
+
+// Issue 48, item 0: a node's silence is measured up to the time its sniffer's tables were read
+// (the start of the CAN supervisor's cycle), never up to the monitor's clock. Three drives send
+// every 10 ms, their limit is 100 ms; the supervisor drains every 100 ms but once not for 700 ms
+// (starved), while the monitor reports every 20 ms, 5 ms after a frame, on its own clock.
+TEST_CASE("CAN check: a late CAN supervisor never makes a healthy node silent",
+          "[can][monitor][late]") {
+  constexpr Nanos kMs = kNanosPerMilli;
+  constexpr Nanos kLimit = 100 * kMs;
+  Pipeline<1024> p({.node_map = NodeMap::canopen()});
+  const CanMonitor monitor(config_of("defaults: {not_responding: {after: 100ms}}\n"),
+                           {.stale_after_ns = 300 * kMs});
+  const auto starved = [](Nanos t) { return t > 1000 * kMs && t < 1700 * kMs; };
+  std::size_t reports = 0;
+  std::size_t flips = 0;
+  std::size_t old_rule_flips = 0;  // what judging up to `now` would have said
+  std::size_t stale = 0;
+  Nanos max_lag = 0;
+  for (Nanos t = 10 * kMs; t <= 3000 * kMs; t += 10 * kMs) {
+    for (std::uint32_t node = 1; node <= 3; ++node) p.read(frame(0x180 + node, t));
+    if (t % (100 * kMs) == 0 && !starved(t)) p.step_at(t);
+    if (t % (20 * kMs) != 0 || t < 200 * kMs) continue;
+    const Nanos now = t + 5 * kMs;
+    const CanReport r = monitor.evaluate(p.aggregator, now);
+    ++reports;
+    CHECK(r.time_ns == now);
+    CHECK(r.observed_ns <= now);
+    CHECK(r.observer_lag_ns == now - r.observed_ns);
+    max_lag = std::max(max_lag, r.observer_lag_ns);
+    REQUIRE(r.node_count() == 3);
+    for (const NodeReport& n : r.nodes) {
+      INFO("t=" << t / kMs << " ms, " << n.name << ": " << n.status.summary());
+      if (!n.status.ok() || n.liveness != Liveness::Responding) ++flips;
+      if (n.silence_ns + r.observer_lag_ns > kLimit) ++old_rule_flips;
+      CHECK(n.silence_ns <= kLimit);
+    }
+    if (r.status.level() == StatusLevel::Stale) {
+      ++stale;
+      CHECK(has_message(r.status, "CAN supervisor late: frames observed up to"));
+      CHECK(r.observer_lag_ns > 300 * kMs);
+    }
+  }
+  CHECK(reports == 141);
+  CHECK(flips == 0);
+  // The scenario is the issue's: up to `now`, every node would have been silent for a while.
+  CHECK(old_rule_flips == 3 * 30);  // t = 1100 .. 1680 ms: the lag passed 100 ms
+  CHECK(max_lag == 685 * kMs);      // drained at 1000 ms, judged at 1685 ms
+  CHECK(stale == 20);               // t = 1300 .. 1680 ms: the lag passed 300 ms
+  // Back on time, the report is OK again.
+  const CanReport after = monitor.evaluate(p.aggregator, 3005 * kMs);
+  CHECK(after.status.ok());
+  CHECK(after.observer_lag_ns == 5 * kMs);
+}
+
+TEST_CASE("CAN check: a node that stops is reported once the observation passes its limit",
+          "[can][monitor][late]") {
+  constexpr Nanos kMs = kNanosPerMilli;
+  Pipeline<1024> p({.node_map = NodeMap::canopen()});
+  const CanMonitor monitor(config_of("defaults: {not_responding: {after: 100ms}}\n"));
+  // Nodes 1 and 2 send every 10 ms up to 3 s; node 3 stops after its frame at 1200 ms.
+  for (Nanos t = 10 * kMs; t <= 1200 * kMs; t += 10 * kMs) {
+    for (std::uint32_t node = 1; node <= 3; ++node) p.read(frame(0x180 + node, t));
+    if (t % (100 * kMs) == 0) p.step_at(t);
+  }
+  const auto node3 = [&](Nanos now) {
+    const CanReport r = monitor.evaluate(p.aggregator, now);
+    const NodeReport* n = r.find(0, 3);
+    REQUIRE(n != nullptr);
+    return *n;
+  };
+  // However late the monitor looks, silence is judged up to what the supervisor read.
+  CHECK(node3(5000 * kMs).status.ok());
+  CHECK(node3(5000 * kMs).silence_ns == 0);
+  for (Nanos t = 1210 * kMs; t <= 1300 * kMs; t += 10 * kMs) {
+    for (std::uint32_t node = 1; node <= 2; ++node) p.read(frame(0x180 + node, t));
+  }
+  // Observed up to 1300 ms: silent for exactly its limit, which passes; 1 ns more does not.
+  p.step_at(1300 * kMs);
+  const NodeReport at = node3(5000 * kMs);
+  CHECK(at.status.ok());
+  CHECK(at.silence_ns == 100 * kMs);
+  CHECK(at.liveness == Liveness::Responding);
+  p.step_at(1300 * kMs + 1);
+  const NodeReport beyond = node3(5000 * kMs);
+  CHECK(beyond.liveness == Liveness::NotResponding);
+  CHECK(beyond.status.level() == StatusLevel::Error);
+  CHECK(beyond.silence_ns == 100 * kMs + 1);
+  CHECK(has_message(beyond.status, "not responding: silent for 100ms (limit 100ms)"));
+  // A supervisor that catches up after a stall reports it at once, with the silence observed.
+  for (Nanos t = 1310 * kMs; t <= 1800 * kMs; t += 10 * kMs) {
+    for (std::uint32_t node = 1; node <= 2; ++node) p.read(frame(0x180 + node, t));
+  }
+  p.step_at(1800 * kMs);
+  const CanReport r = monitor.evaluate(p.aggregator, 1805 * kMs);
+  CHECK(r.find(0, 3)->silence_ns == 600 * kMs);
+  CHECK(r.find(0, 3)->status.level() == StatusLevel::Error);
+  CHECK(r.find(0, 1)->status.ok());
+  CHECK(r.find(0, 2)->status.ok());
+  CHECK(r.status.level() == StatusLevel::Error);
+}
+
+TEST_CASE("CAN aggregator: the snapshot says up to when the sniffers were read",
+          "[can][monitor][late]") {
+  Pipeline<64> p;
+  CHECK(p.aggregator.snapshot().observed_ns == -1);  // no cycle yet
+  p.read(frame(0x10, 5 * kNanosPerMilli));
+  p.step_at(7 * kNanosPerMilli);
+  const CanSnapshot s = p.aggregator.snapshot();
+  REQUIRE(s.sniffers.size() == 1);
+  CHECK(s.sniffers[0].observed_ns == 7 * kNanosPerMilli);
+  CHECK(s.sniffers[0].drained_ns == 7 * kNanosPerMilli);  // its port was emptied
+  CHECK(s.observed_ns == 7 * kNanosPerMilli);
+  CHECK(s.drained_ns == 7 * kNanosPerMilli);
+  // A snapshot without the times (hand-made) is judged at `now`, as before.
+  CanSnapshot bare = s;
+  bare.observed_ns = -1;
+  bare.drained_ns = -1;
+  const CanReport r = CanMonitor().evaluate(bare, 9 * kNanosPerMilli);
+  CHECK(r.observed_ns == 9 * kNanosPerMilli);
+  CHECK(r.observer_lag_ns == 0);
+}

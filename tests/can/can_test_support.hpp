@@ -36,17 +36,32 @@ inline Frame frame(std::uint32_t id, Nanos t = 0, std::uint8_t bus = 0,
 }
 
 /// A sniffer of capacity N with its supervisor and aggregator, driven by hand.
+///
+/// The supervisor's clock is `clock_ns` (the frames' clock): the start of a cycle is the time up
+/// to which the CAN monitor judges silences. It starts far in the future, so that a step means
+/// "everything up to the monitor's `now` was read" (as a replay's report); set it, or step with
+/// `step_at`, to model a supervisor that runs at a given time (late, for instance).
 template <std::size_t N = 1024>
 struct Pipeline {
+  static constexpr Nanos kUpToDate = Nanos{1} << 62;
+
   CanRegistry registry;
   Sniffer<N> sniffer;
   CanAggregator aggregator;
+  Nanos clock_ns = kUpToDate;
   CanSupervisor supervisor;
 
   explicit Pipeline(SnifferOptions options = {}, CanAggregatorOptions agg = {})
       : sniffer(registry, "test-bus", options),
         aggregator(registry, agg),
-        supervisor(registry.ports(), aggregator) {}
+        supervisor(registry.ports(), aggregator,
+                   supervisor::SupervisorOptions{.clock = Clock{&read_clock, &clock_ns}}) {}
+
+  /// Runs one supervisor cycle at time `t`.
+  void step_at(Nanos t) {
+    clock_ns = t;
+    supervisor.step();
+  }
 
   /// A read of `f` that took `io` ns and returned at f.timestamp.
   void read(const Frame& f, Nanos io = 0) { sniffer.on_read(f, f.timestamp - io, f.timestamp); }
@@ -55,6 +70,9 @@ struct Pipeline {
     supervisor.step();
     return aggregator.snapshot(groups);
   }
+
+ private:
+  static Nanos read_clock(const void* t) noexcept { return *static_cast<const Nanos*>(t); }
 };
 
 }  // namespace vigil::can::test

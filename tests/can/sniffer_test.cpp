@@ -54,8 +54,28 @@ TEST_CASE("Sniffer counts every frame exactly while its port drops records", "[c
   CHECK(records[4].id_gap_ns == 4 * kNanosPerMilli);
   CHECK(records[4].id_frames == 2);
   CHECK(records[4].node_gap_ns == 4 * kNanosPerMilli);  // identity mapping: node = id
-  CHECK(records[4].io_ns() == 5000);
+  CHECK(records[4].io_ns == 5000);
   CHECK(records[4].data[0] == 0x01);
+}
+
+TEST_CASE("Sniffer times a frame by its receive timestamp, not by the read that found it",
+          "[can][sniffer]") {
+  CanRegistry registry;
+  Sniffer<16> sniffer(registry, "bus0");
+  // Three frames arrive 10 ms apart; a late reader gets to the last two together, 30 ms on.
+  sniffer.on_read(frame(0x181), 990'000, 1'000'000, 1'000'000);
+  sniffer.on_read(frame(0x181), 40'000'000, 40'002'000, 11'000'000);
+  sniffer.on_read(frame(0x181), 40'002'000, 40'003'000, 21'000'000);
+  const std::vector<IdEntry> ids = sniffer.ids();
+  REQUIRE(ids.size() == 1);
+  CHECK(ids[0].first_ns == 1'000'000);
+  CHECK(ids[0].last_ns == 21'000'000);  // not 40.003 ms: the frame's time is its arrival
+  const auto records = drain_records(registry);
+  REQUIRE(records.size() == 3);
+  CHECK(records[1].time_ns == 11'000'000);
+  CHECK(records[1].io_ns == 2000);                     // the read call's own time
+  CHECK(records[1].id_gap_ns == 10 * kNanosPerMilli);  // the bus's gap, not the reader's
+  CHECK(records[2].id_gap_ns == 10 * kNanosPerMilli);
 }
 
 TEST_CASE("Sniffer tracks nodes through its mapping", "[can][sniffer]") {

@@ -86,6 +86,15 @@ can:
   const Report* arm = r.find("can group arm");
   REQUIRE(arm != nullptr);
   CHECK(arm->status.level() == StatusLevel::Error);
+  // The CAN supervisor reports itself: it drained on time (judged as of the stop).
+  const Report* sup = r.find(kCanSupervisorName);
+  REQUIRE(sup != nullptr);
+  CHECK(sup->kind == ReportKind::Supervisor);
+  CHECK(sup->status.ok());
+  CHECK(sup->counters.cycles >= 3);
+  CHECK(sup->silence_ns == 0);  // the last drain came after the stop began
+  REQUIRE(sup->value("ports") != nullptr);
+  CHECK(*sup->value("ports") == "1");  // the bus component's sniffer
 
   // The gap buckets of the same reports, matched by name (what /metrics serves).
   const auto snapshot = (*sys)->service().snapshot();  // the cycle of r, contributions included

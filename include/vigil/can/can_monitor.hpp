@@ -8,8 +8,9 @@
 /// The checks, per node (bus, node), in this order:
 ///  1. never seen ("not initialized"): an expected node (named in `nodes:` or listed in a
 ///     group's `nodes:`) from which no frame ever came;
-///  2. not responding: a node that sent frames, then stayed silent (now - its latest frame,
-///     from the sniffers' exact tables) for longer than its limit: `not_responding.after` when
+///  2. not responding: a node that sent frames, then stayed silent (the time its frames were
+///     observed up to - its latest frame, both from the sniffers' exact tables; see "Silence"
+///     below) for longer than its limit: `not_responding.after` when
 ///     configured, else the limit learned from its own traffic (`LearnRule`): per id, once it
 ///     has `min_gaps` gaps, max(floor, factor x percentile of its gaps); the node's limit is the
 ///     largest over its periodic ids. Until one of its ids is learned the node is "learning"
@@ -23,9 +24,19 @@
 /// dropped records; timing checks and learned periods use the records that arrived. Replay
 /// and live supervision apply the same rules.
 ///
+/// Silence: a node's silence is measured on the frames' own clock, from its latest frame to the
+/// time up to which the sniffers' tables have been read (`CanSnapshot::observed_ns`: the start
+/// of the CAN supervisor's latest cycle; for a key the tables could not hold, the latest drain
+/// that emptied its port), never to `now` while frames may wait unread. A CAN supervisor that
+/// runs late therefore shortens silences instead of lengthening them: it can delay a verdict,
+/// never invent one. A node that really stops is reported as soon as the observation passes its
+/// latest frame plus its limit. The observer's own delay (`CanReport::observer_lag_ns`, now -
+/// observed) is a separate finding: the overall status is Stale when it exceeds
+/// `CanMonitorOptions::stale_after_ns`.
+///
 /// Overall status: the worst node status, plus WARN when no frame (or no valid frame) was seen,
-/// for frames the sniffers could not track (table full) and for error frames; dropped records
-/// and learning nodes are reported as OK messages.
+/// for frames the sniffers could not track (table full) and for error frames, Stale when the
+/// observation is late (above); dropped records and learning nodes are reported as OK messages.
 ///
 /// Threads: `evaluate` from any non-RT thread; `set_config` and `add_check` are thread-safe
 /// against `evaluate`. Not RT-safe (allocates).
@@ -80,7 +91,7 @@ struct IdVerdict {
   Traffic traffic = Traffic::Network;
   Nanos period_ns = -1;   ///< learned period (Periodic), else -1
   Nanos limit_ns = -1;    ///< learned silence limit (Periodic), else -1
-  Nanos silence_ns = -1;  ///< now - latest frame (Rx keys), else -1
+  Nanos silence_ns = -1;  ///< observed - latest frame (Rx keys), else -1 (see "Silence")
   bool overdue = false;   ///< a periodic id silent beyond its own limit (information only)
 };
 
@@ -94,7 +105,8 @@ struct NodeReport {
   std::vector<std::string> groups;  ///< groups it belongs to, in configuration order
   std::optional<NodeStats> rx;      ///< frames received from the node, if any
   std::optional<NodeStats> tx;      ///< frames sent to the node, if any
-  Nanos silence_ns = -1;            ///< now - latest frame from it; -1 when none came
+  /// Observed (`CanReport::observed_ns`) - latest frame from it; -1 when none came.
+  Nanos silence_ns = -1;
   Liveness liveness = Liveness::NeverSeen;
   Nanos silence_limit_ns = -1;  ///< the limit judged against; -1 when none applies
   bool limit_learned = false;   ///< the limit was learned (else configured)
@@ -102,8 +114,9 @@ struct NodeReport {
   /// none (configured, or not learned).
   std::ptrdiff_t limit_id = -1;
   std::uint64_t to_node_frames = 0;  ///< frames addressed to it (or sent to it, Tx)
-  Nanos unanswered_ns = -1;          ///< age of the latest request to it not answered yet; -1: none
-  NodeThresholds thresholds;         ///< as resolved for this node
+  /// Age of the latest request to it not answered yet, at the observed time; -1: none.
+  Nanos unanswered_ns = -1;
+  NodeThresholds thresholds;  ///< as resolved for this node
   Status status;
 
   /// A node of the mapping (not the frames of no node).
@@ -113,6 +126,12 @@ struct NodeReport {
 /// One monitor evaluation.
 struct CanReport {
   Nanos time_ns = 0;  ///< the "now" the checks used
+  /// The time silences are measured up to: `snapshot.observed_ns`, at most `time_ns` (`time_ns`
+  /// when the snapshot does not say).
+  Nanos observed_ns = 0;
+  /// time_ns - observed_ns: how late the observation is (the CAN supervisor's delay, up to one
+  /// of its periods when it is on time).
+  Nanos observer_lag_ns = 0;
   NodeMapKind node_map = NodeMapKind::Identity;
   Status status;                  ///< overall (see the file comment)
   CanSnapshot snapshot;           ///< the statistics judged (ids, nodes, categories, totals)
@@ -134,6 +153,15 @@ struct CanReport {
 using CanNodeCheck =
     std::function<void(const NodeReport& node, const CanReport& report, Status& out)>;
 
+/// Options of a CAN monitor.
+struct CanMonitorOptions {
+  /// The overall status is Stale when the observation is older than this
+  /// (`CanReport::observer_lag_ns`): the CAN supervisor stopped or is starved. 1 s: ten periods
+  /// of the 10 Hz CAN supervisor, as the monitor's starvation rule for its own supervisor.
+  /// 0: never.
+  Nanos stale_after_ns = kNanosPerSecond;
+};
+
 /**
  * Runs the CAN checks.
  *
@@ -146,7 +174,7 @@ using CanNodeCheck =
 class CanMonitor {
  public:
   /// A monitor with `config`'s thresholds, nodes and groups.
-  explicit CanMonitor(CanConfig config = {});
+  explicit CanMonitor(CanConfig config = {}, CanMonitorOptions options = {});
 
   /// Replaces the configuration (e.g. from a `config::Reloadable<CanConfig>` subscription);
   /// takes effect at the next `evaluate`. Thread-safe.
@@ -160,12 +188,16 @@ class CanMonitor {
   void add_check(std::string name, CanNodeCheck check);
 
   /// Takes a snapshot of `aggregator` (with the configuration's groups) and judges it at `now`
-  /// (the clock of the sniffers' timestamps). Thread-safe.
+  /// (the clock of the sniffers' timestamps); silences are measured up to the snapshot's
+  /// `observed_ns` (see "Silence" in the file comment). Thread-safe.
   [[nodiscard]] CanReport evaluate(const CanAggregator& aggregator, Nanos now) const;
   /// Judges `snapshot` at `now`. Its categories should come from `config()->group_specs()`.
   [[nodiscard]] CanReport evaluate(CanSnapshot snapshot, Nanos now) const;
+  /// The options given at construction.
+  [[nodiscard]] const CanMonitorOptions& options() const noexcept { return options_; }
 
  private:
+  CanMonitorOptions options_;
   mutable std::mutex mutex_;
   std::shared_ptr<const CanConfig> config_;
   std::vector<std::pair<std::string, CanNodeCheck>> checks_;

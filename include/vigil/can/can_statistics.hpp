@@ -139,6 +139,12 @@ struct SnifferInfo {
   std::size_t nodes = 0;  ///< keys in its node table
   std::size_t max_nodes = 0;
   std::size_t port_capacity = 0;
+  /// Start of the latest supervisor cycle that read its tables: every frame it handled before
+  /// then is counted (supervisor clock, the frames' clock). -1 before the first.
+  Nanos observed_ns = -1;
+  /// Start of the latest supervisor cycle whose drain emptied its port: every record it pushed
+  /// before then is aggregated. -1 before the first.
+  Nanos drained_ns = -1;
 };
 
 /// Everything the aggregator knows at one moment. Plain values: copy freely.
@@ -149,8 +155,16 @@ struct CanSnapshot {
   /// aggregator held `max_ids` / `max_nodes` keys already.
   std::uint64_t unaggregated_id_records = 0;
   std::uint64_t unaggregated_node_records = 0;
-  std::size_t max_ids = 0;            ///< the aggregator's id keys at most
-  std::size_t max_nodes = 0;          ///< the aggregator's node keys at most
+  std::size_t max_ids = 0;    ///< the aggregator's id keys at most
+  std::size_t max_nodes = 0;  ///< the aggregator's node keys at most
+  /// The time up to which every live sniffer's frames are counted in the tables: the earliest
+  /// `SnifferInfo::observed_ns` of the live sniffers (the liveness of exact keys is judged up
+  /// to it). -1 when unknown (no cycle yet, or every sniffer left: nothing more can come).
+  Nanos observed_ns = -1;
+  /// The time up to which every live sniffer's records are aggregated: the earliest
+  /// `SnifferInfo::drained_ns` (the liveness of keys the tables could not hold is judged up to
+  /// it). -1 when unknown.
+  Nanos drained_ns = -1;
   SnifferTotals totals;               ///< summed over every sniffer seen
   std::vector<SnifferInfo> sniffers;  ///< by port id
   std::vector<IdStats> ids;           ///< by bus, id, format, direction, error, remote

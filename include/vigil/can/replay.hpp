@@ -109,6 +109,8 @@ class LogReplay {
   /// lines were all malformed, is a WARN that says so.
   [[nodiscard]] CanReport report(const CanMonitor& monitor);
   /// The monitor's report at `now` (on the log's clock), e.g. to judge a log while it is fed.
+  /// Says that the log was read up to `now`: every frame before it has been fed, so silences
+  /// are judged up to `now` (the live monitor judges up to what its supervisor has read).
   [[nodiscard]] CanReport report(const CanMonitor& monitor, Nanos now);
 
   /// Frames fed so far.

@@ -15,11 +15,11 @@
 ///    `kMaxProbe` slots, so every call is O(1). A frame whose key finds no room (the table holds
 ///    `max_ids` / `max_nodes` keys, or its probe run is full) is counted in `untracked_ids` /
 ///    `untracked_nodes`, exactly, and never blocks.
-///  - The accepted frame's timing (`FrameRecord`: begin/end of the call, the exact gap since the
-///    previous frame of the same id and of the same node, the first 8 data bytes) is pushed to
-///    the sniffer's `Port`. When the port is full the record is dropped and counted: timing
-///    distributions are sampled under load, but counts and liveness come from the tables and
-///    stay exact, so no node can starve (the original's weakness).
+///  - The accepted frame's timing (`FrameRecord`: its time and the call's duration, the exact
+///    gap since the previous frame of the same id and of the same node, the first 8 data bytes)
+///    is pushed to the sniffer's `Port`. When the port is full the record is dropped and
+///    counted: timing distributions are sampled under load, but counts and liveness come from
+///    the tables and stay exact, so no node can starve (the original's weakness).
 ///  - The table counters are written by the I/O thread only and read by the supervisor side
 ///    with relaxed atomics (single writer: no read-modify-write, no tearing; 64-bit atomics are
 ///    lock-free on the supported targets, which a static_assert checks).
@@ -35,10 +35,14 @@
 ///    aggregator, so a sniffer's counts survive the sniffer until the supervisor has read them.
 ///
 /// Times: `begin`/`end` are on the clock of the CAN supervisor and monitor (vigil's monotonic
-/// clock at run time, the log's timestamps in replay). A frame's time is `end`: when the read
-/// returned it or the write handed it over. Error frames are counted (`error_frames`, and per
-/// bus and error class in the id table, with no node) and not otherwise supervised; remote
-/// frames have id keys of their own and are counted per node (`remote`).
+/// clock at run time, the log's timestamps in replay). A frame's time is its receive timestamp
+/// when the I/O gives one (`on_read(f, begin, end, at)`: SocketCAN's kernel or hardware
+/// timestamp, mapped onto that clock), else `end`: when the read returned it or the write handed
+/// it over. The CAN monitor judges a node's silence from these times against the time up to
+/// which the sniffer's tables were read, never against the wall clock (can_monitor.hpp). Error
+/// frames are counted (`error_frames`, and per bus and error class in the id table, with no
+/// node) and not otherwise supervised; remote frames have id keys of their own and are counted
+/// per node (`remote`).
 
 #include <cstddef>
 #include <cstdint>
@@ -129,18 +133,29 @@ class Sniffer {
   /// more. No on_* call may run concurrently.
   ~Sniffer() = default;
 
-  /// A frame was read in [begin, end]. RT-safe: wait-free, allocation-free, noexcept.
+  /// A frame was read in [begin, end]; its time is `end`. RT-safe: wait-free,
+  /// allocation-free, noexcept.
   void on_read(const Frame& f, Nanos begin, Nanos end) noexcept {
-    on_frame(f, Direction::Rx, begin, end);
+    on_frame(f, Direction::Rx, begin, end, end);
   }
-  /// A frame was written in [begin, end]. RT-safe.
+  /// A frame that arrived at `at` (its receive timestamp on the supervisor's clock, `at <= end`)
+  /// was read in [begin, end]: its time is `at`, so a read that got to it late neither delays
+  /// it nor shortens the gap before it. RT-safe.
+  void on_read(const Frame& f, Nanos begin, Nanos end, Nanos at) noexcept {
+    on_frame(f, Direction::Rx, begin, end, at);
+  }
+  /// A frame was written in [begin, end]; its time is `end`. RT-safe.
   void on_write(const Frame& f, Nanos begin, Nanos end) noexcept {
-    on_frame(f, Direction::Tx, begin, end);
+    on_frame(f, Direction::Tx, begin, end, end);
   }
-  /// A frame went in direction `d` in [begin, end]. RT-safe.
+  /// A frame went in direction `d` in [begin, end]; its time is `end`. RT-safe.
   void on_frame(const Frame& f, Direction d, Nanos begin, Nanos end) noexcept {
+    on_frame(f, d, begin, end, end);
+  }
+  /// A frame went in direction `d` in [begin, end]; its time is `at`. RT-safe.
+  void on_frame(const Frame& f, Direction d, Nanos begin, Nanos end, Nanos at) noexcept {
     FrameRecord r;
-    if (raw_->process(f, d, begin, end, r)) {
+    if (raw_->process(f, d, end - begin, at, r)) {
       static_cast<void>(port_->try_push(CanMessage{r}));  // a full port counts the drop
     }
   }

@@ -19,8 +19,10 @@ namespace vigil::can {
 /// The timing of one accepted frame, as the sniffer pushes it to its port. Trivially copyable,
 /// 64 bytes.
 struct FrameRecord {
-  Nanos begin_ns = 0;           ///< when the read/write call began
-  Nanos end_ns = 0;             ///< when it returned: the frame's time
+  /// The frame's time: its receive timestamp when the I/O gives one (SocketCAN: the kernel's or
+  /// the controller's), else when the read/write call returned.
+  Nanos time_ns = 0;
+  Nanos io_ns = 0;              ///< time spent in the read/write call
   Nanos id_gap_ns = -1;         ///< since the previous frame of its id key; -1 if none
   Nanos node_gap_ns = -1;       ///< since the previous frame of (bus, node, direction); -1 if none
   std::uint64_t id_frames = 0;  ///< frames of its id key so far, this one included;
@@ -37,9 +39,6 @@ struct FrameRecord {
   bool id_untracked : 1 = false;       ///< the id table had no room for its key
   bool node_untracked : 1 = false;     ///< the node table had no room for its key
   std::array<std::uint8_t, 8> data{};  ///< the first min(8, data_size) data bytes, zero-padded
-
-  /// Time spent in the read/write call. RT-safe.
-  [[nodiscard]] constexpr Nanos io_ns() const noexcept { return end_ns - begin_ns; }
 };
 static_assert(std::is_trivially_copyable_v<FrameRecord> && sizeof(FrameRecord) == 64);
 

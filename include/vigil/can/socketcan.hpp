@@ -12,10 +12,18 @@
 /// ```
 ///
 /// This header includes no OS header (STYLE rule 4): the socket code is in src/can/socketcan.cpp.
-/// `read` and `write` make one system call each (read(2), write(2)) and allocate nothing: they
+/// `read` and `write` make one system call each (recvmsg(2), write(2)) and allocate nothing: they
 /// are how a CAN I/O component talks to SocketCAN on PREEMPT_RT; the sniffer calls around them
 /// stay RT-safe. Opening and closing are not RT-safe.
+///
+/// A frame read carries its receive timestamp: by default the kernel's (SO_TIMESTAMPNS: when
+/// the frame reached the socket), or the controller's where the driver gives one
+/// (`RxTimestamp::Hardware`, SO_TIMESTAMPING), mapped onto vigil's clock by `StampMapper` from
+/// the frames alone. A reader that gets to its frames late therefore neither delays them nor
+/// squeezes their gaps, and the CAN monitor judges silence on the bus's time, not the reader's.
 
+#include <algorithm>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -32,6 +40,13 @@ namespace vigil::can {
 /// EPERM/EACCES when refused. Not RT-safe.
 [[nodiscard]] expected<void, Error> socketcan_available();
 
+/// Where the time of a frame read comes from.
+enum class RxTimestamp : std::uint8_t {
+  Kernel,    ///< the kernel's receive timestamp (SO_TIMESTAMPNS): when it reached the socket
+  Hardware,  ///< the controller's where the driver gives one (SO_TIMESTAMPING), else the kernel's
+  Read,      ///< vigil's clock when the read returned (no timestamp asked of the kernel)
+};
+
 /// Options of a SocketCAN socket.
 struct SocketCanOptions {
   std::uint8_t bus = 0;       ///< `Frame::bus` of the frames read
@@ -39,7 +54,74 @@ struct SocketCanOptions {
   bool receive_own = false;   ///< also read the frames this socket sent (CAN_RAW_RECV_OWN_MSGS)
   bool error_frames = false;  ///< read error frames (CAN_RAW_ERR_FILTER = all classes)
   Nanos read_timeout_ns = 0;  ///< > 0: `read` gives up after this long (SO_RCVTIMEO); 0: blocks
+  RxTimestamp timestamp = RxTimestamp::Kernel;  ///< the time given to frames read
 };
+
+/**
+ * Maps receive timestamps taken on another clock (the kernel's CLOCK_REALTIME, or a CAN
+ * controller's) onto vigil's clock, from the frames alone: it reads no clock.
+ *
+ * A frame cannot have arrived after it was read, so `stamp - read` is at most the offset between
+ * the clocks, and equals it for a frame read at once. The offset is taken as the largest
+ * `stamp - read` over the frames of the current and the previous window (`kWindowNs` each): the
+ * frame read soonest after it arrived. Hence a mapped time is never later than its read and
+ * never earlier than the previous frame's; frames a late reader finds waiting keep their own
+ * times and spacing; the offset follows a drift between the clocks (within the window: 100 ppm
+ * is 0.2 ms) and a step forward at once. A step back of the source (a stamp more than
+ * `kStepBackNs` below the previous one) starts the estimate over, as does a pause of two windows.
+ * Until a frame is read soon after it arrived (the first ones may wait in a backlog), times are
+ * late by at most that wait: never early.
+ *
+ * One per socket, used by its reading thread only. RT-safe: arithmetic only, noexcept.
+ */
+class StampMapper {
+ public:
+  static constexpr Nanos kWindowNs = kNanosPerSecond;
+  static constexpr Nanos kStepBackNs = kNanosPerMilli;
+
+  /// The time on vigil's clock of a frame stamped `stamp` (source clock) and read at `read_ns`
+  /// (vigil's clock).
+  [[nodiscard]] Nanos map(Nanos stamp, Nanos read_ns) noexcept {
+    const Nanos d = stamp - read_ns;  // offset minus the frame's wait in the socket
+    if (!started_ || stamp < last_stamp_ - kStepBackNs || read_ns - window_ns_ >= 2 * kWindowNs) {
+      started_ = true;
+      previous_ = d;
+      current_ = d;
+      window_ns_ = read_ns;
+    } else if (read_ns - window_ns_ >= kWindowNs) {
+      previous_ = current_;
+      current_ = d;
+      window_ns_ = read_ns;
+    } else {
+      current_ = std::max(current_, d);
+    }
+    last_stamp_ = stamp;
+    // <= read_ns, since the offset is >= d; frames leave the socket in the order they came.
+    last_ns_ = std::max(stamp - std::max(previous_, current_), last_ns_);
+    return last_ns_;
+  }
+
+ private:
+  bool started_ = false;
+  Nanos previous_ = 0;    // largest stamp - read of the previous window
+  Nanos current_ = 0;     // ... of the current one
+  Nanos window_ns_ = 0;   // when the current window began (vigil's clock)
+  Nanos last_stamp_ = 0;  // the previous frame's stamp (source clock)
+  Nanos last_ns_ = 0;     // the previous result
+};
+
+namespace detail {
+/// A receive timestamp as the kernel gives it.
+struct RxStamp {
+  Nanos ns = -1;          ///< on the stamping clock; -1: none
+  bool hardware = false;  ///< the controller's clock (else the kernel's CLOCK_REALTIME)
+};
+/// The receive timestamp in a recvmsg(2) control buffer (a msghdr's msg_control, `size` bytes
+/// of it used): with `hardware`, SCM_TIMESTAMPING's raw hardware stamp when it is not zero;
+/// else SCM_TIMESTAMPING's software stamp or SCM_TIMESTAMPNS. RT-safe (no system call, no
+/// allocation). Defined in src/can/socketcan.cpp.
+[[nodiscard]] RxStamp receive_stamp(const void* control, std::size_t size, bool hardware) noexcept;
+}  // namespace detail
 
 /// Result of a read or write.
 enum class IoStatus : std::uint8_t {
@@ -67,19 +149,22 @@ class SocketCan {
   /// Closes the socket.
   ~SocketCan();
 
-  /// Reads one frame into `out` (its `timestamp` = vigil's monotonic clock when read returned,
-  /// `bus` = the options' bus). One read(2); allocation-free, noexcept.
+  /// Reads one frame into `out`: its `timestamp` is its receive timestamp on vigil's clock
+  /// (`SocketCanOptions::timestamp`; vigil's clock when the read returned if the kernel gave
+  /// none, or with `RxTimestamp::Read`), never later than the read; `bus` is the options' bus.
+  /// One recvmsg(2); allocation-free, noexcept.
   [[nodiscard]] IoStatus read(Frame& out) noexcept;
   /// Writes `f` (CAN FD frames need `options.fd`). One write(2); allocation-free, noexcept.
   [[nodiscard]] IoStatus write(const Frame& f) noexcept;
 
-  /// `read`, timed into `sniffer.on_read(frame, begin, end)` when a frame was read.
+  /// `read`, timed into `sniffer.on_read(frame, begin, end, frame.timestamp)` when a frame was
+  /// read: the frame's time is its receive timestamp, the read's time end - begin.
   template <class S>
   [[nodiscard]] IoStatus read(Frame& out, S& sniffer) noexcept {
     const Nanos begin = platform::now_ns();
     const IoStatus st = read(out);
     const Nanos end = platform::now_ns();
-    if (st == IoStatus::Ok) sniffer.on_read(out, begin, end);
+    if (st == IoStatus::Ok) sniffer.on_read(out, begin, end, out.timestamp);
     return st;
   }
   /// `write`, timed into `sniffer.on_write(frame, begin, end)` when the frame was written.
@@ -112,6 +197,8 @@ class SocketCan {
   int errno_ = 0;
   std::string interface_;
   SocketCanOptions options_;
+  StampMapper software_stamps_;  // two clocks, two offsets: a driver may stamp only some frames
+  StampMapper hardware_stamps_;
 };
 
 }  // namespace vigil::can

@@ -4,7 +4,11 @@
 /// with a `System`. The section is a CAN configuration (docs/reference/can-config.md); the
 /// extension owns a CAN registry for the sniffers of the deployment's CAN I/O components, a CAN
 /// supervisor thread (10 Hz) and a CAN monitor whose verdicts join the system's reports: one
-/// report per node ("can0/drive_5", kind CanNode) and one per group ("can group left_arm").
+/// report per node ("can0/drive_5", kind CanNode), one per group ("can group left_arm"), and one
+/// for the CAN supervisor itself ("vigil.can-supervisor", kind Supervisor). Node silences are
+/// judged up to the time the CAN supervisor read the sniffers, so a late CAN supervisor turns no
+/// node ERROR; its delay is its own report's finding (Stale beyond
+/// `CanMonitorOptions::stale_after_ns`, 1 s).
 ///
 /// Linking `vigil::deploy_can` (or the umbrella `vigil::vigil`) registers the extension before
 /// `main` runs, so any program that loads a deployment with a `can:` section gets CAN
@@ -36,6 +40,8 @@ namespace vigil::deploy {
 
 /// The name of the deployment section the CAN extension handles.
 inline constexpr std::string_view kCanSection = "can";
+/// The name of the CAN supervisor's report.
+inline constexpr std::string_view kCanSupervisorName = "vigil.can-supervisor";
 
 /// CAN supervision configured by a deployment's `can:` section.
 class CanExtension : public Extension {
@@ -48,9 +54,10 @@ class CanExtension : public Extension {
   void stopping() override;
   /// Stops the CAN supervisor after a last drain.
   void stop() override;
-  /// Adds one report per CAN node and one per group to the cycle's reports, and the gap
-  /// buckets of every node (rx and tx) and group from the CAN aggregator's histograms (its
-  /// samples in exact mode), taken right after the reports. Once per monitor cycle.
+  /// Adds one report per CAN node, one per group and the CAN supervisor's to the cycle's
+  /// reports, and the gap buckets of every node (rx and tx) and group from the CAN aggregator's
+  /// histograms (its samples in exact mode), taken right after the reports. Once per monitor
+  /// cycle.
   void contribute(exporter::Snapshot& snapshot) override;
 
   /// Where the deployment's sniffers join. Thread-safe.
@@ -70,6 +77,7 @@ class CanExtension : public Extension {
   std::mutex step_mutex_;
   std::unique_ptr<can::CanMonitor> monitor_;
   void add_reports(ReportSet& reports, std::vector<exporter::CanHistograms>* histograms);
+  [[nodiscard]] Report supervisor_report(const can::CanReport& r, bool running) const;
 
   std::atomic<Nanos> stopped_at_{0};  // once stopping: the time liveness is judged at
 };

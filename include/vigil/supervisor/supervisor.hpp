@@ -36,6 +36,11 @@ struct PortDrain {
   std::size_t occupancy = 0;  ///< messages waiting when the drain began
   std::size_t capacity = 0;
   std::uint64_t dropped = 0;  ///< the port's drop counter (cumulative)
+  /// When this cycle began (supervisor clock), before this port's drain began.
+  Nanos cycle_ns = 0;
+  /// The drain stopped on an empty port: every message pushed before `cycle_ns` was visited.
+  /// False when it stopped at its budget (the port's capacity) with messages perhaps left.
+  bool emptied = false;
 };
 
 /// The supervisor's measurement of itself, after each cycle.
@@ -136,6 +141,7 @@ class Supervisor {
       // empty port after the drain means it is finished.
       const bool closed = e.closed.load(std::memory_order_acquire);
       PortDrain d;
+      d.cycle_ns = t0;
       d.capacity = e.port->capacity();
       d.occupancy = e.port->read_available();
       max_occ = std::max(max_occ, d.occupancy);
@@ -144,7 +150,10 @@ class Supervisor {
       while (budget > 0) {
         const std::size_t want = std::min(budget, buffer_.size());
         const std::size_t n = e.port->pop(buffer_.data(), want);
-        if (n == 0) break;
+        if (n == 0) {
+          d.emptied = true;
+          break;
+        }
         if constexpr (requires { handler_.on_batch(e, buffer_.data(), n); }) {
           handler_.on_batch(e, buffer_.data(), n);
         } else {
@@ -156,8 +165,13 @@ class Supervisor {
         budget -= n;
         // Fewer than asked: the port was empty. What arrived since waits for the next cycle
         // (no second pop, a virtual call and two atomic loads, per port and cycle).
-        if (n < want) break;
+        if (n < want) {
+          d.emptied = true;
+          break;
+        }
       }
+      // At its budget: empty only if nothing is left (one load, on this rare path only).
+      if (!d.emptied) d.emptied = e.port->read_available() == 0;
       tracked.finished = closed && e.port->read_available() == 0;
       if (tracked.finished) {
         for (const Variant& m : e.last_words) {

@@ -165,9 +165,10 @@ class SnifferState {
   SnifferState(const SnifferState&) = delete;
   SnifferState& operator=(const SnifferState&) = delete;
 
-  /// Counts frame `f` and fills `out` when it passes the filter; returns whether it did.
-  /// I/O thread only (one at a time). RT-safe: wait-free, no allocation, no lock, noexcept.
-  [[nodiscard]] bool process(const Frame& f, Direction d, Nanos begin, Nanos end,
+  /// Counts frame `f`, whose time is `at`, and fills `out` when it passes the filter; returns
+  /// whether it did. `io` is the time spent in the read/write call. I/O thread only (one at a
+  /// time). RT-safe: wait-free, no allocation, no lock, noexcept.
+  [[nodiscard]] bool process(const Frame& f, Direction d, Nanos io, Nanos at,
                              FrameRecord& out) noexcept;
 
   /// Publishes `filter` (null or accept-all: accept every frame) and retires the previous one.
@@ -200,7 +201,7 @@ class SnifferState {
     std::uint64_t epoch;  // the I/O thread's epoch right after the filter was unpublished
   };
   std::size_t reclaim_locked();
-  void count_error(const Frame& f, bool tx, Nanos end) noexcept;  // I/O thread
+  void count_error(const Frame& f, bool tx, Nanos at) noexcept;  // I/O thread
 
   const std::string name_;
   const NodeMap node_map_;
@@ -227,14 +228,14 @@ class SnifferState {
   std::string filter_text_ = "true";
 };
 
-inline bool SnifferState::process(const Frame& f, Direction d, Nanos begin, Nanos end,
+inline bool SnifferState::process(const Frame& f, Direction d, Nanos io, Nanos at,
                                   FrameRecord& out) noexcept {
   bump(frames_);
   const bool tx = d == Direction::Tx;
   if (tx) bump(tx_);
   if (f.error) [[unlikely]] {
     bump(error_frames_);
-    count_error(f, tx, end);
+    count_error(f, tx, at);
     return false;
   }
   const NodeAddress a = node_map_.map(f.id, f.extended, f.rtr);
@@ -260,8 +261,8 @@ inline bool SnifferState::process(const Frame& f, Direction d, Nanos begin, Nano
   bump(accepted_);
   if (f.rtr) bump(remote_frames_);
 
-  out.begin_ns = begin;
-  out.end_ns = end;
+  out.time_ns = at;
+  out.io_ns = io;
   out.id_gap_ns = -1;
   out.node_gap_ns = -1;
   out.id_frames = 0;
@@ -295,8 +296,8 @@ inline bool SnifferState::process(const Frame& f, Direction d, Nanos begin, Nano
         s.peer = a.peer;
         s.flags = a.flags;
         s.frames.store(1, std::memory_order_relaxed);
-        s.first.store(end, std::memory_order_relaxed);
-        s.last.store(end, std::memory_order_relaxed);
+        s.first.store(at, std::memory_order_relaxed);
+        s.last.store(at, std::memory_order_relaxed);
       });
   if (is == nullptr) {
     bump(untracked_ids_);
@@ -304,9 +305,9 @@ inline bool SnifferState::process(const Frame& f, Direction d, Nanos begin, Nano
   } else if (id_new) {
     out.id_frames = 1;
   } else {
-    out.id_gap_ns = end - is->last.load(std::memory_order_relaxed);
+    out.id_gap_ns = at - is->last.load(std::memory_order_relaxed);
     out.id_frames = is->frames.load(std::memory_order_relaxed) + 1;
-    is->last.store(end, std::memory_order_relaxed);
+    is->last.store(at, std::memory_order_relaxed);
     is->frames.store(out.id_frames, std::memory_order_relaxed);
   }
 
@@ -314,22 +315,22 @@ inline bool SnifferState::process(const Frame& f, Direction d, Nanos begin, Nano
       nodes_.find_or_insert(node_key(f.bus, a.node, tx), [&](NodeCounter& s) noexcept {
         s.frames.store(1, std::memory_order_relaxed);
         s.remote.store(f.rtr ? 1 : 0, std::memory_order_relaxed);
-        s.first.store(end, std::memory_order_relaxed);
-        s.last.store(end, std::memory_order_relaxed);
+        s.first.store(at, std::memory_order_relaxed);
+        s.last.store(at, std::memory_order_relaxed);
       });
   if (ns == nullptr) {
     bump(untracked_nodes_);
     out.node_untracked = true;
   } else if (!node_new) {
-    out.node_gap_ns = end - ns->last.load(std::memory_order_relaxed);
-    ns->last.store(end, std::memory_order_relaxed);
+    out.node_gap_ns = at - ns->last.load(std::memory_order_relaxed);
+    ns->last.store(at, std::memory_order_relaxed);
     bump(ns->frames);
     if (f.rtr) bump(ns->remote);
   }
   return true;
 }
 
-inline void SnifferState::count_error(const Frame& f, bool tx, Nanos end) noexcept {
+inline void SnifferState::count_error(const Frame& f, bool tx, Nanos at) noexcept {
   // Error frames have no node: one id key per (bus, error class, direction). A full table only
   // loses this detail; `error_frames` stays exact.
   const auto [es, inserted] =
@@ -337,12 +338,12 @@ inline void SnifferState::count_error(const Frame& f, bool tx, Nanos end) noexce
         s.node = kNoNode;
         s.function = 0;
         s.frames.store(1, std::memory_order_relaxed);
-        s.first.store(end, std::memory_order_relaxed);
-        s.last.store(end, std::memory_order_relaxed);
+        s.first.store(at, std::memory_order_relaxed);
+        s.last.store(at, std::memory_order_relaxed);
       });
   if (es != nullptr && !inserted) {
     bump(es->frames);
-    es->last.store(end, std::memory_order_relaxed);
+    es->last.store(at, std::memory_order_relaxed);
   }
 }
 
