@@ -90,9 +90,8 @@ std::string bus_name(std::uint8_t bus, const std::vector<std::string>& bus_names
   return fmt::format("{}", bus);
 }
 
-}  // namespace
-
-std::string format_can_report(const CanReport& r, const CanTextOptions& options) {
+// The first lines: the verdict with the counts, the status's messages, the kinds of frames.
+std::string report_heading(const CanReport& r) {
   std::string out;
   const SnifferTotals& t = r.snapshot.totals;
   std::size_t ids_count = 0;
@@ -110,10 +109,12 @@ std::string format_can_report(const CanReport& r, const CanTextOptions& options)
                        t.accepted - std::min(t.accepted, t.remote_frames), t.remote_frames,
                        t.error_frames);
   }
+  return out;
+}
 
-  // Units: one per column family, named in the headers: counts, I/O times in us, gaps,
-  // silences, periods and limits in ms.
-  out += "\nSummary\n";
+// The tables (this one, nodes and ids) have one unit per column family, named in the headers:
+// counts, I/O times in us, gaps, silences, periods and limits in ms.
+std::string summary_table(const CanReport& r) {
   TextTable summary({"CATEGORY", "DIR", "NODES", "FRAMES", "RTR", "RECORDS", "IO MEAN us",
                      "IO MIN us", "IO MAX us", "GAP MEAN ms", "GAP MIN ms", "GAP MAX ms"},
                     {false, false, true, true, true, true, true, true, true, true, true, true});
@@ -127,83 +128,102 @@ std::string format_can_report(const CanReport& r, const CanTextOptions& options)
          ms_or_dash(c.gap_ns, static_cast<double>(c.gap_ns.min)),
          ms_or_dash(c.gap_ns, static_cast<double>(c.gap_ns.max))});
   }
-  out += summary.str();
+  return summary.str();
+}
 
-  out += "\nNodes\n";
+// One row per direction a node was seen in (one row of dashes when never seen).
+void add_node_rows(TextTable& nodes, const CanReport& r, const NodeReport& n,
+                   const CanTextOptions& options) {
+  const std::string status = n.liveness == Liveness::Learning && n.status.ok()
+                                 ? std::string("LEARNING")
+                                 : std::string(to_string(n.status.level()));
+  const std::string bus = n.bus ? bus_name(*n.bus, options.bus_names) : "*";
+  const std::string node = format_node(r.node_map, n.node);
+  const std::string silence = n.silence_ns < 0 ? "-" : ms(static_cast<double>(n.silence_ns));
+  const std::string limit = n.silence_limit_ns < 0 ? "-"
+                                                   : ms(static_cast<double>(n.silence_limit_ns)) +
+                                                         (n.limit_learned ? "" : "*");
+  const std::string name = n.named ? n.name : "-";  // else the NODE column says it
+  const std::string liveness(to_string(n.liveness));
+  bool first = true;
+  for (const auto* s : {&n.rx, &n.tx}) {
+    if (!s->has_value()) continue;
+    const NodeStats& x = **s;
+    const bool rx = x.direction == Direction::Rx;
+    nodes.add({status, bus, node, name, std::string(to_string(x.direction)),
+               fmt::format("{}{}", x.frames, x.exact_count ? "" : "+"),
+               fmt::format("{}", x.remote_frames), fmt::format("{}", x.records),
+               fmt::format("{}", x.ids), ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.min)),
+               ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.p50)),
+               ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.max)), rx ? silence : "-",
+               rx ? limit : "-", first ? liveness : "", first ? messages_of(n.status) : ""});
+    first = false;
+  }
+  if (first) {
+    nodes.add({status, bus, node, name, "-", "0", "0", "0", "0", "-", "-", "-", "-", limit,
+               liveness, messages_of(n.status)});
+  }
+}
+
+std::string nodes_table(const CanReport& r, const CanTextOptions& options) {
   TextTable nodes(
       {"STATUS", "BUS", "NODE", "NAME", "DIR", "FRAMES", "RTR", "RECORDS", "IDS", "GAP MIN ms",
        "GAP p50 ms", "GAP MAX ms", "SILENCE ms", "LIMIT ms", "LIVENESS", "MESSAGES"},
       {false, false, true, false, false, true, true, true, true, true, true, true, true, true,
        false, false});
-  for (const NodeReport& n : r.nodes) {
-    const std::string status = n.liveness == Liveness::Learning && n.status.ok()
-                                   ? std::string("LEARNING")
-                                   : std::string(to_string(n.status.level()));
-    const std::string bus = n.bus ? bus_name(*n.bus, options.bus_names) : "*";
-    const std::string node = format_node(r.node_map, n.node);
-    const std::string silence = n.silence_ns < 0 ? "-" : ms(static_cast<double>(n.silence_ns));
-    const std::string limit = n.silence_limit_ns < 0 ? "-"
-                                                     : ms(static_cast<double>(n.silence_limit_ns)) +
-                                                           (n.limit_learned ? "" : "*");
-    const std::string name = n.named ? n.name : "-";  // else the NODE column says it
-    const std::string liveness(to_string(n.liveness));
-    bool first = true;
-    for (const auto* s : {&n.rx, &n.tx}) {
-      if (!s->has_value()) continue;
-      const NodeStats& x = **s;
-      const bool rx = x.direction == Direction::Rx;
-      nodes.add({status, bus, node, name, std::string(to_string(x.direction)),
-                 fmt::format("{}{}", x.frames, x.exact_count ? "" : "+"),
-                 fmt::format("{}", x.remote_frames), fmt::format("{}", x.records),
-                 fmt::format("{}", x.ids), ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.min)),
-                 ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.p50)),
-                 ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.max)), rx ? silence : "-",
-                 rx ? limit : "-", first ? liveness : "", first ? messages_of(n.status) : ""});
-      first = false;
-    }
-    if (first) {
-      nodes.add({status, bus, node, name, "-", "0", "0", "0", "0", "-", "-", "-", "-", limit,
-                 liveness, messages_of(n.status)});
-    }
-  }
-  out += nodes.str();
+  for (const NodeReport& n : r.nodes) add_node_rows(nodes, r, n, options);
+  std::string out = nodes.str();
   if (std::any_of(r.nodes.begin(), r.nodes.end(), [](const NodeReport& n) {
         return n.silence_limit_ns >= 0 && !n.limit_learned;
       })) {
     out += "(* a configured limit; the others are learned from each node's traffic)\n";
   }
+  return out;
+}
 
+std::string ids_table(const CanReport& r, const CanTextOptions& options) {
+  TextTable ids(
+      {"BUS", "ID", "NODE", "FUNCTION", "DIR", "FRAMES", "RECORDS", "GAP MIN ms", "GAP p50 ms",
+       "GAP MAX ms", "GAP MEAN ms", "KIND", "PERIOD ms", "LIMIT ms", "SILENCE ms", "TRAFFIC"},
+      {false, false, true, false, false, true, true, true, true, true, true, false, true, true,
+       true, false});
+  bool approximate = false;
+  for (std::size_t i = 0; i < r.snapshot.ids.size(); ++i) {
+    const IdStats& s = r.snapshot.ids[i];
+    const IdVerdict v = i < r.ids.size() ? r.ids[i] : IdVerdict{};
+    if (s.gap_ns.count > 0 && !s.gap_exact) approximate = true;
+    const auto opt_ms = [](Nanos x) {
+      return x < 0 ? std::string("-") : ms(static_cast<double>(x));
+    };
+    ids.add({bus_name(s.bus, options.bus_names), format_id(s.id, s.extended),
+             format_node(r.node_map, s.node), describe_function(r.node_map, s),
+             std::string(to_string(s.direction)),
+             fmt::format("{}{}", s.frames, s.exact_count ? "" : "+"), fmt::format("{}", s.records),
+             ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.min)),
+             ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.p50)),
+             ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.max)),
+             ms_or_dash(s.gap_ns, s.gap_ns.mean), kind_of(s), opt_ms(v.period_ns),
+             opt_ms(v.limit_ns), opt_ms(v.silence_ns),
+             std::string(to_string(v.traffic)) + (v.overdue ? " (overdue)" : "")});
+  }
+  std::string out = ids.str();
+  if (approximate) {
+    out += "(gap percentiles are upper bounds within 3.1%; min, max and mean are exact)\n";
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string format_can_report(const CanReport& r, const CanTextOptions& options) {
+  std::string out = report_heading(r);
+  out += "\nSummary\n";
+  out += summary_table(r);
+  out += "\nNodes\n";
+  out += nodes_table(r, options);
   if (options.ids) {
     out += "\nIds\n";
-    TextTable ids(
-        {"BUS", "ID", "NODE", "FUNCTION", "DIR", "FRAMES", "RECORDS", "GAP MIN ms", "GAP p50 ms",
-         "GAP MAX ms", "GAP MEAN ms", "KIND", "PERIOD ms", "LIMIT ms", "SILENCE ms", "TRAFFIC"},
-        {false, false, true, false, false, true, true, true, true, true, true, false, true, true,
-         true, false});
-    bool approximate = false;
-    for (std::size_t i = 0; i < r.snapshot.ids.size(); ++i) {
-      const IdStats& s = r.snapshot.ids[i];
-      const IdVerdict v = i < r.ids.size() ? r.ids[i] : IdVerdict{};
-      if (s.gap_ns.count > 0 && !s.gap_exact) approximate = true;
-      const auto opt_ms = [](Nanos x) {
-        return x < 0 ? std::string("-") : ms(static_cast<double>(x));
-      };
-      ids.add({bus_name(s.bus, options.bus_names), format_id(s.id, s.extended),
-               format_node(r.node_map, s.node), describe_function(r.node_map, s),
-               std::string(to_string(s.direction)),
-               fmt::format("{}{}", s.frames, s.exact_count ? "" : "+"),
-               fmt::format("{}", s.records),
-               ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.min)),
-               ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.p50)),
-               ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.max)),
-               ms_or_dash(s.gap_ns, s.gap_ns.mean), kind_of(s), opt_ms(v.period_ns),
-               opt_ms(v.limit_ns), opt_ms(v.silence_ns),
-               std::string(to_string(v.traffic)) + (v.overdue ? " (overdue)" : "")});
-    }
-    out += ids.str();
-    if (approximate) {
-      out += "(gap percentiles are upper bounds within 3.1%; min, max and mean are exact)\n";
-    }
+    out += ids_table(r, options);
   }
   return out;
 }
