@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cstring>
+#include <optional>
 
 namespace vigil::bus {
 
@@ -52,6 +53,133 @@ ShmError indices_error(std::uint64_t r, std::uint64_t w, std::uint32_t cap) {
       fmt::format("{} is {} records ahead of read_index {}; the ring holds {}", w, w - r, r, cap));
 }
 
+// The format fields: a finished header of this reader's version, as long as the segment.
+std::optional<ShmError> format_error(const ShmSegmentHeader& h, std::uint64_t size) {
+  // First: a segment whose writer has not finished its header (state is written last, with
+  // release) is young, not corrupt, whatever its other fields hold (all zero just after
+  // ftruncate). The daemon retries it for a while; rejecting it here lost processes that a
+  // scan found between their shm_open and the header's last store.
+  if (h.state == static_cast<std::uint32_t>(ShmState::Creating)) {
+    return err("state", "still being created");
+  }
+  if (h.magic != kShmMagic) {
+    return err("magic",
+               fmt::format("{:#018x} is not a vigil segment's ({:#018x})", h.magic, kShmMagic));
+  }
+  if (h.abi_version != kShmAbiVersion) {
+    return err("abi_version", fmt::format("segment format version {}, this reader "
+                                          "reads version {} (different vigil releases)",
+                                          h.abi_version, kShmAbiVersion));
+  }
+  if (h.header_size != sizeof(ShmSegmentHeader)) {
+    return err("header_size", fmt::format("{} bytes, version {} has {}", h.header_size,
+                                          kShmAbiVersion, sizeof(ShmSegmentHeader)));
+  }
+  if (h.segment_size != size) {
+    return err("segment_size",
+               fmt::format("header says {} bytes, the segment has {}{}", h.segment_size, size,
+                           size < h.segment_size ? " (truncated)" : ""));
+  }
+  return std::nullopt;
+}
+
+// The message schema: the reader's.
+std::optional<ShmError> schema_error(const ShmSegmentHeader& h, const ShmSchema& s) {
+  if (h.schema_id != s.id) {
+    return err("schema_id", fmt::format("message schema {:#018x} differs from the "
+                                        "reader's {:#018x} ({}): built from other "
+                                        "message definitions",
+                                        h.schema_id, s.id, s.name));
+  }
+  if (h.type_count != s.type_count) {
+    return err("type_count", fmt::format("{} message types, the reader's schema has {}",
+                                         h.type_count, s.type_count));
+  }
+  if (h.payload_size != s.payload_size) {
+    return err("payload_size",
+               fmt::format("{} bytes, the reader's schema has {}", h.payload_size, s.payload_size));
+  }
+  return std::nullopt;
+}
+
+// The ring's geometry `g`, recomputed from what the reader knows; the header must agree field by
+// field, and the segment have its size.
+std::optional<ShmError> geometry_error(const ShmSegmentHeader& h, const ShmSchema& s,
+                                       std::uint64_t size, ShmGeometry& g) {
+  if (h.capacity == 0 || h.capacity > kShmMaxCapacity || (h.capacity & (h.capacity - 1)) != 0) {
+    return err("capacity", fmt::format("{} records: must be a power of two in 1..{}", h.capacity,
+                                       kShmMaxCapacity));
+  }
+  g = ShmGeometry::make(s.type_count, s.payload_size, h.capacity);
+  if (h.record_size != g.record_size) {
+    return err("record_size", fmt::format("{} bytes, expected {}", h.record_size, g.record_size));
+  }
+  if (h.mailbox_offset != g.mailbox_offset) {
+    return err("mailbox_offset",
+               fmt::format("{}, expected {}", h.mailbox_offset, g.mailbox_offset));
+  }
+  if (h.ring_offset != g.ring_offset) {
+    return err("ring_offset", fmt::format("{}, expected {}", h.ring_offset, g.ring_offset));
+  }
+  if (g.segment_size != size) {
+    return err("segment_size", fmt::format("{} bytes, a ring of {} records needs {}", size,
+                                           h.capacity, g.segment_size));
+  }
+  return std::nullopt;
+}
+
+// Who wrote it (process, supervisor, component, command line), into `info`; the supervisor
+// must be `supervisor` unless that is empty.
+std::optional<ShmError> read_writer(const ShmSegmentHeader& h, std::string_view supervisor,
+                                    ShmSegmentInfo& info) {
+  if (h.pid <= 0) return err("pid", fmt::format("{} is not a process id", h.pid));
+  info.pid = h.pid;
+  info.uid = h.uid;
+  info.start_ticks = h.start_ticks;
+  info.created_unix_ns = h.created_unix_ns;
+  info.component_index = h.component_index;
+  auto sup = text(h.supervisor_name, "supervisor_name");
+  if (!sup) return sup.error();
+  if (!valid_supervisor_name(*sup)) {
+    return err("supervisor_name", fmt::format("'{}' is not 1..31 of [A-Za-z0-9_-]", *sup));
+  }
+  if (!supervisor.empty() && *sup != supervisor) {
+    return err("supervisor_name", fmt::format("'{}', expected '{}'", *sup, supervisor));
+  }
+  info.supervisor_name = std::move(*sup);
+  auto comp = text(h.component_name, "component_name");
+  if (!comp) return comp.error();
+  if (comp->empty()) return err("component_name", "empty");
+  info.component_name = std::move(*comp);
+  auto proc = text(h.process_name, "process_name");
+  if (!proc) return proc.error();
+  info.process_name = std::move(*proc);
+  auto schema = text(h.schema_name, "schema_name");
+  if (!schema) return schema.error();
+  info.schema_name = std::move(*schema);
+  auto cmd = text(h.command_line, "command_line");
+  if (!cmd) return cmd.error();
+  info.command_line = std::move(*cmd);
+  return std::nullopt;
+}
+
+// The state fields and counters: values a writer can have written.
+std::optional<ShmError> state_error(const ShmSegmentHeader& h) {
+  if (h.state > static_cast<std::uint32_t>(ShmState::Closed)) {
+    return err("state", fmt::format("{} is not 0, 1 or 2", h.state));
+  }
+  if (h.exit_kind > static_cast<std::uint32_t>(ShmExit::Signaled)) {
+    return err("exit_kind", fmt::format("{} is not 0, 1 or 2", h.exit_kind));
+  }
+  if (h.write_index < h.read_index || h.write_index - h.read_index > h.capacity) {
+    return indices_error(h.read_index, h.write_index, h.capacity);
+  }
+  if (h.dropped > h.offered) {
+    return err("dropped", fmt::format("{} messages dropped of {} offered", h.dropped, h.offered));
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 bool valid_supervisor_name(std::string_view name) noexcept {
@@ -70,122 +198,14 @@ std::string shm_segment_name(std::string_view supervisor, std::int32_t pid, std:
 expected<ShmSegmentInfo, ShmError> validate_shm_header(const ShmSegmentHeader& h,
                                                        std::uint64_t size,
                                                        const ShmExpectation& e) {
-  // First: a segment whose writer has not finished its header (state is written last, with
-  // release) is young, not corrupt, whatever its other fields hold (all zero just after
-  // ftruncate). The daemon retries it for a while; rejecting it here lost processes that a
-  // scan found between their shm_open and the header's last store.
-  if (h.state == static_cast<std::uint32_t>(ShmState::Creating)) {
-    return unexpected<ShmError>(err("state", "still being created"));
-  }
-  if (h.magic != kShmMagic) {
-    return unexpected<ShmError>(err(
-        "magic", fmt::format("{:#018x} is not a vigil segment's ({:#018x})", h.magic, kShmMagic)));
-  }
-  if (h.abi_version != kShmAbiVersion) {
-    return unexpected<ShmError>(
-        err("abi_version", fmt::format("segment format version {}, this reader "
-                                       "reads version {} (different vigil releases)",
-                                       h.abi_version, kShmAbiVersion)));
-  }
-  if (h.header_size != sizeof(ShmSegmentHeader)) {
-    return unexpected<ShmError>(
-        err("header_size", fmt::format("{} bytes, version {} has {}", h.header_size, kShmAbiVersion,
-                                       sizeof(ShmSegmentHeader))));
-  }
-  if (h.segment_size != size) {
-    return unexpected<ShmError>(err(
-        "segment_size", fmt::format("header says {} bytes, the segment has {}{}", h.segment_size,
-                                    size, size < h.segment_size ? " (truncated)" : "")));
-  }
-  const ShmSchema& s = e.schema;
-  if (h.schema_id != s.id) {
-    return unexpected<ShmError>(
-        err("schema_id", fmt::format("message schema {:#018x} differs from the "
-                                     "reader's {:#018x} ({}): built from other "
-                                     "message definitions",
-                                     h.schema_id, s.id, s.name)));
-  }
-  if (h.type_count != s.type_count) {
-    return unexpected<ShmError>(err(
-        "type_count",
-        fmt::format("{} message types, the reader's schema has {}", h.type_count, s.type_count)));
-  }
-  if (h.payload_size != s.payload_size) {
-    return unexpected<ShmError>(
-        err("payload_size",
-            fmt::format("{} bytes, the reader's schema has {}", h.payload_size, s.payload_size)));
-  }
-  if (h.capacity == 0 || h.capacity > kShmMaxCapacity || (h.capacity & (h.capacity - 1)) != 0) {
-    return unexpected<ShmError>(err(
-        "capacity",
-        fmt::format("{} records: must be a power of two in 1..{}", h.capacity, kShmMaxCapacity)));
-  }
-  // Geometry is recomputed from what the reader knows; the header must agree field by field.
-  const ShmGeometry g = ShmGeometry::make(s.type_count, s.payload_size, h.capacity);
-  if (h.record_size != g.record_size) {
-    return unexpected<ShmError>(
-        err("record_size", fmt::format("{} bytes, expected {}", h.record_size, g.record_size)));
-  }
-  if (h.mailbox_offset != g.mailbox_offset) {
-    return unexpected<ShmError>(
-        err("mailbox_offset", fmt::format("{}, expected {}", h.mailbox_offset, g.mailbox_offset)));
-  }
-  if (h.ring_offset != g.ring_offset) {
-    return unexpected<ShmError>(
-        err("ring_offset", fmt::format("{}, expected {}", h.ring_offset, g.ring_offset)));
-  }
-  if (g.segment_size != size) {
-    return unexpected<ShmError>(err(
-        "segment_size",
-        fmt::format("{} bytes, a ring of {} records needs {}", size, h.capacity, g.segment_size)));
-  }
   ShmSegmentInfo info;
-  info.geometry = g;
-  if (h.pid <= 0)
-    return unexpected<ShmError>(err("pid", fmt::format("{} is not a process id", h.pid)));
-  info.pid = h.pid;
-  info.uid = h.uid;
-  info.start_ticks = h.start_ticks;
-  info.created_unix_ns = h.created_unix_ns;
-  info.component_index = h.component_index;
-  auto sup = text(h.supervisor_name, "supervisor_name");
-  if (!sup) return unexpected<ShmError>(sup.error());
-  if (!valid_supervisor_name(*sup)) {
-    return unexpected<ShmError>(
-        err("supervisor_name", fmt::format("'{}' is not 1..31 of [A-Za-z0-9_-]", *sup)));
+  if (auto x = format_error(h, size)) return unexpected<ShmError>(std::move(*x));
+  if (auto x = schema_error(h, e.schema)) return unexpected<ShmError>(std::move(*x));
+  if (auto x = geometry_error(h, e.schema, size, info.geometry)) {
+    return unexpected<ShmError>(std::move(*x));
   }
-  if (!e.supervisor_name.empty() && *sup != e.supervisor_name) {
-    return unexpected<ShmError>(
-        err("supervisor_name", fmt::format("'{}', expected '{}'", *sup, e.supervisor_name)));
-  }
-  info.supervisor_name = std::move(*sup);
-  auto comp = text(h.component_name, "component_name");
-  if (!comp) return unexpected<ShmError>(comp.error());
-  if (comp->empty()) return unexpected<ShmError>(err("component_name", "empty"));
-  info.component_name = std::move(*comp);
-  auto proc = text(h.process_name, "process_name");
-  if (!proc) return unexpected<ShmError>(proc.error());
-  info.process_name = std::move(*proc);
-  auto schema = text(h.schema_name, "schema_name");
-  if (!schema) return unexpected<ShmError>(schema.error());
-  info.schema_name = std::move(*schema);
-  auto cmd = text(h.command_line, "command_line");
-  if (!cmd) return unexpected<ShmError>(cmd.error());
-  info.command_line = std::move(*cmd);
-  if (h.state > static_cast<std::uint32_t>(ShmState::Closed)) {
-    return unexpected<ShmError>(err("state", fmt::format("{} is not 0, 1 or 2", h.state)));
-  }
-  if (h.exit_kind > static_cast<std::uint32_t>(ShmExit::Signaled)) {
-    return unexpected<ShmError>(err("exit_kind", fmt::format("{} is not 0, 1 or 2", h.exit_kind)));
-  }
-  if (h.write_index < h.read_index || h.write_index - h.read_index > h.capacity) {
-    ShmError x = indices_error(h.read_index, h.write_index, h.capacity);
-    return unexpected<ShmError>(std::move(x));
-  }
-  if (h.dropped > h.offered) {
-    return unexpected<ShmError>(
-        err("dropped", fmt::format("{} messages dropped of {} offered", h.dropped, h.offered)));
-  }
+  if (auto x = read_writer(h, e.supervisor_name, info)) return unexpected<ShmError>(std::move(*x));
+  if (auto x = state_error(h)) return unexpected<ShmError>(std::move(*x));
   return info;
 }
 

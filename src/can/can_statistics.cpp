@@ -345,6 +345,19 @@ struct CanAggregator::Impl {
     s.info.max_nodes = st.max_nodes();
     st.reclaim();  // frees filters replaced since the last cycle, off the I/O thread
   }
+
+  // The steps of `snapshot` (lock held): the id and node statistics, sorted, and the
+  // categories of `members` (the node accumulators).
+  std::vector<IdStats> id_stats();
+  std::vector<NodeStats> node_stats(const std::vector<IdStats>& id_list,
+                                    std::vector<NodeAccumulator*>& members);
+  std::vector<CategoryStats> categories(const std::vector<NodeAccumulator*>& members,
+                                        std::span<const GroupSpec> groups) const;
+  // The category of the members in direction `d` that `member(key)` accepts: their counts, and
+  // their statistics merged (histograms live, samples in exact mode).
+  template <class Member>
+  CategoryStats category(const std::vector<NodeAccumulator*>& members, std::string name, bool group,
+                         Direction d, Member member) const;
 };
 
 CanAggregator::CanAggregator(CanRegistry& registry, CanAggregatorOptions options)
@@ -489,10 +502,161 @@ void CanAggregator::visit_gap_distributions(
   }
 }
 
+namespace {
+
+// The statistics of one id key.
+IdStats stats_of(IdAccumulator& a) {
+  IdStats s;
+  s.bus = a.key.bus;
+  s.id = a.key.id;
+  s.extended = a.key.extended;
+  s.rtr = a.key.rtr;
+  s.error = a.key.error;
+  s.direction = a.key.direction;
+  s.node = a.key.node;
+  s.function = a.key.function;
+  s.peer = a.key.peer;
+  s.flags = a.key.flags;
+  const Counted c = sum(a.from);
+  s.exact_count = c.any;
+  s.frames = c.any ? c.frames : a.timing.records;
+  s.first_ns = c.any ? c.first : a.timing.first_record;
+  s.last_ns = c.any ? c.last : a.timing.last_record;
+  s.records = a.timing.records;
+  s.io_ns = a.timing.io_summary();
+  s.gap_ns = a.timing.gap_summary(s.gap_exact);
+  s.last_length = a.last_length;
+  s.last_data = a.last_data;
+  return s;
+}
+
+// The statistics of one node key, whose frames carried `ids` distinct ids.
+NodeStats stats_of(NodeAccumulator& a, std::size_t ids) {
+  NodeStats s;
+  s.bus = a.key.bus;
+  s.node = a.key.node;
+  s.direction = a.key.direction;
+  const Counted c = sum(a.from);
+  s.exact_count = c.any;
+  s.frames = c.any ? c.frames : a.timing.records;
+  for (const auto& [port, n] : a.remote) s.remote_frames += n;
+  s.first_ns = c.any ? c.first : a.timing.first_record;
+  s.last_ns = c.any ? c.last : a.timing.last_record;
+  s.records = a.timing.records;
+  s.ids = ids;
+  s.io_ns = a.timing.io_summary();
+  s.gap_ns = a.timing.gap_summary(s.gap_exact);
+  return s;
+}
+
+}  // namespace
+
+std::vector<IdStats> CanAggregator::Impl::id_stats() {
+  std::vector<IdStats> out;
+  out.reserve(ids.size());
+  ids.for_each([&](std::uint64_t, IdAccumulator& a) { out.push_back(stats_of(a)); });
+  std::sort(out.begin(), out.end(), [](const IdStats& a, const IdStats& b) {
+    return std::make_tuple(a.bus, a.id, a.extended, static_cast<int>(a.direction), a.error, a.rtr) <
+           std::make_tuple(b.bus, b.id, b.extended, static_cast<int>(b.direction), b.error, b.rtr);
+  });
+  return out;
+}
+
+std::vector<NodeStats> CanAggregator::Impl::node_stats(const std::vector<IdStats>& id_list,
+                                                       std::vector<NodeAccumulator*>& members) {
+  // Distinct ids (data frames) per (bus, node, direction).
+  std::unordered_map<std::uint64_t, std::size_t> ids_of_node;
+  for (const IdStats& s : id_list) {
+    if (!s.error && !s.rtr) ++ids_of_node[detail::node_key(s.bus, s.node, is_tx(s.direction))];
+  }
+  std::vector<NodeStats> out;
+  members.reserve(nodes.size());
+  out.reserve(nodes.size());
+  nodes.for_each([&](std::uint64_t key, NodeAccumulator& a) {
+    out.push_back(stats_of(a, ids_of_node[key]));
+    members.push_back(&a);
+  });
+  std::sort(out.begin(), out.end(), [](const NodeStats& a, const NodeStats& b) {
+    return std::make_tuple(a.bus, a.node, static_cast<int>(a.direction)) <
+           std::make_tuple(b.bus, b.node, static_cast<int>(b.direction));
+  });
+  return out;
+}
+
+template <class Member>
+CategoryStats CanAggregator::Impl::category(const std::vector<NodeAccumulator*>& members,
+                                            std::string name, bool group, Direction d,
+                                            Member member) const {
+  const bool exact = options.exact_percentiles;
+  const double weight = options.ewma_weight;
+  CategoryStats c;
+  c.name = std::move(name);
+  c.group = group;
+  c.direction = d;
+  supervisor::CompactRunningStats io;
+  supervisor::CompactRunningStats gap;
+  supervisor::ScalarStats io_exact;
+  supervisor::ScalarStats gap_exact;
+  for (auto* r : {&io, &gap}) static_cast<void>(r->set_ewma_weight(weight));
+  for (auto* r : {&io_exact, &gap_exact}) static_cast<void>(r->set_ewma_weight(weight));
+  std::vector<Nanos> gaps;
+  for (const NodeAccumulator* a : members) {
+    if (a->key.direction != d || !member(a->key)) continue;
+    const Counted counted = sum(a->from);
+    const std::uint64_t frames = counted.any ? counted.frames : a->timing.records;
+    if (frames == 0) continue;
+    if (a->key.node != kNoNode) ++c.nodes;  // the frames of no node count, not as a node
+    c.frames += frames;
+    for (const auto& [port, n] : a->remote) c.remote_frames += n;
+    c.records += a->timing.records;
+    c.last_ns = std::max(c.last_ns, counted.any ? counted.last : a->timing.last_record);
+    if (exact) {
+      io_exact.merge(a->timing.io_exact);
+      gap_exact.merge(a->timing.gap_exact);
+      gaps.insert(gaps.end(), a->timing.gaps.begin(), a->timing.gaps.end());
+    } else {
+      io.merge(a->timing.io);
+      gap.merge(a->timing.gap);
+    }
+  }
+  if (exact) {
+    c.io_ns = io_exact.summary();
+    c.gap_ns = gap_exact.summary();
+    const StatsSummary e = exact_summary(gaps);
+    c.gap_ns.p50 = e.p50;
+    c.gap_ns.p90 = e.p90;
+    c.gap_ns.p99 = e.p99;
+    c.gap_ns.p999 = e.p999;
+  } else {
+    c.io_ns = io.summary();
+    c.gap_ns = gap.summary();
+  }
+  return c;
+}
+
+std::vector<CategoryStats> CanAggregator::Impl::categories(
+    const std::vector<NodeAccumulator*>& members, std::span<const GroupSpec> groups) const {
+  std::vector<CategoryStats> out;
+  for (const Direction d : {Direction::Rx, Direction::Tx}) {
+    CategoryStats c = category(members, "all", false, d, [](const NodeKey&) { return true; });
+    if (c.frames > 0) out.push_back(std::move(c));
+  }
+  for (const GroupSpec& g : groups) {
+    const auto member = [&](const NodeKey& k) {
+      return k.node != kNoNode && g.contains(k.bus, k.node);
+    };
+    CategoryStats rx = category(members, g.name, true, Direction::Rx, member);
+    CategoryStats tx = category(members, g.name, true, Direction::Tx, member);
+    const bool none = rx.frames == 0 && tx.frames == 0;
+    if (rx.frames > 0 || none) out.push_back(std::move(rx));
+    if (tx.frames > 0) out.push_back(std::move(tx));
+  }
+  return out;
+}
+
 CanSnapshot CanAggregator::snapshot(std::span<const GroupSpec> groups) const {
   Impl& m = *impl_;
   std::lock_guard lock(m.mutex);
-  const double weight = m.options.ewma_weight;
   CanSnapshot snap;
   snap.cycle = m.cycles;
   snap.records = m.records;
@@ -511,130 +675,10 @@ CanSnapshot CanAggregator::snapshot(std::span<const GroupSpec> groups) const {
     snap.observed_ns = earliest(snap.observed_ns, s.info.observed_ns);
     snap.drained_ns = earliest(snap.drained_ns, s.info.drained_ns);
   }
-
-  snap.ids.reserve(m.ids.size());
-  m.ids.for_each([&](std::uint64_t, IdAccumulator& a) {
-    IdStats s;
-    s.bus = a.key.bus;
-    s.id = a.key.id;
-    s.extended = a.key.extended;
-    s.rtr = a.key.rtr;
-    s.error = a.key.error;
-    s.direction = a.key.direction;
-    s.node = a.key.node;
-    s.function = a.key.function;
-    s.peer = a.key.peer;
-    s.flags = a.key.flags;
-    const Counted c = sum(a.from);
-    s.exact_count = c.any;
-    s.frames = c.any ? c.frames : a.timing.records;
-    s.first_ns = c.any ? c.first : a.timing.first_record;
-    s.last_ns = c.any ? c.last : a.timing.last_record;
-    s.records = a.timing.records;
-    s.io_ns = a.timing.io_summary();
-    s.gap_ns = a.timing.gap_summary(s.gap_exact);
-    s.last_length = a.last_length;
-    s.last_data = a.last_data;
-    snap.ids.push_back(s);
-  });
-  std::sort(snap.ids.begin(), snap.ids.end(), [](const IdStats& a, const IdStats& b) {
-    return std::make_tuple(a.bus, a.id, a.extended, static_cast<int>(a.direction), a.error, a.rtr) <
-           std::make_tuple(b.bus, b.id, b.extended, static_cast<int>(b.direction), b.error, b.rtr);
-  });
-
-  // Distinct ids (data frames) per (bus, node, direction).
-  std::unordered_map<std::uint64_t, std::size_t> ids_of_node;
-  for (const IdStats& s : snap.ids) {
-    if (!s.error && !s.rtr) ++ids_of_node[detail::node_key(s.bus, s.node, is_tx(s.direction))];
-  }
-
+  snap.ids = m.id_stats();
   std::vector<NodeAccumulator*> members;
-  members.reserve(m.nodes.size());
-  snap.nodes.reserve(m.nodes.size());
-  m.nodes.for_each([&](std::uint64_t key, NodeAccumulator& a) {
-    NodeStats s;
-    s.bus = a.key.bus;
-    s.node = a.key.node;
-    s.direction = a.key.direction;
-    const Counted c = sum(a.from);
-    s.exact_count = c.any;
-    s.frames = c.any ? c.frames : a.timing.records;
-    for (const auto& [port, n] : a.remote) s.remote_frames += n;
-    s.first_ns = c.any ? c.first : a.timing.first_record;
-    s.last_ns = c.any ? c.last : a.timing.last_record;
-    s.records = a.timing.records;
-    s.ids = ids_of_node[key];
-    s.io_ns = a.timing.io_summary();
-    s.gap_ns = a.timing.gap_summary(s.gap_exact);
-    snap.nodes.push_back(s);
-    members.push_back(&a);
-  });
-  std::sort(snap.nodes.begin(), snap.nodes.end(), [](const NodeStats& a, const NodeStats& b) {
-    return std::make_tuple(a.bus, a.node, static_cast<int>(a.direction)) <
-           std::make_tuple(b.bus, b.node, static_cast<int>(b.direction));
-  });
-
-  // Categories: merge the members' statistics (histograms live, samples in exact mode).
-  const bool exact = m.options.exact_percentiles;
-  const auto category = [&](std::string name, bool group, Direction d, auto&& member) {
-    CategoryStats c;
-    c.name = std::move(name);
-    c.group = group;
-    c.direction = d;
-    supervisor::CompactRunningStats io;
-    supervisor::CompactRunningStats gap;
-    supervisor::ScalarStats io_exact;
-    supervisor::ScalarStats gap_exact;
-    for (auto* r : {&io, &gap}) static_cast<void>(r->set_ewma_weight(weight));
-    for (auto* r : {&io_exact, &gap_exact}) static_cast<void>(r->set_ewma_weight(weight));
-    std::vector<Nanos> gaps;
-    for (const NodeAccumulator* a : members) {
-      if (a->key.direction != d || !member(a->key)) continue;
-      const Counted counted = sum(a->from);
-      const std::uint64_t frames = counted.any ? counted.frames : a->timing.records;
-      if (frames == 0) continue;
-      if (a->key.node != kNoNode) ++c.nodes;  // the frames of no node count, not as a node
-      c.frames += frames;
-      for (const auto& [port, n] : a->remote) c.remote_frames += n;
-      c.records += a->timing.records;
-      c.last_ns = std::max(c.last_ns, counted.any ? counted.last : a->timing.last_record);
-      if (exact) {
-        io_exact.merge(a->timing.io_exact);
-        gap_exact.merge(a->timing.gap_exact);
-        gaps.insert(gaps.end(), a->timing.gaps.begin(), a->timing.gaps.end());
-      } else {
-        io.merge(a->timing.io);
-        gap.merge(a->timing.gap);
-      }
-    }
-    if (exact) {
-      c.io_ns = io_exact.summary();
-      c.gap_ns = gap_exact.summary();
-      const StatsSummary e = exact_summary(gaps);
-      c.gap_ns.p50 = e.p50;
-      c.gap_ns.p90 = e.p90;
-      c.gap_ns.p99 = e.p99;
-      c.gap_ns.p999 = e.p999;
-    } else {
-      c.io_ns = io.summary();
-      c.gap_ns = gap.summary();
-    }
-    return c;
-  };
-  for (const Direction d : {Direction::Rx, Direction::Tx}) {
-    CategoryStats c = category("all", false, d, [](const NodeKey&) { return true; });
-    if (c.frames > 0) snap.categories.push_back(std::move(c));
-  }
-  for (const GroupSpec& g : groups) {
-    const auto member = [&](const NodeKey& k) {
-      return k.node != kNoNode && g.contains(k.bus, k.node);
-    };
-    CategoryStats rx = category(g.name, true, Direction::Rx, member);
-    CategoryStats tx = category(g.name, true, Direction::Tx, member);
-    const bool none = rx.frames == 0 && tx.frames == 0;
-    if (rx.frames > 0 || none) snap.categories.push_back(std::move(rx));
-    if (tx.frames > 0) snap.categories.push_back(std::move(tx));
-  }
+  snap.nodes = m.node_stats(snap.ids, members);
+  snap.categories = m.categories(members, groups);
   return snap;
 }
 

@@ -269,10 +269,39 @@ struct FilterCompiler {
     return true;
   }
 
+  // A sorted set operand: its offset in the pool, and its size.
+  void emit_set(Op op, const std::vector<std::uint32_t>& set) {
+    emit(op, add_set(set), static_cast<std::uint32_t>(set.size()));
+  }
+
+  // The tree: not(), all(), any() and their conditions, depth first (postfix).
   bool compile(const FilterExpr::Node& n, std::size_t depth) {
     if (depth > Filter::kMaxDepth) {
       return fail(n, fmt::format("nested more than {} levels deep", Filter::kMaxDepth));
     }
+    if (n.kind == Kind::Not) {
+      if (n.children.size() != 1) return fail(n, "not() takes one condition");
+      if (!compile(n.children[0].node(), depth + 1)) return false;
+      emit(Op::Not);
+      return true;
+    }
+    if (n.kind == Kind::All || n.kind == Kind::Any) {
+      const bool all = n.kind == Kind::All;
+      if (n.children.empty()) {
+        emit(all ? Op::True : Op::False);
+        return true;
+      }
+      for (std::size_t i = 0; i < n.children.size(); ++i) {
+        if (!compile(n.children[i].node(), depth + 1)) return false;
+        if (i > 0) emit(all ? Op::And : Op::Or);
+      }
+      return true;
+    }
+    return condition(n);
+  }
+
+  // One condition on a frame (a leaf of the tree), its operands checked.
+  bool condition(const FilterExpr::Node& n) {
     const auto& v = n.values;
     switch (n.kind) {
       case Kind::True:
@@ -296,10 +325,7 @@ struct FilterCompiler {
             return fail(n, fmt::format("identifier 0x{:X} is above 0x1FFFFFFF", id));
           }
         }
-        {
-          const auto set = sorted_unique(v);  // nodes built by hand may hold duplicates
-          emit(Op::Ids, add_set(set), static_cast<std::uint32_t>(set.size()));
-        }
+        emit_set(Op::Ids, sorted_unique(v));  // nodes built by hand may hold duplicates
         return true;
       case Kind::IdRange:
         if (!range_ok(n, kMaxExtendedId, "identifier")) return false;
@@ -312,20 +338,16 @@ struct FilterCompiler {
         }
         emit(Op::IdMask, v[0] & v[1], v[1]);
         return true;
-      case Kind::Nodes: {
-        const auto set = sorted_unique(v);
-        emit(Op::Nodes, add_set(set), static_cast<std::uint32_t>(set.size()));
+      case Kind::Nodes:
+        emit_set(Op::Nodes, sorted_unique(v));
         return true;
-      }
       case Kind::NodeRange:
         if (!range_ok(n, ~std::uint32_t{0}, "node")) return false;
         emit(Op::NodeRange, v[0], v[1]);
         return true;
-      case Kind::Functions: {
-        const auto set = sorted_unique(v);
-        emit(Op::Functions, add_set(set), static_cast<std::uint32_t>(set.size()));
+      case Kind::Functions:
+        emit_set(Op::Functions, sorted_unique(v));
         return true;
-      }
       case Kind::Standard:
         emit(Op::Standard);
         return true;
@@ -351,23 +373,9 @@ struct FilterCompiler {
         emit(Op::Payload, v[0], v[1] & v[2], v[2]);
         return true;
       case Kind::Not:
-        if (n.children.size() != 1) return fail(n, "not() takes one condition");
-        if (!compile(n.children[0].node(), depth + 1)) return false;
-        emit(Op::Not);
-        return true;
       case Kind::All:
-      case Kind::Any: {
-        const bool all = n.kind == Kind::All;
-        if (n.children.empty()) {
-          emit(all ? Op::True : Op::False);
-          return true;
-        }
-        for (std::size_t i = 0; i < n.children.size(); ++i) {
-          if (!compile(n.children[i].node(), depth + 1)) return false;
-          if (i > 0) emit(all ? Op::And : Op::Or);
-        }
-        return true;
-      }
+      case Kind::Any:
+        break;  // compile()'s
     }
     return fail(n, "unknown condition");
   }

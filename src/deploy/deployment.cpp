@@ -109,17 +109,8 @@ ComponentSpec parse_component(const config::Node& n, const ComponentFactory& fac
   return c;
 }
 
-}  // namespace
-
-expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::Node& root,
-                                                                const ComponentFactory& factory) {
-  DeploymentSpec d;
-  d.root = root;
-  if (!root.is_mapping()) {
-    root.error("a deployment is a mapping with activities, components, supervision, outputs");
-    return root.finish(std::move(d));
-  }
-  // Top-level keys: the built-in ones, then the sections of registered extensions.
+// Top-level keys: the built-in ones, then the sections of registered extensions (kept in `d`).
+void parse_sections(const config::Node& root, DeploymentSpec& d) {
   constexpr std::string_view kBuiltIn[] = {"name", "activities", "components", "supervision",
                                            "outputs"};
   const std::vector<std::string> registered = registered_extensions();
@@ -143,134 +134,180 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
                              : fmt::format("{}", fmt::join(registered, ", "))));
     }
   }
-  d.name = root.optional<std::string>("name", "vigil", config::non_empty());
+}
 
-  std::set<std::string, std::less<>> activity_names;
+using Names = std::set<std::string, std::less<>>;
+
+// `activities`; returns their names.
+Names parse_activities(const config::Node& root, DeploymentSpec& d) {
+  Names names;
   const config::Node acts = root.at("activities");
   if (acts.defined() && !acts.is_sequence()) acts.error("expected a list of activities");
   for (const auto& n : acts.elements()) {
     ActivitySpec a = parse_activity(n);
-    if (!a.config.name.empty() && !activity_names.insert(a.config.name).second) {
+    if (!a.config.name.empty() && !names.insert(a.config.name).second) {
       n["name"].error(fmt::format("activity '{}' is defined twice", a.config.name));
     }
     d.activities.push_back(std::move(a));
   }
+  return names;
+}
 
-  std::set<std::string, std::less<>> component_names;
+// `components`, each on one of `activities`.
+void parse_components(const config::Node& root, const ComponentFactory& factory,
+                      const Names& activities, DeploymentSpec& d) {
+  Names names;
   const config::Node comps = root.at("components");
   if (comps.defined() && !comps.is_sequence()) comps.error("expected a list of components");
   for (const auto& n : comps.elements()) {
     ComponentSpec c = parse_component(n, factory);
-    if (!c.name.empty() && !component_names.insert(c.name).second) {
+    if (!c.name.empty() && !names.insert(c.name).second) {
       n["name"].error(fmt::format("component '{}' is defined twice", c.name));
     }
-    if (!c.activity.empty() && !activity_names.contains(c.activity)) {
+    if (!c.activity.empty() && !activities.contains(c.activity)) {
       n["activity"].error(fmt::format("no activity named '{}' (defined: {})", c.activity,
-                                      fmt::join(activity_names, ", ")));
+                                      fmt::join(activities, ", ")));
     }
     d.components.push_back(std::move(c));
   }
   if (comps.defined() && comps.is_sequence() && d.components.empty()) {
     comps.error("a deployment needs at least one component");
   }
+}
 
+// `supervision.watchdog`.
+void parse_watchdog(const config::Node& w, supervisor::WatchdogOptions& wd) {
+  w.reject_unknown_keys({"enabled", "periods", "floor", "aperiodic"});
+  wd.enabled = w.optional("enabled", wd.enabled);
+  wd.periods = w.optional("periods", wd.periods, config::in_range(1.0, 1e6));
+  wd.floor_ns = w.optional_duration("floor", wd.floor_ns,
+                                    config::duration_in_range(0, 3600 * kNanosPerSecond));
+  wd.aperiodic_ns = w.optional_duration("aperiodic", wd.aperiodic_ns,
+                                        config::duration_in_range(0, 3600 * kNanosPerSecond));
+}
+
+// `supervision.events`.
+void parse_events(const config::Node& e, SupervisionSpec& sp) {
+  e.reject_unknown_keys({"queue", "auto_clear", "state_changes"});
+  sp.event_queue =
+      e.optional<std::size_t>("queue", sp.event_queue, config::in_range<std::size_t>(1, 1U << 20U));
+  sp.auto_clear_ns = e.optional_duration("auto_clear", sp.auto_clear_ns,
+                                         config::duration_in_range(0, 86400 * kNanosPerSecond));
+  sp.state_events = e.optional("state_changes", sp.state_events);
+}
+
+// `supervision.flight_recorder`.
+void parse_flight_recorder(const config::Node& f, supervisor::FlightRecorderOptions& r) {
+  f.reject_unknown_keys({"cycles", "min_interval", "max_records", "stores", "pages"});
+  r.cycles =
+      f.optional<std::size_t>("cycles", r.cycles, config::in_range<std::size_t>(0, 1U << 20U));
+  r.min_interval_ns = f.optional_duration("min_interval", r.min_interval_ns,
+                                          config::duration_in_range(0, 86400 * kNanosPerSecond));
+  r.max_records = f.optional<std::size_t>("max_records", r.max_records,
+                                          config::in_range<std::size_t>(0, 1U << 20U));
+  r.stores = f.optional_enum("stores", r.stores, kRingStores);
+  r.pages = f.optional_enum("pages", r.pages, kRingPages);
+}
+
+// `supervision.thresholds`: a file (relative to the deployment's) or the thresholds themselves.
+void parse_thresholds(const config::Node& t, const config::Node& root, SupervisionSpec& sp) {
+  if (!t.is_scalar()) {
+    auto loaded = load_thresholds(t);
+    if (loaded) sp.thresholds = std::move(*loaded);
+    return;
+  }
+  std::filesystem::path p = t.get<std::string>();
+  if (p.is_relative() && !root.file().empty()) {
+    p = std::filesystem::path(root.file()).parent_path() / p;
+  }
+  auto loaded = load_thresholds_file(p);
+  if (!loaded) {
+    t.error(fmt::format("thresholds file '{}' is invalid:\n{}", p.string(),
+                        config::to_string(loaded.error())));
+  } else {
+    sp.thresholds = std::move(*loaded);
+    sp.thresholds_file = p;
+  }
+}
+
+// `supervision`.
+void parse_supervision(const config::Node& s, const config::Node& root, SupervisionSpec& sp) {
+  s.reject_unknown_keys({"supervisor_period", "monitor_period", "ewma_weight", "thresholds",
+                         "lock_memory", "supervisor_stack", "monitor_stack", "shared_memory",
+                         "warmup", "watchdog", "events", "flight_recorder", "clock"});
+  sp.supervisor_period_ns =
+      s.optional_period("supervisor_period", sp.supervisor_period_ns,
+                        config::duration_in_range(100 * kNanosPerMicro, 10 * kNanosPerSecond));
+  sp.monitor_period_ns =
+      s.optional_period("monitor_period", sp.monitor_period_ns,
+                        config::duration_in_range(kNanosPerMilli, 3600 * kNanosPerSecond));
+  sp.ewma_weight = s.optional("ewma_weight", sp.ewma_weight, config::in_range(1e-6, 1.0));
+  sp.lock_memory = s.optional("lock_memory", true);
+  sp.clock = s.optional_enum("clock", sp.clock, kClocks);
+  sp.supervisor_stack_bytes =
+      detail::optional_stack(s, "supervisor_stack", sp.supervisor_stack_bytes);
+  sp.monitor_stack_bytes = detail::optional_stack(s, "monitor_stack", sp.monitor_stack_bytes);
+  sp.shared_memory = s.optional<std::string>("shared_memory", "");
+  sp.warmup_ns = s.optional_duration("warmup", sp.warmup_ns,
+                                     config::duration_in_range(0, 3600 * kNanosPerSecond));
+  if (const config::Node w = s["watchdog"]; w.defined()) parse_watchdog(w, sp.watchdog);
+  if (const config::Node e = s["events"]; e.defined()) parse_events(e, sp);
+  if (const config::Node f = s["flight_recorder"]; f.defined()) {
+    parse_flight_recorder(f, sp.recorder);
+  }
+  if (const config::Node m = s["shared_memory"];
+      m.defined() && !bus::valid_supervisor_name(sp.shared_memory)) {
+    m.error(
+        fmt::format("'{}' is not a supervisor name: 1 to 31 of A-Z a-z 0-9 _ -", sp.shared_memory));
+  }
+  if (const config::Node t = s["thresholds"]; t.defined()) parse_thresholds(t, root, sp);
+}
+
+// `outputs.http`.
+HttpOutputSpec parse_http(const config::Node& h) {
+  h.reject_unknown_keys({"listen", "threads", "dashboard", "clear"});
+  HttpOutputSpec http;
+  const auto listen_check = [](const std::string& v) -> std::optional<std::string> {
+    auto a = exporter::parse_listen(v);
+    if (!a) return a.error();
+    return std::nullopt;
+  };
+  const std::string listen = h.required<std::string>("listen", listen_check);
+  if (auto a = exporter::parse_listen(listen)) http.listen = *a;
+  http.threads = h.optional("threads", 3U, config::in_range(1U, 16U));
+  http.dashboard = h.optional("dashboard", true);
+  http.clear = h.optional("clear", false);
+  return http;
+}
+
+// `outputs`.
+void parse_outputs(const config::Node& o, OutputSpec& out) {
+  o.reject_unknown_keys({"json", "http", "textfile"});
+  if (o.has("json")) out.json = o.required<std::string>("json", config::non_empty());
+  if (o.has("textfile")) {
+    out.textfile = o.required<std::string>("textfile", config::non_empty());
+  }
+  if (const config::Node h = o["http"]; h.defined()) out.http = parse_http(h);
+}
+
+}  // namespace
+
+expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::Node& root,
+                                                                const ComponentFactory& factory) {
+  DeploymentSpec d;
+  d.root = root;
+  if (!root.is_mapping()) {
+    root.error("a deployment is a mapping with activities, components, supervision, outputs");
+    return root.finish(std::move(d));
+  }
+  parse_sections(root, d);
+  d.name = root.optional<std::string>("name", "vigil", config::non_empty());
+  const Names activities = parse_activities(root, d);
+  parse_components(root, factory, activities, d);
   if (const config::Node s = root["supervision"]; s.defined()) {
-    s.reject_unknown_keys({"supervisor_period", "monitor_period", "ewma_weight", "thresholds",
-                           "lock_memory", "supervisor_stack", "monitor_stack", "shared_memory",
-                           "warmup", "watchdog", "events", "flight_recorder", "clock"});
-    auto& sp = d.supervision;
-    sp.supervisor_period_ns =
-        s.optional_period("supervisor_period", sp.supervisor_period_ns,
-                          config::duration_in_range(100 * kNanosPerMicro, 10 * kNanosPerSecond));
-    sp.monitor_period_ns =
-        s.optional_period("monitor_period", sp.monitor_period_ns,
-                          config::duration_in_range(kNanosPerMilli, 3600 * kNanosPerSecond));
-    sp.ewma_weight = s.optional("ewma_weight", sp.ewma_weight, config::in_range(1e-6, 1.0));
-    sp.lock_memory = s.optional("lock_memory", true);
-    sp.clock = s.optional_enum("clock", sp.clock, kClocks);
-    sp.supervisor_stack_bytes =
-        detail::optional_stack(s, "supervisor_stack", sp.supervisor_stack_bytes);
-    sp.monitor_stack_bytes = detail::optional_stack(s, "monitor_stack", sp.monitor_stack_bytes);
-    sp.shared_memory = s.optional<std::string>("shared_memory", "");
-    sp.warmup_ns = s.optional_duration("warmup", sp.warmup_ns,
-                                       config::duration_in_range(0, 3600 * kNanosPerSecond));
-    if (const config::Node w = s["watchdog"]; w.defined()) {
-      w.reject_unknown_keys({"enabled", "periods", "floor", "aperiodic"});
-      sp.watchdog.enabled = w.optional("enabled", sp.watchdog.enabled);
-      sp.watchdog.periods = w.optional("periods", sp.watchdog.periods, config::in_range(1.0, 1e6));
-      sp.watchdog.floor_ns = w.optional_duration(
-          "floor", sp.watchdog.floor_ns, config::duration_in_range(0, 3600 * kNanosPerSecond));
-      sp.watchdog.aperiodic_ns =
-          w.optional_duration("aperiodic", sp.watchdog.aperiodic_ns,
-                              config::duration_in_range(0, 3600 * kNanosPerSecond));
-    }
-    if (const config::Node e = s["events"]; e.defined()) {
-      e.reject_unknown_keys({"queue", "auto_clear", "state_changes"});
-      sp.event_queue = e.optional<std::size_t>("queue", sp.event_queue,
-                                               config::in_range<std::size_t>(1, 1U << 20U));
-      sp.auto_clear_ns = e.optional_duration("auto_clear", sp.auto_clear_ns,
-                                             config::duration_in_range(0, 86400 * kNanosPerSecond));
-      sp.state_events = e.optional("state_changes", sp.state_events);
-    }
-    if (const config::Node f = s["flight_recorder"]; f.defined()) {
-      f.reject_unknown_keys({"cycles", "min_interval", "max_records", "stores", "pages"});
-      sp.recorder.cycles = f.optional<std::size_t>("cycles", sp.recorder.cycles,
-                                                   config::in_range<std::size_t>(0, 1U << 20U));
-      sp.recorder.min_interval_ns =
-          f.optional_duration("min_interval", sp.recorder.min_interval_ns,
-                              config::duration_in_range(0, 86400 * kNanosPerSecond));
-      sp.recorder.max_records = f.optional<std::size_t>(
-          "max_records", sp.recorder.max_records, config::in_range<std::size_t>(0, 1U << 20U));
-      sp.recorder.stores = f.optional_enum("stores", sp.recorder.stores, kRingStores);
-      sp.recorder.pages = f.optional_enum("pages", sp.recorder.pages, kRingPages);
-    }
-    if (const config::Node m = s["shared_memory"];
-        m.defined() && !bus::valid_supervisor_name(sp.shared_memory)) {
-      m.error(fmt::format("'{}' is not a supervisor name: 1 to 31 of A-Z a-z 0-9 _ -",
-                          sp.shared_memory));
-    }
-    if (const config::Node t = s["thresholds"]; t.defined()) {
-      if (t.is_scalar()) {
-        std::filesystem::path p = t.get<std::string>();
-        if (p.is_relative() && !root.file().empty()) {
-          p = std::filesystem::path(root.file()).parent_path() / p;
-        }
-        auto loaded = load_thresholds_file(p);
-        if (!loaded) {
-          t.error(fmt::format("thresholds file '{}' is invalid:\n{}", p.string(),
-                              config::to_string(loaded.error())));
-        } else {
-          sp.thresholds = std::move(*loaded);
-          sp.thresholds_file = p;
-        }
-      } else {
-        auto loaded = load_thresholds(t);
-        if (loaded) sp.thresholds = std::move(*loaded);
-      }
-    }
+    parse_supervision(s, root, d.supervision);
   }
-  if (const config::Node o = root["outputs"]; o.defined()) {
-    o.reject_unknown_keys({"json", "http", "textfile"});
-    if (o.has("json")) d.outputs.json = o.required<std::string>("json", config::non_empty());
-    if (o.has("textfile")) {
-      d.outputs.textfile = o.required<std::string>("textfile", config::non_empty());
-    }
-    if (const config::Node h = o["http"]; h.defined()) {
-      h.reject_unknown_keys({"listen", "threads", "dashboard", "clear"});
-      HttpOutputSpec http;
-      const auto listen_check = [](const std::string& v) -> std::optional<std::string> {
-        auto a = exporter::parse_listen(v);
-        if (!a) return a.error();
-        return std::nullopt;
-      };
-      const std::string listen = h.required<std::string>("listen", listen_check);
-      if (auto a = exporter::parse_listen(listen)) http.listen = *a;
-      http.threads = h.optional("threads", 3U, config::in_range(1U, 16U));
-      http.dashboard = h.optional("dashboard", true);
-      http.clear = h.optional("clear", false);
-      d.outputs.http = http;
-    }
-  }
+  if (const config::Node o = root["outputs"]; o.defined()) parse_outputs(o, d.outputs);
   return root.finish(std::move(d));
 }
 

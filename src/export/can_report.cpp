@@ -90,9 +90,8 @@ std::string bus_name(std::uint8_t bus, const std::vector<std::string>& bus_names
   return fmt::format("{}", bus);
 }
 
-}  // namespace
-
-std::string format_can_report(const CanReport& r, const CanTextOptions& options) {
+// The first lines: the verdict with the counts, the status's messages, the kinds of frames.
+std::string report_heading(const CanReport& r) {
   std::string out;
   const SnifferTotals& t = r.snapshot.totals;
   std::size_t ids_count = 0;
@@ -110,10 +109,12 @@ std::string format_can_report(const CanReport& r, const CanTextOptions& options)
                        t.accepted - std::min(t.accepted, t.remote_frames), t.remote_frames,
                        t.error_frames);
   }
+  return out;
+}
 
-  // Units: one per column family, named in the headers: counts, I/O times in us, gaps,
-  // silences, periods and limits in ms.
-  out += "\nSummary\n";
+// The tables (this one, nodes and ids) have one unit per column family, named in the headers:
+// counts, I/O times in us, gaps, silences, periods and limits in ms.
+std::string summary_table(const CanReport& r) {
   TextTable summary({"CATEGORY", "DIR", "NODES", "FRAMES", "RTR", "RECORDS", "IO MEAN us",
                      "IO MIN us", "IO MAX us", "GAP MEAN ms", "GAP MIN ms", "GAP MAX ms"},
                     {false, false, true, true, true, true, true, true, true, true, true, true});
@@ -127,83 +128,102 @@ std::string format_can_report(const CanReport& r, const CanTextOptions& options)
          ms_or_dash(c.gap_ns, static_cast<double>(c.gap_ns.min)),
          ms_or_dash(c.gap_ns, static_cast<double>(c.gap_ns.max))});
   }
-  out += summary.str();
+  return summary.str();
+}
 
-  out += "\nNodes\n";
+// One row per direction a node was seen in (one row of dashes when never seen).
+void add_node_rows(TextTable& nodes, const CanReport& r, const NodeReport& n,
+                   const CanTextOptions& options) {
+  const std::string status = n.liveness == Liveness::Learning && n.status.ok()
+                                 ? std::string("LEARNING")
+                                 : std::string(to_string(n.status.level()));
+  const std::string bus = n.bus ? bus_name(*n.bus, options.bus_names) : "*";
+  const std::string node = format_node(r.node_map, n.node);
+  const std::string silence = n.silence_ns < 0 ? "-" : ms(static_cast<double>(n.silence_ns));
+  const std::string limit = n.silence_limit_ns < 0 ? "-"
+                                                   : ms(static_cast<double>(n.silence_limit_ns)) +
+                                                         (n.limit_learned ? "" : "*");
+  const std::string name = n.named ? n.name : "-";  // else the NODE column says it
+  const std::string liveness(to_string(n.liveness));
+  bool first = true;
+  for (const auto* s : {&n.rx, &n.tx}) {
+    if (!s->has_value()) continue;
+    const NodeStats& x = **s;
+    const bool rx = x.direction == Direction::Rx;
+    nodes.add({status, bus, node, name, std::string(to_string(x.direction)),
+               fmt::format("{}{}", x.frames, x.exact_count ? "" : "+"),
+               fmt::format("{}", x.remote_frames), fmt::format("{}", x.records),
+               fmt::format("{}", x.ids), ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.min)),
+               ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.p50)),
+               ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.max)), rx ? silence : "-",
+               rx ? limit : "-", first ? liveness : "", first ? messages_of(n.status) : ""});
+    first = false;
+  }
+  if (first) {
+    nodes.add({status, bus, node, name, "-", "0", "0", "0", "0", "-", "-", "-", "-", limit,
+               liveness, messages_of(n.status)});
+  }
+}
+
+std::string nodes_table(const CanReport& r, const CanTextOptions& options) {
   TextTable nodes(
       {"STATUS", "BUS", "NODE", "NAME", "DIR", "FRAMES", "RTR", "RECORDS", "IDS", "GAP MIN ms",
        "GAP p50 ms", "GAP MAX ms", "SILENCE ms", "LIMIT ms", "LIVENESS", "MESSAGES"},
       {false, false, true, false, false, true, true, true, true, true, true, true, true, true,
        false, false});
-  for (const NodeReport& n : r.nodes) {
-    const std::string status = n.liveness == Liveness::Learning && n.status.ok()
-                                   ? std::string("LEARNING")
-                                   : std::string(to_string(n.status.level()));
-    const std::string bus = n.bus ? bus_name(*n.bus, options.bus_names) : "*";
-    const std::string node = format_node(r.node_map, n.node);
-    const std::string silence = n.silence_ns < 0 ? "-" : ms(static_cast<double>(n.silence_ns));
-    const std::string limit = n.silence_limit_ns < 0 ? "-"
-                                                     : ms(static_cast<double>(n.silence_limit_ns)) +
-                                                           (n.limit_learned ? "" : "*");
-    const std::string name = n.named ? n.name : "-";  // else the NODE column says it
-    const std::string liveness(to_string(n.liveness));
-    bool first = true;
-    for (const auto* s : {&n.rx, &n.tx}) {
-      if (!s->has_value()) continue;
-      const NodeStats& x = **s;
-      const bool rx = x.direction == Direction::Rx;
-      nodes.add({status, bus, node, name, std::string(to_string(x.direction)),
-                 fmt::format("{}{}", x.frames, x.exact_count ? "" : "+"),
-                 fmt::format("{}", x.remote_frames), fmt::format("{}", x.records),
-                 fmt::format("{}", x.ids), ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.min)),
-                 ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.p50)),
-                 ms_or_dash(x.gap_ns, static_cast<double>(x.gap_ns.max)), rx ? silence : "-",
-                 rx ? limit : "-", first ? liveness : "", first ? messages_of(n.status) : ""});
-      first = false;
-    }
-    if (first) {
-      nodes.add({status, bus, node, name, "-", "0", "0", "0", "0", "-", "-", "-", "-", limit,
-                 liveness, messages_of(n.status)});
-    }
-  }
-  out += nodes.str();
+  for (const NodeReport& n : r.nodes) add_node_rows(nodes, r, n, options);
+  std::string out = nodes.str();
   if (std::any_of(r.nodes.begin(), r.nodes.end(), [](const NodeReport& n) {
         return n.silence_limit_ns >= 0 && !n.limit_learned;
       })) {
     out += "(* a configured limit; the others are learned from each node's traffic)\n";
   }
+  return out;
+}
 
+std::string ids_table(const CanReport& r, const CanTextOptions& options) {
+  TextTable ids(
+      {"BUS", "ID", "NODE", "FUNCTION", "DIR", "FRAMES", "RECORDS", "GAP MIN ms", "GAP p50 ms",
+       "GAP MAX ms", "GAP MEAN ms", "KIND", "PERIOD ms", "LIMIT ms", "SILENCE ms", "TRAFFIC"},
+      {false, false, true, false, false, true, true, true, true, true, true, false, true, true,
+       true, false});
+  bool approximate = false;
+  for (std::size_t i = 0; i < r.snapshot.ids.size(); ++i) {
+    const IdStats& s = r.snapshot.ids[i];
+    const IdVerdict v = i < r.ids.size() ? r.ids[i] : IdVerdict{};
+    if (s.gap_ns.count > 0 && !s.gap_exact) approximate = true;
+    const auto opt_ms = [](Nanos x) {
+      return x < 0 ? std::string("-") : ms(static_cast<double>(x));
+    };
+    ids.add({bus_name(s.bus, options.bus_names), format_id(s.id, s.extended),
+             format_node(r.node_map, s.node), describe_function(r.node_map, s),
+             std::string(to_string(s.direction)),
+             fmt::format("{}{}", s.frames, s.exact_count ? "" : "+"), fmt::format("{}", s.records),
+             ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.min)),
+             ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.p50)),
+             ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.max)),
+             ms_or_dash(s.gap_ns, s.gap_ns.mean), kind_of(s), opt_ms(v.period_ns),
+             opt_ms(v.limit_ns), opt_ms(v.silence_ns),
+             std::string(to_string(v.traffic)) + (v.overdue ? " (overdue)" : "")});
+  }
+  std::string out = ids.str();
+  if (approximate) {
+    out += "(gap percentiles are upper bounds within 3.1%; min, max and mean are exact)\n";
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string format_can_report(const CanReport& r, const CanTextOptions& options) {
+  std::string out = report_heading(r);
+  out += "\nSummary\n";
+  out += summary_table(r);
+  out += "\nNodes\n";
+  out += nodes_table(r, options);
   if (options.ids) {
     out += "\nIds\n";
-    TextTable ids(
-        {"BUS", "ID", "NODE", "FUNCTION", "DIR", "FRAMES", "RECORDS", "GAP MIN ms", "GAP p50 ms",
-         "GAP MAX ms", "GAP MEAN ms", "KIND", "PERIOD ms", "LIMIT ms", "SILENCE ms", "TRAFFIC"},
-        {false, false, true, false, false, true, true, true, true, true, true, false, true, true,
-         true, false});
-    bool approximate = false;
-    for (std::size_t i = 0; i < r.snapshot.ids.size(); ++i) {
-      const IdStats& s = r.snapshot.ids[i];
-      const IdVerdict v = i < r.ids.size() ? r.ids[i] : IdVerdict{};
-      if (s.gap_ns.count > 0 && !s.gap_exact) approximate = true;
-      const auto opt_ms = [](Nanos x) {
-        return x < 0 ? std::string("-") : ms(static_cast<double>(x));
-      };
-      ids.add({bus_name(s.bus, options.bus_names), format_id(s.id, s.extended),
-               format_node(r.node_map, s.node), describe_function(r.node_map, s),
-               std::string(to_string(s.direction)),
-               fmt::format("{}{}", s.frames, s.exact_count ? "" : "+"),
-               fmt::format("{}", s.records),
-               ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.min)),
-               ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.p50)),
-               ms_or_dash(s.gap_ns, static_cast<double>(s.gap_ns.max)),
-               ms_or_dash(s.gap_ns, s.gap_ns.mean), kind_of(s), opt_ms(v.period_ns),
-               opt_ms(v.limit_ns), opt_ms(v.silence_ns),
-               std::string(to_string(v.traffic)) + (v.overdue ? " (overdue)" : "")});
-    }
-    out += ids.str();
-    if (approximate) {
-      out += "(gap percentiles are upper bounds within 3.1%; min, max and mean are exact)\n";
-    }
+    out += ids_table(r, options);
   }
   return out;
 }
@@ -275,6 +295,123 @@ void write_us(exporter::JsonWriter& w, const StatsSummary& s) {
   w.end_object();
 }
 
+void write_limits(exporter::JsonWriter& w, const CanSnapshot& s) {
+  w.begin_object();
+  w.field("max_ids", s.max_ids).field("max_nodes", s.max_nodes);
+  w.field("unaggregated_id_records", s.unaggregated_id_records);
+  w.field("unaggregated_node_records", s.unaggregated_node_records);
+  w.end_object();
+}
+
+void write_category(exporter::JsonWriter& w, const CategoryStats& c) {
+  w.begin_object();
+  w.field("category", c.name).field("group", c.group).field("direction", to_string(c.direction));
+  w.field("nodes", c.nodes).field("frames", c.frames).field("remote_frames", c.remote_frames);
+  w.field("records", c.records);
+  w.key("io_us");
+  write_us(w, c.io_ns);
+  w.key("gap_us");
+  write_us(w, c.gap_ns);
+  w.end_object();
+}
+
+void write_node(exporter::JsonWriter& w, const CanReport& r, const NodeReport& n,
+                const std::vector<std::string>& bus_names) {
+  w.begin_object();
+  if (n.bus) {
+    w.field("bus", *n.bus).field("bus_name", bus_name(*n.bus, bus_names));
+  } else {
+    w.key("bus").null().key("bus_name").null();
+  }
+  if (n.is_node()) {
+    w.field("node", n.node);
+  } else {
+    w.key("node").null();
+  }
+  w.field("name", n.name).field("named", n.named);
+  w.field("expected", n.expected).field("liveness", to_string(n.liveness));
+  w.key("groups").begin_array();
+  for (const std::string& g : n.groups) w.value(g);
+  w.end_array();
+  write_status(w, n.status);
+  optional_ns(w, "silence_ns", n.silence_ns);
+  optional_ns(w, "silence_limit_ns", n.silence_limit_ns);
+  if (n.silence_limit_ns < 0) {
+    w.key("limit").null();
+  } else {
+    w.field("limit", n.limit_learned ? "learned" : "configured");
+  }
+  if (n.limit_id >= 0) {
+    const IdStats& s = r.snapshot.ids[static_cast<std::size_t>(n.limit_id)];
+    w.field("limit_id", format_id(s.id, s.extended));
+  } else {
+    w.key("limit_id").null();
+  }
+  w.field("to_node_frames", n.to_node_frames);
+  optional_ns(w, "unanswered_ns", n.unanswered_ns);
+  w.key("rx");
+  if (n.rx) {
+    write_node_stats(w, *n.rx);
+  } else {
+    w.null();
+  }
+  w.key("tx");
+  if (n.tx) {
+    write_node_stats(w, *n.tx);
+  } else {
+    w.null();
+  }
+  w.end_object();
+}
+
+// The id `s` with its verdict `v`.
+void write_id(exporter::JsonWriter& w, NodeMapKind node_map, const IdStats& s, const IdVerdict& v,
+              const std::vector<std::string>& bus_names) {
+  w.begin_object();
+  w.field("bus", s.bus).field("bus_name", bus_name(s.bus, bus_names));
+  w.field("id", format_id(s.id, s.extended)).field("id_value", s.id);
+  w.field("extended", s.extended).field("kind", kind_of(s));
+  w.field("direction", to_string(s.direction));
+  if (s.node == kNoNode) {
+    w.key("node").null();
+  } else {
+    w.field("node", s.node);
+  }
+  w.field("function", s.function);
+  w.field("function_name", describe_function(node_map, s));
+  if (s.peer == kNoNode) {
+    w.key("peer").null();
+  } else {
+    w.field("peer", s.peer);
+  }
+  w.field("to_node", (s.flags & node_flags::kToNode) != 0);
+  w.field("request", s.request()).field("response", (s.flags & node_flags::kResponse) != 0);
+  w.field("traffic", to_string(v.traffic));
+  optional_ns(w, "period_ns", v.period_ns);
+  optional_ns(w, "silence_limit_ns", v.limit_ns);
+  optional_ns(w, "silence_ns", v.silence_ns);
+  w.field("overdue", v.overdue);
+  w.field("frames", s.frames).field("exact_count", s.exact_count).field("records", s.records);
+  w.field("first_ns", s.first_ns).field("last_ns", s.last_ns);
+  w.key("io_ns");
+  write_summary(w, s.io_ns);
+  w.key("gap_ns");
+  write_summary(w, s.gap_ns);
+  w.field("gap_exact", s.gap_exact);
+  w.end_object();
+}
+
+void write_sniffer(exporter::JsonWriter& w, const SnifferInfo& s) {
+  w.begin_object();
+  w.field("port_id", s.port_id).field("name", s.name).field("alive", s.alive);
+  w.field("node_map", to_string(s.node_map)).field("filter", s.filter);
+  w.field("ids", s.ids).field("max_ids", s.max_ids).field("nodes", s.nodes);
+  w.field("max_nodes", s.max_nodes).field("port_capacity", s.port_capacity);
+  w.key("totals");
+  write_totals(w, s.totals);
+  w.end_object();
+}
+
 }  // namespace
 
 void write_can_report_members(exporter::JsonWriter& w, const CanReport& r,
@@ -287,126 +424,22 @@ void write_can_report_members(exporter::JsonWriter& w, const CanReport& r,
   w.field("learning_count", r.learning_count());
   w.key("totals");
   write_totals(w, r.snapshot.totals);
-  w.key("limits").begin_object();
-  w.field("max_ids", r.snapshot.max_ids).field("max_nodes", r.snapshot.max_nodes);
-  w.field("unaggregated_id_records", r.snapshot.unaggregated_id_records);
-  w.field("unaggregated_node_records", r.snapshot.unaggregated_node_records);
-  w.end_object();
-
+  w.key("limits");
+  write_limits(w, r.snapshot);
   w.key("summary").begin_array();
-  for (const CategoryStats& c : r.snapshot.categories) {
-    w.begin_object();
-    w.field("category", c.name).field("group", c.group).field("direction", to_string(c.direction));
-    w.field("nodes", c.nodes).field("frames", c.frames).field("remote_frames", c.remote_frames);
-    w.field("records", c.records);
-    w.key("io_us");
-    write_us(w, c.io_ns);
-    w.key("gap_us");
-    write_us(w, c.gap_ns);
-    w.end_object();
-  }
+  for (const CategoryStats& c : r.snapshot.categories) write_category(w, c);
   w.end_array();
-
   w.key("nodes").begin_array();
-  for (const NodeReport& n : r.nodes) {
-    w.begin_object();
-    if (n.bus) {
-      w.field("bus", *n.bus).field("bus_name", bus_name(*n.bus, bus_names));
-    } else {
-      w.key("bus").null().key("bus_name").null();
-    }
-    if (n.is_node()) {
-      w.field("node", n.node);
-    } else {
-      w.key("node").null();
-    }
-    w.field("name", n.name).field("named", n.named);
-    w.field("expected", n.expected).field("liveness", to_string(n.liveness));
-    w.key("groups").begin_array();
-    for (const std::string& g : n.groups) w.value(g);
-    w.end_array();
-    write_status(w, n.status);
-    optional_ns(w, "silence_ns", n.silence_ns);
-    optional_ns(w, "silence_limit_ns", n.silence_limit_ns);
-    if (n.silence_limit_ns < 0) {
-      w.key("limit").null();
-    } else {
-      w.field("limit", n.limit_learned ? "learned" : "configured");
-    }
-    if (n.limit_id >= 0) {
-      const IdStats& s = r.snapshot.ids[static_cast<std::size_t>(n.limit_id)];
-      w.field("limit_id", format_id(s.id, s.extended));
-    } else {
-      w.key("limit_id").null();
-    }
-    w.field("to_node_frames", n.to_node_frames);
-    optional_ns(w, "unanswered_ns", n.unanswered_ns);
-    w.key("rx");
-    if (n.rx) {
-      write_node_stats(w, *n.rx);
-    } else {
-      w.null();
-    }
-    w.key("tx");
-    if (n.tx) {
-      write_node_stats(w, *n.tx);
-    } else {
-      w.null();
-    }
-    w.end_object();
-  }
+  for (const NodeReport& n : r.nodes) write_node(w, r, n, bus_names);
   w.end_array();
-
   w.key("ids").begin_array();
   for (std::size_t i = 0; i < r.snapshot.ids.size(); ++i) {
-    const IdStats& s = r.snapshot.ids[i];
-    const IdVerdict v = i < r.ids.size() ? r.ids[i] : IdVerdict{};
-    w.begin_object();
-    w.field("bus", s.bus).field("bus_name", bus_name(s.bus, bus_names));
-    w.field("id", format_id(s.id, s.extended)).field("id_value", s.id);
-    w.field("extended", s.extended).field("kind", kind_of(s));
-    w.field("direction", to_string(s.direction));
-    if (s.node == kNoNode) {
-      w.key("node").null();
-    } else {
-      w.field("node", s.node);
-    }
-    w.field("function", s.function);
-    w.field("function_name", describe_function(r.node_map, s));
-    if (s.peer == kNoNode) {
-      w.key("peer").null();
-    } else {
-      w.field("peer", s.peer);
-    }
-    w.field("to_node", (s.flags & node_flags::kToNode) != 0);
-    w.field("request", s.request()).field("response", (s.flags & node_flags::kResponse) != 0);
-    w.field("traffic", to_string(v.traffic));
-    optional_ns(w, "period_ns", v.period_ns);
-    optional_ns(w, "silence_limit_ns", v.limit_ns);
-    optional_ns(w, "silence_ns", v.silence_ns);
-    w.field("overdue", v.overdue);
-    w.field("frames", s.frames).field("exact_count", s.exact_count).field("records", s.records);
-    w.field("first_ns", s.first_ns).field("last_ns", s.last_ns);
-    w.key("io_ns");
-    write_summary(w, s.io_ns);
-    w.key("gap_ns");
-    write_summary(w, s.gap_ns);
-    w.field("gap_exact", s.gap_exact);
-    w.end_object();
+    write_id(w, r.node_map, r.snapshot.ids[i], i < r.ids.size() ? r.ids[i] : IdVerdict{},
+             bus_names);
   }
   w.end_array();
-
   w.key("sniffers").begin_array();
-  for (const SnifferInfo& s : r.snapshot.sniffers) {
-    w.begin_object();
-    w.field("port_id", s.port_id).field("name", s.name).field("alive", s.alive);
-    w.field("node_map", to_string(s.node_map)).field("filter", s.filter);
-    w.field("ids", s.ids).field("max_ids", s.max_ids).field("nodes", s.nodes);
-    w.field("max_nodes", s.max_nodes).field("port_capacity", s.port_capacity);
-    w.key("totals");
-    write_totals(w, s.totals);
-    w.end_object();
-  }
+  for (const SnifferInfo& s : r.snapshot.sniffers) write_sniffer(w, s);
   w.end_array();
 }
 

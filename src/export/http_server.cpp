@@ -277,6 +277,32 @@ struct Published {
   }
 };
 
+// The JSON documents of a snapshot, each rendered at most once per snapshot.
+struct JsonDocument {
+  std::string_view path;
+  const std::string& (*body)(const Published&);
+};
+
+const JsonDocument kJsonDocuments[] = {
+    {"/api/v1/reports",
+     [](const Published& p) -> const std::string& {
+       return p.get(p.reports, [&] { return to_json(p.snap->reports); });
+     }},
+    {"/api/v1/diagnostics",
+     [](const Published& p) -> const std::string& {
+       return p.get(p.diagnostics,
+                    [&] { return to_diagnostics_json(p.snap->reports, p.snap->wall_time_ns); });
+     }},
+    {"/api/v1/histograms",
+     [](const Published& p) -> const std::string& {
+       return p.get(p.histograms, [&] { return histograms_json(*p.snap); });
+     }},
+    {"/api/v1/history",
+     [](const Published& p) -> const std::string& {
+       return p.get(p.history, [&] { return history_json(*p.snap); });
+     }},
+};
+
 constexpr int kListenBacklog = 128;
 constexpr const char* kJson = "application/json; charset=utf-8";
 constexpr const char* kText = "text/plain; charset=utf-8";
@@ -477,6 +503,14 @@ struct HttpServer::Impl {
   void handle(const detail::HttpRequest& req, detail::HttpResponse& res);
   void route(const detail::HttpRequest& req, detail::HttpResponse& res);
   bool json_503(detail::HttpResponse& res, const std::shared_ptr<const Published>& p) const;
+  // The routes, in the order route() tries them; those that return bool say whether `path` was
+  // theirs.
+  void clear_faults(const detail::HttpRequest& req, detail::HttpResponse& res);
+  bool dashboard_file(const std::string& path, detail::HttpResponse& res) const;
+  void metrics(const detail::HttpRequest& req, detail::HttpResponse& res) const;
+  bool json_document(const std::string& path, detail::HttpResponse& res) const;
+  void report_of(const std::string& name, detail::HttpResponse& res) const;
+  void trace_of(const std::string& name, detail::HttpResponse& res) const;
   void events(const detail::HttpRequest& req, detail::HttpResponse& res);
   void healthz(detail::HttpResponse& res);
 };
@@ -611,99 +645,18 @@ bool HttpServer::Impl::json_503(detail::HttpResponse& res,
 void HttpServer::Impl::route(const detail::HttpRequest& req, detail::HttpResponse& res) {
   const std::string& path = req.path;
   if (req.method == "POST") {  // handle() let only POST /api/v1/clear through, when enabled
-    if (req.header("X-Vigil-Clear") != "1") {
-      res.status = 403;
-      res.set(error_json("POST /api/v1/clear needs the header X-Vigil-Clear: 1"), kJson);
-      return;
-    }
-    const std::string* name = req.param("component");
-    const std::size_t n = options.clear(name != nullptr ? *name : std::string());
-    res.set(fmt::format(R"({{"cleared":{}}})", n) + "\n", kJson);
+    clear_faults(req, res);
     return;
   }
-
-  // The dashboard and its files.
-  if (path == "/") {
-    res.headers.emplace_back(
-        "Content-Security-Policy",
-        "default-src 'self'; style-src 'self' 'unsafe-inline'; img-src 'self' data:; "
-        "frame-ancestors 'none'");
-    res.set(page, "text/html; charset=utf-8");
-    return;
-  }
-  if (options.dashboard) {
-    if (path == "/static/dashboard.js") {
-      res.set(std::string(detail::kDashboardJs), "text/javascript; charset=utf-8");
-      return;
-    }
-    if (path == "/static/dashboard.css") {
-      res.set(std::string(detail::kDashboardCss), "text/css; charset=utf-8");
-      return;
-    }
-    if (path == "/static/chart.js" && !detail::kChartJs.empty()) {
-      res.headers.emplace_back("Cache-Control", "max-age=86400");
-      res.set(std::string(detail::kChartJs), "text/javascript; charset=utf-8");
-      return;
-    }
-  }
-
+  if (dashboard_file(path, res)) return;
   if (path == "/metrics") {
-    const ExpositionFormat f = negotiate_format(req.header("Accept"));
-    auto p = published();
-    if (!p) {
-      res.set(render_metrics(MetricsSnapshot{}, f), content_type(f));
-      return;
-    }
-    const std::string& body =
-        f == ExpositionFormat::OpenMetrics
-            ? p->get(p->openmetrics, [&] { return render_metrics(*p->snap, f); })
-            : p->get(p->prometheus, [&] { return render_metrics(*p->snap, f); });
-    res.set(body, content_type(f));
+    metrics(req, res);
     return;
   }
-
-  const auto json = [&](auto body_of) {
-    auto p = published();
-    if (json_503(res, p)) return;
-    res.set(body_of(*p), kJson);
-  };
-  if (path == "/api/v1/reports") {
-    json([](const Published& p) -> const std::string& {
-      return p.get(p.reports, [&] { return to_json(p.snap->reports); });
-    });
-    return;
-  }
-  if (path == "/api/v1/diagnostics") {
-    json([](const Published& p) -> const std::string& {
-      return p.get(p.diagnostics,
-                   [&] { return to_diagnostics_json(p.snap->reports, p.snap->wall_time_ns); });
-    });
-    return;
-  }
-  if (path == "/api/v1/histograms") {
-    json([](const Published& p) -> const std::string& {
-      return p.get(p.histograms, [&] { return histograms_json(*p.snap); });
-    });
-    return;
-  }
-  if (path == "/api/v1/history") {
-    json([](const Published& p) -> const std::string& {
-      return p.get(p.history, [&] { return history_json(*p.snap); });
-    });
-    return;
-  }
+  if (json_document(path, res)) return;
   constexpr std::string_view kReportOf = "/api/v1/reports/";
   if (path.size() > kReportOf.size() && path.starts_with(kReportOf)) {
-    auto p = published();
-    if (json_503(res, p)) return;
-    const std::string name = path.substr(kReportOf.size());
-    const Report* r = p->snap->reports.find(name);
-    if (r == nullptr) {
-      res.status = 404;
-      res.set(error_json("no component named '" + name + "'"), kJson);
-      return;
-    }
-    res.set(component_json(*p->snap, *r), kJson);
+    report_of(path.substr(kReportOf.size()), res);
     return;
   }
   if (path == "/api/v1/events" && options.events != nullptr) {
@@ -712,15 +665,7 @@ void HttpServer::Impl::route(const detail::HttpRequest& req, detail::HttpRespons
   }
   constexpr std::string_view kTraceOf = "/api/v1/trace/";
   if (options.trace && path.size() > kTraceOf.size() && path.starts_with(kTraceOf)) {
-    const std::string name = path.substr(kTraceOf.size());
-    auto body = options.trace(name);
-    if (!body) {
-      res.status = 404;
-      res.set(error_json("no component named '" + name + "'"), kJson);
-      return;
-    }
-    res.headers.emplace_back("Content-Disposition", "attachment; filename=\"vigil-trace.json\"");
-    res.set(std::move(*body), kJson);
+    trace_of(path.substr(kTraceOf.size()), res);
     return;
   }
   if (path == "/healthz") {
@@ -729,6 +674,90 @@ void HttpServer::Impl::route(const detail::HttpRequest& req, detail::HttpRespons
   }
   res.status = 404;
   res.set(error_text(404, path), kText);
+}
+
+void HttpServer::Impl::clear_faults(const detail::HttpRequest& req, detail::HttpResponse& res) {
+  if (req.header("X-Vigil-Clear") != "1") {
+    res.status = 403;
+    res.set(error_json("POST /api/v1/clear needs the header X-Vigil-Clear: 1"), kJson);
+    return;
+  }
+  const std::string* name = req.param("component");
+  const std::size_t n = options.clear(name != nullptr ? *name : std::string());
+  res.set(fmt::format(R"({{"cleared":{}}})", n) + "\n", kJson);
+}
+
+bool HttpServer::Impl::dashboard_file(const std::string& path, detail::HttpResponse& res) const {
+  if (path == "/") {
+    res.headers.emplace_back(
+        "Content-Security-Policy",
+        "default-src 'self'; style-src 'self' 'unsafe-inline'; img-src 'self' data:; "
+        "frame-ancestors 'none'");
+    res.set(page, "text/html; charset=utf-8");
+    return true;
+  }
+  if (!options.dashboard) return false;
+  if (path == "/static/dashboard.js") {
+    res.set(std::string(detail::kDashboardJs), "text/javascript; charset=utf-8");
+    return true;
+  }
+  if (path == "/static/dashboard.css") {
+    res.set(std::string(detail::kDashboardCss), "text/css; charset=utf-8");
+    return true;
+  }
+  if (path == "/static/chart.js" && !detail::kChartJs.empty()) {
+    res.headers.emplace_back("Cache-Control", "max-age=86400");
+    res.set(std::string(detail::kChartJs), "text/javascript; charset=utf-8");
+    return true;
+  }
+  return false;
+}
+
+void HttpServer::Impl::metrics(const detail::HttpRequest& req, detail::HttpResponse& res) const {
+  const ExpositionFormat f = negotiate_format(req.header("Accept"));
+  auto p = published();
+  if (!p) {
+    res.set(render_metrics(MetricsSnapshot{}, f), content_type(f));
+    return;
+  }
+  const std::string& body =
+      f == ExpositionFormat::OpenMetrics
+          ? p->get(p->openmetrics, [&] { return render_metrics(*p->snap, f); })
+          : p->get(p->prometheus, [&] { return render_metrics(*p->snap, f); });
+  res.set(body, content_type(f));
+}
+
+bool HttpServer::Impl::json_document(const std::string& path, detail::HttpResponse& res) const {
+  for (const JsonDocument& d : kJsonDocuments) {
+    if (path != d.path) continue;
+    auto p = published();
+    if (!json_503(res, p)) res.set(d.body(*p), kJson);
+    return true;
+  }
+  return false;
+}
+
+void HttpServer::Impl::report_of(const std::string& name, detail::HttpResponse& res) const {
+  auto p = published();
+  if (json_503(res, p)) return;
+  const Report* r = p->snap->reports.find(name);
+  if (r == nullptr) {
+    res.status = 404;
+    res.set(error_json("no component named '" + name + "'"), kJson);
+    return;
+  }
+  res.set(component_json(*p->snap, *r), kJson);
+}
+
+void HttpServer::Impl::trace_of(const std::string& name, detail::HttpResponse& res) const {
+  auto body = options.trace(name);
+  if (!body) {
+    res.status = 404;
+    res.set(error_json("no component named '" + name + "'"), kJson);
+    return;
+  }
+  res.headers.emplace_back("Content-Disposition", "attachment; filename=\"vigil-trace.json\"");
+  res.set(std::move(*body), kJson);
 }
 
 void HttpServer::Impl::events(const detail::HttpRequest& req, detail::HttpResponse& res) {

@@ -55,10 +55,94 @@ void write_thread(JsonWriter& w, const platform::ThreadStats& t) {
   w.end_object();
 }
 
-}  // namespace
-
-void write_json(JsonWriter& w, const Report& r) {
+void write_counters(JsonWriter& w, const Report& r) {
   w.begin_object();
+  w.field("cycles", r.counters.cycles);
+  w.field("samples", r.samples);
+  w.field("overruns", r.counters.overruns);
+  w.field("missed_cycles", r.counters.missed_cycles);
+  w.field("rt_losses", r.counters.total_losses());
+  w.key("rt_losses_by_cause");
+  write_losses(w, r.counters.losses);
+  w.field("exceptions", r.counters.exceptions);
+  w.field("dropped", r.counters.dropped);
+  w.end_object();
+}
+
+void write_window(JsonWriter& w, const monitor::Window& window) {
+  w.begin_object();
+  w.field("first", window.first);
+  w.field("duration_ns", window.duration_ns);
+  w.field("cycles", window.cycles);
+  w.field("overruns", window.overruns);
+  w.field("missed_cycles", window.missed_cycles);
+  w.field("rt_losses", window.total_losses());
+  w.key("rt_losses_by_cause");
+  write_losses(w, window.losses);
+  w.field("exceptions", window.exceptions);
+  w.field("dropped", window.dropped);
+  w.end_object();
+}
+
+void write_warmup(JsonWriter& w, const Report& r) {
+  w.begin_object();
+  w.field("cycles", r.warmup_cycles);
+  w.field("overruns", r.warmup.overruns);
+  w.field("missed_cycles", r.warmup.missed_cycles);
+  w.field("rt_losses", r.warmup.total_losses());
+  w.field("exceptions", r.warmup.exceptions);
+  w.end_object();
+}
+
+// The latched fault; its fields are empty or 0 while none is latched.
+void write_latch(JsonWriter& w, const supervisor::LatchedFault& latch) {
+  w.begin_object();
+  w.field("active", latch.active);
+  w.field("first_kind", latch.active ? to_string(latch.first_kind) : "");
+  w.field("first_detail", latch.active ? latch.first_detail : std::string());
+  w.field("last_kind", latch.active ? to_string(latch.last_kind) : "");
+  w.field("first_ns", latch.active ? latch.first_ns : 0);
+  w.field("last_ns", latch.active ? latch.last_ns : 0);
+  w.field("count", latch.active ? latch.count : 0);
+  w.field("raised", latch.raised);
+  w.field("cleared", latch.cleared);
+  w.end_object();
+}
+
+void write_timing(JsonWriter& w, const Report& r) {
+  w.begin_object();
+  w.key("user_ns");
+  write_json(w, r.user_ns);
+  w.key("total_ns");
+  write_json(w, r.total_ns);
+  w.key("latency_ns");
+  write_json(w, r.latency_ns);
+  w.key("period_ns");
+  write_json(w, r.measured_period_ns);
+  w.key("overhead_ns");
+  write_json(w, r.overhead_ns);
+  w.field("overhead_share", r.overhead_share);
+  w.key("silence_ns");
+  if (r.silence_ns >= 0) {
+    w.value(r.silence_ns);
+  } else {
+    w.null();
+  }
+  w.end_object();
+}
+
+void write_exception(JsonWriter& w, const monitor::ExceptionInfo& e) {
+  w.begin_object();
+  w.field("count", e.count);
+  w.field("type", e.type);
+  w.field("message", e.message);
+  w.field("hook", to_string(e.hook));
+  w.field("cycle", e.cycle);
+  w.end_object();
+}
+
+// Name, kind, status with its messages, identity and placement.
+void write_identity(JsonWriter& w, const Report& r) {
   w.field("name", r.name);
   w.field("kind", to_string(r.kind));
   w.field("id", r.id);
@@ -83,100 +167,42 @@ void write_json(JsonWriter& w, const Report& r) {
   w.field("tid", r.tid);
   w.field("tasks_on_thread", r.tasks_on_thread);
   w.field("period_ns", r.period_ns);
+}
 
-  w.key("counters").begin_object();
-  w.field("cycles", r.counters.cycles);
-  w.field("samples", r.samples);
-  w.field("overruns", r.counters.overruns);
-  w.field("missed_cycles", r.counters.missed_cycles);
-  w.field("rt_losses", r.counters.total_losses());
-  w.key("rt_losses_by_cause");
-  write_losses(w, r.counters.losses);
-  w.field("exceptions", r.counters.exceptions);
-  w.field("dropped", r.counters.dropped);
-  w.end_object();
+}  // namespace
 
-  w.key("window").begin_object();
-  w.field("first", r.window.first);
-  w.field("duration_ns", r.window.duration_ns);
-  w.field("cycles", r.window.cycles);
-  w.field("overruns", r.window.overruns);
-  w.field("missed_cycles", r.window.missed_cycles);
-  w.field("rt_losses", r.window.total_losses());
-  w.key("rt_losses_by_cause");
-  write_losses(w, r.window.losses);
-  w.field("exceptions", r.window.exceptions);
-  w.field("dropped", r.window.dropped);
-  w.end_object();
-
-  w.key("warmup").begin_object();
-  w.field("cycles", r.warmup_cycles);
-  w.field("overruns", r.warmup.overruns);
-  w.field("missed_cycles", r.warmup.missed_cycles);
-  w.field("rt_losses", r.warmup.total_losses());
-  w.field("exceptions", r.warmup.exceptions);
-  w.end_object();
-
-  w.key("latch").begin_object();
-  w.field("active", r.latch.active);
-  w.field("first_kind", r.latch.active ? to_string(r.latch.first_kind) : "");
-  w.field("first_detail", r.latch.active ? r.latch.first_detail : std::string());
-  w.field("last_kind", r.latch.active ? to_string(r.latch.last_kind) : "");
-  w.field("first_ns", r.latch.active ? r.latch.first_ns : 0);
-  w.field("last_ns", r.latch.active ? r.latch.last_ns : 0);
-  w.field("count", r.latch.active ? r.latch.count : 0);
-  w.field("raised", r.latch.raised);
-  w.field("cleared", r.latch.cleared);
-  w.end_object();
+void write_json(JsonWriter& w, const Report& r) {
+  w.begin_object();
+  write_identity(w, r);
+  w.key("counters");
+  write_counters(w, r);
+  w.key("window");
+  write_window(w, r.window);
+  w.key("warmup");
+  write_warmup(w, r);
+  w.key("latch");
+  write_latch(w, r.latch);
   w.field("events", r.events);
   w.field("deadline_ns", r.deadline_ns);
   w.field("deadline_misses", r.deadline_misses);
-
-  w.key("timing").begin_object();
-  w.key("user_ns");
-  write_json(w, r.user_ns);
-  w.key("total_ns");
-  write_json(w, r.total_ns);
-  w.key("latency_ns");
-  write_json(w, r.latency_ns);
-  w.key("period_ns");
-  write_json(w, r.measured_period_ns);
-  w.key("overhead_ns");
-  write_json(w, r.overhead_ns);
-  w.field("overhead_share", r.overhead_share);
-  w.key("silence_ns");
-  if (r.silence_ns >= 0) {
-    w.value(r.silence_ns);
-  } else {
-    w.null();
-  }
-  w.end_object();
-
+  w.key("timing");
+  write_timing(w, r);
   w.key("port").begin_object();
   w.field("capacity", r.port_capacity);
   w.field("high_water", r.port_high_water);
   w.end_object();
-
   w.key("exception");
   if (r.has_exception) {
-    w.begin_object();
-    w.field("count", r.exception.count);
-    w.field("type", r.exception.type);
-    w.field("message", r.exception.message);
-    w.field("hook", to_string(r.exception.hook));
-    w.field("cycle", r.exception.cycle);
-    w.end_object();
+    write_exception(w, r.exception);
   } else {
     w.null();
   }
-
   w.key("thread");
   if (r.thread) {
     write_thread(w, *r.thread);
   } else {
     w.null();
   }
-
   w.key("values").begin_array();
   for (const auto& kv : r.values) {
     w.begin_object().field("key", kv.key).field("value", kv.value).end_object();

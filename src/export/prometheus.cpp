@@ -219,8 +219,6 @@ constexpr std::array<TaskState, 5> kStates = {TaskState::PreOperational, TaskSta
                                               TaskState::Running, TaskState::Exception,
                                               TaskState::FatalError};
 
-bool is(const Report& r, ReportKind k) { return r.kind == k; }
-
 }  // namespace
 
 // --- public helpers ----------------------------------------------------------------------------
@@ -315,66 +313,80 @@ std::string render_metrics(const MetricsSnapshot& snapshot, ExpositionFormat for
   return out;
 }
 
-void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFormat format) {
-  out.reserve(out.size() + 512 + snap.reports.components.size() * 9000);
-  Writer w(out, format);
-  const auto& reports = snap.reports.components;
-  const auto each = [&](auto&& pred, auto&& fn) {
-    for (const Report& r : reports) {
+namespace {
+
+// --- the sections: one writer per group of families, in the order they are exposed ------------
+
+bool any_report(const Report&) { return true; }
+bool is_component(const Report& r) { return r.kind == ReportKind::Component; }
+bool has_thread(const Report& r) { return r.thread.has_value(); }
+bool is_supervisor(const Report& r) { return r.kind == ReportKind::Supervisor; }
+bool is_monitor(const Report& r) { return r.kind == ReportKind::Monitor; }
+bool is_can_node(const Report& r) { return r.kind == ReportKind::CanNode; }
+bool is_can_group(const Report& r) { return r.kind == ReportKind::CanGroup; }
+
+// What a section writer reads and writes.
+struct Section {
+  Writer& w;
+  const MetricsSnapshot& snap;
+
+  // `fn(r)` for each report `r` that `pred` accepts, in the snapshot's order.
+  template <class Pred, class Fn>
+  void each(Pred pred, Fn fn) const {
+    for (const Report& r : snap.reports.components) {
       if (pred(r)) fn(r);
     }
-  };
-  const auto any = [](const Report&) { return true; };
-  const auto component = [](const Report& r) { return is(r, ReportKind::Component); };
-  const auto has_thread = [](const Report& r) { return r.thread.has_value(); };
-  const auto supervisor = [](const Report& r) { return is(r, ReportKind::Supervisor); };
-  const auto monitor = [](const Report& r) { return is(r, ReportKind::Monitor); };
-  const auto can_node = [](const Report& r) { return is(r, ReportKind::CanNode); };
-  const auto can_group = [](const Report& r) { return is(r, ReportKind::CanGroup); };
+  }
+};
 
-  // --- the process ---
+void process_families(const Section& s) {
+  Writer& w = s.w;
   w.family("vigil_build_info", Type::Info, "vigil's version (value 1).");
   w.sample("vigil_build_info", {}, {{"version", kVersion}}, 1);
   w.family("vigil_report_timestamp_seconds", Type::Gauge,
            "Unix time at which the monitor published the reports served.");
-  w.sample("vigil_report_timestamp_seconds", {}, {}, static_cast<double>(snap.wall_time_ns) / 1e9);
+  w.sample("vigil_report_timestamp_seconds", {}, {},
+           static_cast<double>(s.snap.wall_time_ns) / 1e9);
   w.family("vigil_reports", Type::Gauge, "Reports served, by kind of report.");
-  {
-    std::array<std::uint64_t, 5> n{};
-    for (const Report& r : reports) ++n[static_cast<std::size_t>(r.kind)];
-    for (ReportKind k : {ReportKind::Component, ReportKind::Supervisor, ReportKind::Monitor,
-                         ReportKind::CanNode, ReportKind::CanGroup}) {
-      w.sample_u("vigil_reports", {}, {{"kind", to_string(k)}}, n[static_cast<std::size_t>(k)]);
-    }
+  std::array<std::uint64_t, 5> n{};
+  for (const Report& r : s.snap.reports.components) ++n[static_cast<std::size_t>(r.kind)];
+  for (ReportKind k : {ReportKind::Component, ReportKind::Supervisor, ReportKind::Monitor,
+                       ReportKind::CanNode, ReportKind::CanGroup}) {
+    w.sample_u("vigil_reports", {}, {{"kind", to_string(k)}}, n[static_cast<std::size_t>(k)]);
   }
+}
 
-  // --- every report: status and state ---
+// Every report: status and state.
+void status_families(const Section& s) {
+  Writer& w = s.w;
   w.family("vigil_component_status", Type::Gauge,
            "Status of a component (or of the supervisor, monitor, CAN node or group): "
            "0 OK, 1 WARN, 2 ERROR, 3 STALE.");
-  each(any, [&](const Report& r) {
+  s.each(any_report, [&](const Report& r) {
     w.sample_u("vigil_component_status", r.name, {{"kind", to_string(r.kind)}},
                static_cast<std::uint64_t>(r.status.level()));
   });
   w.family("vigil_component_state", Type::Gauge,
            "Lifecycle state: 1 for the current one. Components have one series per state; CAN "
            "nodes and groups one for their state in words.");
-  each(any, [&](const Report& r) {
+  s.each(any_report, [&](const Report& r) {
     const char* kind = to_string(r.kind);
     if (!r.state_label.empty()) {
       w.sample_u("vigil_component_state", r.name, {{"kind", kind}, {"state", r.state_label}}, 1);
       return;
     }
-    for (TaskState s : kStates) {
-      w.sample_u("vigil_component_state", r.name, {{"kind", kind}, {"state", to_string(s)}},
-                 r.state == s ? 1 : 0);
+    for (TaskState st : kStates) {
+      w.sample_u("vigil_component_state", r.name, {{"kind", kind}, {"state", to_string(st)}},
+                 r.state == st ? 1 : 0);
     }
   });
+}
 
-  // --- components ---
+void component_placement_families(const Section& s) {
+  Writer& w = s.w;
   w.family("vigil_component_info", Type::Info,
            "Placement of a component (value 1): activity, scheduling policy and priority, CPU.");
-  each(component, [&](const Report& r) {
+  s.each(is_component, [&](const Report& r) {
     const std::string prio = std::to_string(r.priority);
     const std::string cpu = std::to_string(r.cpu);
     w.sample("vigil_component_info", r.name,
@@ -387,121 +399,150 @@ void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFor
   });
   w.family("vigil_component_alive", Type::Gauge,
            "1 while the component is registered, 0 once it left (reported for a while).");
-  each(component,
-       [&](const Report& r) { w.sample_u("vigil_component_alive", r.name, {}, r.alive); });
+  s.each(is_component,
+         [&](const Report& r) { w.sample_u("vigil_component_alive", r.name, {}, r.alive); });
   w.family("vigil_component_realtime_refused", Type::Gauge,
            "1 when SCHED_FIFO was asked for but refused, and the component runs SCHED_OTHER.");
-  each(component, [&](const Report& r) {
+  s.each(is_component, [&](const Report& r) {
     w.sample_u("vigil_component_realtime_refused", r.name, {}, r.realtime_refused);
   });
   w.family("vigil_component_period_seconds", Type::Gauge,
            "Configured period of the component; 0 when not periodic.");
-  each(component, [&](const Report& r) {
+  s.each(is_component, [&](const Report& r) {
     w.sample("vigil_component_period_seconds", r.name, {}, seconds(r.period_ns));
   });
   w.family("vigil_component_tasks_on_thread", Type::Gauge,
            "Alive components that share the component's thread, itself included.");
-  each(component, [&](const Report& r) {
+  s.each(is_component, [&](const Report& r) {
     w.sample_u("vigil_component_tasks_on_thread", r.name, {}, r.tasks_on_thread);
   });
+}
 
-  const auto counter = [&](std::string_view name, std::string_view help, auto get) {
-    w.family(name, Type::Counter, help);
-    each(component, [&](const Report& r) { w.sample_u(name, r.name, {}, get(r)); });
-  };
-  counter("vigil_component_cycles_total", "Cycles run (exact, even when samples were dropped).",
-          [](const Report& r) { return r.counters.cycles; });
-  counter("vigil_component_samples_total",
-          "Cycle samples the supervisor received (fewer than cycles when the port dropped some).",
-          [](const Report& r) { return r.samples; });
-  counter("vigil_component_overruns_total", "Cycles that ended after the next release.",
-          [](const Report& r) { return r.counters.overruns; });
-  counter("vigil_component_missed_cycles_total",
-          "Releases skipped or run late because of overruns.",
-          [](const Report& r) { return r.counters.missed_cycles; });
-  w.family("vigil_component_rt_losses_total", Type::Counter,
-           "Real-time losses detected in the component's update, by cause.");
-  each(component, [&](const Report& r) {
+// A counter family with one sample per component: `get(report)`.
+template <class Get>
+void component_counter(const Section& s, std::string_view name, std::string_view help, Get get) {
+  s.w.family(name, Type::Counter, help);
+  s.each(is_component, [&](const Report& r) { s.w.sample_u(name, r.name, {}, get(r)); });
+}
+
+void component_counter_families(const Section& s) {
+  component_counter(s, "vigil_component_cycles_total",
+                    "Cycles run (exact, even when samples were dropped).",
+                    [](const Report& r) { return r.counters.cycles; });
+  component_counter(
+      s, "vigil_component_samples_total",
+      "Cycle samples the supervisor received (fewer than cycles when the port dropped some).",
+      [](const Report& r) { return r.samples; });
+  component_counter(s, "vigil_component_overruns_total",
+                    "Cycles that ended after the next release.",
+                    [](const Report& r) { return r.counters.overruns; });
+  component_counter(s, "vigil_component_missed_cycles_total",
+                    "Releases skipped or run late because of overruns.",
+                    [](const Report& r) { return r.counters.missed_cycles; });
+  s.w.family("vigil_component_rt_losses_total", Type::Counter,
+             "Real-time losses detected in the component's update, by cause.");
+  s.each(is_component, [&](const Report& r) {
     for (int i = 0; i < task::kLossCauses; ++i) {
-      w.sample_u("vigil_component_rt_losses_total", r.name,
-                 {{"cause", platform::to_string(static_cast<platform::LossCause>(i))}},
-                 r.counters.losses[static_cast<std::size_t>(i)]);
+      s.w.sample_u("vigil_component_rt_losses_total", r.name,
+                   {{"cause", platform::to_string(static_cast<platform::LossCause>(i))}},
+                   r.counters.losses[static_cast<std::size_t>(i)]);
     }
   });
-  counter("vigil_component_exceptions_total", "Exceptions thrown by the component's hooks.",
-          [](const Report& r) { return r.counters.exceptions; });
-  counter("vigil_component_dropped_messages_total",
-          "Messages the component's port dropped because it was full (timing detail only).",
-          [](const Report& r) { return r.counters.dropped; });
+  component_counter(s, "vigil_component_exceptions_total",
+                    "Exceptions thrown by the component's hooks.",
+                    [](const Report& r) { return r.counters.exceptions; });
+  component_counter(
+      s, "vigil_component_dropped_messages_total",
+      "Messages the component's port dropped because it was full (timing detail only).",
+      [](const Report& r) { return r.counters.dropped; });
+}
 
-  const auto histogram = [&](std::string_view base, std::string_view help, auto pick_buckets,
-                             auto pick_stats) {
-    w.family(base, Type::Histogram, help);
-    each(component, [&](const Report& r) {
-      const ComponentHistograms* h = snap.histograms_of(r);
-      histogram_samples(w, base, r.name, h != nullptr ? &pick_buckets(*h) : nullptr, pick_stats(r));
-    });
-  };
-  histogram(
-      "vigil_component_execution_seconds", "Time spent in the component's on_update(), per cycle.",
+// A histogram family with one series per component: the buckets `pick_buckets(histograms)` when
+// the snapshot has them, else the count and sum of `pick_stats(report)`.
+template <class PickBuckets, class PickStats>
+void component_histogram(const Section& s, std::string_view base, std::string_view help,
+                         PickBuckets pick_buckets, PickStats pick_stats) {
+  s.w.family(base, Type::Histogram, help);
+  s.each(is_component, [&](const Report& r) {
+    const ComponentHistograms* h = s.snap.histograms_of(r);
+    histogram_samples(s.w, base, r.name, h != nullptr ? &pick_buckets(*h) : nullptr, pick_stats(r));
+  });
+}
+
+void component_histogram_families(const Section& s) {
+  component_histogram(
+      s, "vigil_component_execution_seconds",
+      "Time spent in the component's on_update(), per cycle.",
       [](const ComponentHistograms& h) -> const BucketCounts& { return h.execution; },
       [](const Report& r) -> const StatsSummary& { return r.user_ns; });
-  histogram(
-      "vigil_component_total_seconds",
+  component_histogram(
+      s, "vigil_component_total_seconds",
       "Time per cycle including supervision (on_update() plus the latest measured overhead).",
       [](const ComponentHistograms& h) -> const BucketCounts& { return h.total; },
       [](const Report& r) -> const StatsSummary& { return r.total_ns; });
-  histogram(
-      "vigil_component_wakeup_latency_seconds",
+  component_histogram(
+      s, "vigil_component_wakeup_latency_seconds",
       "Wake-up latency: start of a cycle minus its scheduled release.",
       [](const ComponentHistograms& h) -> const BucketCounts& { return h.latency; },
       [](const Report& r) -> const StatsSummary& { return r.latency_ns; });
-  histogram(
-      "vigil_component_cycle_period_seconds",
+  component_histogram(
+      s, "vigil_component_cycle_period_seconds",
       "Measured period: start-to-start time of consecutive cycles.",
       [](const ComponentHistograms& h) -> const BucketCounts& { return h.period; },
       [](const Report& r) -> const StatsSummary& { return r.measured_period_ns; });
+}
 
+// Supervision's share, silence and port of each component.
+void component_gauge_families(const Section& s) {
+  Writer& w = s.w;
   w.family("vigil_component_overhead_ratio", Type::Gauge,
            "Supervision's share of the component's cycle time (mean overhead / mean total).");
-  each(component, [&](const Report& r) {
+  s.each(is_component, [&](const Report& r) {
     w.sample("vigil_component_overhead_ratio", r.name, {}, r.overhead_share);
   });
   w.family("vigil_component_silence_seconds", Type::Gauge,
            "Time since the latest cycle of a running component arrived (absent when not running).");
-  each([](const Report& r) { return r.kind == ReportKind::Component && r.silence_ns >= 0; },
-       [&](const Report& r) {
-         w.sample("vigil_component_silence_seconds", r.name, {}, seconds(r.silence_ns));
-       });
+  s.each([](const Report& r) { return r.kind == ReportKind::Component && r.silence_ns >= 0; },
+         [&](const Report& r) {
+           w.sample("vigil_component_silence_seconds", r.name, {}, seconds(r.silence_ns));
+         });
   w.family("vigil_component_port_capacity", Type::Gauge,
            "Capacity of the component's message port, in messages.");
-  each(component, [&](const Report& r) {
+  s.each(is_component, [&](const Report& r) {
     w.sample_u("vigil_component_port_capacity", r.name, {}, r.port_capacity);
   });
   w.family("vigil_component_port_high_water", Type::Gauge,
            "Highest occupancy of the component's port seen at a drain, in messages.");
-  each(component, [&](const Report& r) {
+  s.each(is_component, [&](const Report& r) {
     w.sample_u("vigil_component_port_high_water", r.name, {}, r.port_high_water);
   });
+}
 
-  // --- the threads' OS counters (components and the monitor) ---
-  const auto thread_counter = [&](std::string_view name, std::string_view help, auto get) {
-    w.family(name, Type::Counter, help);
-    each(has_thread, [&](const Report& r) { w.sample_u(name, r.name, {}, get(*r.thread)); });
-  };
-  thread_counter("vigil_thread_voluntary_switches_total",
+// A counter family with one sample per known thread: `get(thread stats)`.
+template <class Get>
+void thread_counter(const Section& s, std::string_view name, std::string_view help, Get get) {
+  s.w.family(name, Type::Counter, help);
+  s.each(has_thread, [&](const Report& r) { s.w.sample_u(name, r.name, {}, get(*r.thread)); });
+}
+
+// The threads' OS counters (components and the monitor).
+void thread_families(const Section& s) {
+  Writer& w = s.w;
+  thread_counter(s, "vigil_thread_voluntary_switches_total",
                  "Voluntary context switches of the component's thread (it blocked).",
                  [](const platform::ThreadStats& t) { return t.voluntary_switches; });
-  thread_counter("vigil_thread_involuntary_switches_total",
+  thread_counter(s, "vigil_thread_involuntary_switches_total",
                  "Involuntary context switches of the component's thread (it was preempted).",
                  [](const platform::ThreadStats& t) { return t.involuntary_switches; });
-  thread_counter("vigil_thread_minor_faults_total", "Minor page faults of the component's thread.",
+  thread_counter(s, "vigil_thread_minor_faults_total",
+                 "Minor page faults of the component's thread.",
                  [](const platform::ThreadStats& t) { return t.minor_faults; });
-  thread_counter("vigil_thread_major_faults_total", "Major page faults of the component's thread.",
+  thread_counter(s, "vigil_thread_major_faults_total",
+                 "Major page faults of the component's thread.",
                  [](const platform::ThreadStats& t) { return t.major_faults; });
   w.family("vigil_thread_cpu_seconds_total", Type::Counter,
            "CPU time of the component's thread by mode (kernel tick resolution).");
-  each(has_thread, [&](const Report& r) {
+  s.each(has_thread, [&](const Report& r) {
     w.sample("vigil_thread_cpu_seconds_total", r.name, {{"mode", "user"}},
              seconds(r.thread->user_time_ns));
     w.sample("vigil_thread_cpu_seconds_total", r.name, {{"mode", "system"}},
@@ -509,81 +550,87 @@ void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFor
   });
   w.family("vigil_thread_primary_seconds_total", Type::Counter,
            "Xenomai Cobalt: time of the thread in primary mode (0 on Linux).");
-  each(has_thread, [&](const Report& r) {
+  s.each(has_thread, [&](const Report& r) {
     w.sample("vigil_thread_primary_seconds_total", r.name, {}, seconds(r.thread->primary_time_ns));
   });
-  thread_counter("vigil_thread_mode_switches_total",
+  thread_counter(s, "vigil_thread_mode_switches_total",
                  "Xenomai Cobalt: switches of the thread to secondary mode (0 on Linux).",
                  [](const platform::ThreadStats& t) { return t.mode_switches; });
   w.family("vigil_thread_last_cpu", Type::Gauge, "CPU the component's thread last ran on.");
-  each(has_thread, [&](const Report& r) {
+  s.each(has_thread, [&](const Report& r) {
     w.sample("vigil_thread_last_cpu", r.name, {}, static_cast<double>(r.thread->last_cpu));
   });
+}
 
-  // --- the supervisor ---
+void supervisor_families(const Section& s) {
+  Writer& w = s.w;
   w.family("vigil_supervisor_cycles_total", Type::Counter, "Drain cycles of the supervisor.");
-  each(supervisor, [&](const Report& r) {
+  s.each(is_supervisor, [&](const Report& r) {
     w.sample_u("vigil_supervisor_cycles_total", r.name, {}, r.counters.cycles);
   });
   w.family("vigil_supervisor_messages_total", Type::Counter,
            "Messages the supervisor drained from the components' ports.");
-  each(supervisor, [&](const Report& r) {
+  s.each(is_supervisor, [&](const Report& r) {
     if (auto n = value_u64(r, "messages"))
       w.sample_u("vigil_supervisor_messages_total", r.name, {}, *n);
   });
   w.family("vigil_supervisor_ports", Type::Gauge, "Ports the supervisor drains.");
-  each(supervisor, [&](const Report& r) {
+  s.each(is_supervisor, [&](const Report& r) {
     if (auto n = value_u64(r, "ports")) w.sample_u("vigil_supervisor_ports", r.name, {}, *n);
   });
   w.family("vigil_supervisor_port_high_water", Type::Gauge,
            "Highest port occupancy the supervisor saw at a drain, in messages.");
-  each(supervisor, [&](const Report& r) {
+  s.each(is_supervisor, [&](const Report& r) {
     w.sample_u("vigil_supervisor_port_high_water", r.name, {}, r.port_high_water);
   });
   w.family("vigil_supervisor_period_seconds", Type::Gauge, "Period of the supervisor's thread.");
-  each(supervisor, [&](const Report& r) {
+  s.each(is_supervisor, [&](const Report& r) {
     w.sample("vigil_supervisor_period_seconds", r.name, {}, seconds(r.period_ns));
   });
   w.family("vigil_supervisor_drain_seconds", Type::Summary,
            "Time of one supervisor cycle (draining every port).");
-  each(supervisor, [&](const Report& r) {
+  s.each(is_supervisor, [&](const Report& r) {
     summary_samples(w, "vigil_supervisor_drain_seconds", r.name, r.total_ns);
   });
+}
 
-  // --- the monitor ---
+void monitor_families(const Section& s) {
+  Writer& w = s.w;
   w.family("vigil_monitor_cycles_total", Type::Counter, "Cycles of the monitor.");
-  each(monitor, [&](const Report& r) {
+  s.each(is_monitor, [&](const Report& r) {
     w.sample_u("vigil_monitor_cycles_total", r.name, {}, r.counters.cycles);
   });
   w.family("vigil_monitor_period_seconds", Type::Gauge, "Period of the monitor's thread.");
-  each(monitor, [&](const Report& r) {
+  s.each(is_monitor, [&](const Report& r) {
     w.sample("vigil_monitor_period_seconds", r.name, {}, seconds(r.period_ns));
   });
   w.family("vigil_monitor_cycle_seconds", Type::Summary,
            "Time of one monitor cycle (checks on every component).");
-  each(monitor, [&](const Report& r) {
+  s.each(is_monitor, [&](const Report& r) {
     summary_samples(w, "vigil_monitor_cycle_seconds", r.name, r.total_ns);
   });
   w.family("vigil_monitor_components", Type::Gauge, "Components the monitor checked.");
-  each(monitor, [&](const Report& r) {
+  s.each(is_monitor, [&](const Report& r) {
     if (auto n = value_u64(r, "components")) w.sample_u("vigil_monitor_components", r.name, {}, *n);
   });
   w.family("vigil_monitor_checks", Type::Gauge, "Checks the monitor runs on every component.");
-  each(monitor, [&](const Report& r) {
+  s.each(is_monitor, [&](const Report& r) {
     if (auto n = value_u64(r, "checks")) w.sample_u("vigil_monitor_checks", r.name, {}, *n);
   });
   w.family("vigil_monitor_thresholds_generation", Type::Gauge,
            "Generation of the watched threshold file (0 when none is watched).");
-  each(monitor, [&](const Report& r) {
+  s.each(is_monitor, [&](const Report& r) {
     if (auto n = value_u64(r, "thresholds_generation")) {
       w.sample_u("vigil_monitor_thresholds_generation", r.name, {}, *n);
     }
   });
+}
 
-  // --- CAN nodes and groups ---
+void can_node_families(const Section& s) {
+  Writer& w = s.w;
   w.family("vigil_can_frames_total", Type::Counter,
            "CAN frames of a node by direction: rx (from the node), tx (to the node).");
-  each(can_node, [&](const Report& r) {
+  s.each(is_can_node, [&](const Report& r) {
     const auto rx = value_u64(r, "frames_rx");
     const auto tx = value_u64(r, "frames_tx");
     if (rx) w.sample_u("vigil_can_frames_total", r.name, {{"direction", "rx"}}, *rx);
@@ -592,8 +639,8 @@ void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFor
   w.family("vigil_can_gap_seconds", Type::Histogram,
            "Time between consecutive frames of a CAN node by direction: rx (from the node), tx "
            "(to the node).");
-  each(can_node, [&](const Report& r) {
-    const CanHistograms* h = snap.can_histograms_of(r);
+  s.each(is_can_node, [&](const Report& r) {
+    const CanHistograms* h = s.snap.can_histograms_of(r);
     // Without buckets (a publisher that collected none): the count and sum of the report's
     // receive gaps.
     const StatsSummary& rx = r.user_ns;
@@ -606,25 +653,29 @@ void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFor
   });
   w.family("vigil_can_read_seconds", Type::Summary,
            "Time of the read call that returned a CAN node's frame.");
-  each(can_node, [&](const Report& r) {
+  s.each(is_can_node, [&](const Report& r) {
     summary_samples(w, "vigil_can_read_seconds", r.name, r.latency_ns);
   });
   w.family("vigil_can_silence_seconds", Type::Gauge,
            "Time since the latest frame received from a CAN node (absent when never received).");
-  each([](const Report& r) { return r.kind == ReportKind::CanNode && r.silence_ns >= 0; },
-       [&](const Report& r) {
-         w.sample("vigil_can_silence_seconds", r.name, {}, seconds(r.silence_ns));
-       });
+  s.each([](const Report& r) { return r.kind == ReportKind::CanNode && r.silence_ns >= 0; },
+         [&](const Report& r) {
+           w.sample("vigil_can_silence_seconds", r.name, {}, seconds(r.silence_ns));
+         });
+}
+
+void can_group_families(const Section& s) {
+  Writer& w = s.w;
   w.family("vigil_can_group_frames_total", Type::Counter,
            "CAN frames of a group's nodes, both directions.");
-  each(can_group, [&](const Report& r) {
+  s.each(is_can_group, [&](const Report& r) {
     w.sample_u("vigil_can_group_frames_total", r.name, {}, r.counters.cycles);
   });
   w.family("vigil_can_group_gap_seconds", Type::Histogram,
            "Time between consecutive frames of each member of a CAN group, merged, by "
            "direction (absent when not collected).");
-  each(can_group, [&](const Report& r) {
-    const CanHistograms* h = snap.can_histograms_of(r);
+  s.each(is_can_group, [&](const Report& r) {
+    const CanHistograms* h = s.snap.can_histograms_of(r);
     if (h == nullptr) return;
     if (h->rx_gap) {
       direction_histogram_samples(w, "vigil_can_group_gap_seconds", r.name, "rx", &*h->rx_gap, 0,
@@ -635,7 +686,31 @@ void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFor
                                   0.0);
     }
   });
+}
 
+// Every family, section by section, in the order they are exposed.
+using SectionWriter = void (*)(const Section&);
+constexpr SectionWriter kSections[] = {
+    process_families,
+    status_families,
+    component_placement_families,
+    component_counter_families,
+    component_histogram_families,
+    component_gauge_families,
+    thread_families,
+    supervisor_families,
+    monitor_families,
+    can_node_families,
+    can_group_families,
+};
+
+}  // namespace
+
+void render_metrics(std::string& out, const MetricsSnapshot& snap, ExpositionFormat format) {
+  out.reserve(out.size() + 512 + snap.reports.components.size() * 9000);
+  Writer w(out, format);
+  const Section s{w, snap};
+  for (const SectionWriter write : kSections) write(s);
   w.end();
 }
 

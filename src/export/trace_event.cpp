@@ -39,6 +39,143 @@ void meta(exporter::JsonWriter& w, const char* what, int pid, int tid, const std
       .end_object();
 }
 
+// Where the events of a record go in the viewer: the component's process and thread.
+struct Track {
+  int pid = 0;
+  int tid = 0;
+};
+
+// Names the process and the thread (with the activity, policy, priority and period if known).
+void write_names(exporter::JsonWriter& w, const supervisor::FlightRecord& r, Track t) {
+  meta(w, "process_name", t.pid, t.tid, "vigil: " + r.component);
+  std::string thread = r.component;
+  if (r.has_info) {
+    thread += fmt::format(
+        " ({}, {} {}, period {} us)", r.info.activity.empty() ? "-" : r.info.activity.view(),
+        platform::to_string(r.info.policy), r.info.priority, r.info.period_ns / kNanosPerMicro);
+  }
+  meta(w, "thread_name", t.pid, t.tid, thread);
+}
+
+// One cycle: a mark for the cycles missing before it (`prev`: the cycle before it, or null), its
+// slice, and its latency and user time as counters.
+void write_cycle(exporter::JsonWriter& w, const supervisor::CycleRecord& c,
+                 const supervisor::CycleRecord* prev, Track t) {
+  const bool overrun = (c.flags & supervisor::CycleRecord::kOverrun) != 0;
+  if (prev != nullptr && c.cycle != prev->cycle + 1) {
+    w.begin_object()
+        .field("name", fmt::format("{} cycles missing (dropped)", c.cycle - prev->cycle - 1))
+        .field("ph", "i")
+        .field("s", "t")
+        .field("ts", us(c.start_ns))
+        .field("pid", t.pid)
+        .field("tid", t.tid)
+        .end_object();
+  }
+  w.begin_object();
+  w.field("name", overrun ? "cycle (overrun)" : "cycle");
+  w.field("cat", overrun ? "cycle,overrun" : "cycle");
+  w.field("ph", "X");
+  w.field("ts", us(c.start_ns));
+  w.field("dur", us(c.end_ns - c.start_ns));
+  w.field("pid", t.pid).field("tid", t.tid);
+  w.key("args").begin_object();
+  w.field("cycle", c.cycle);
+  w.field("release_us", us(c.release_ns));
+  w.field("latency_us", us(c.latency_ns()));
+  w.field("user_us", us(c.user_ns()));
+  w.field("overhead_us", us(c.overhead_ns));
+  w.field("overrun", overrun);
+  w.field("missed_before", c.missed_before);
+  w.field("warmup", (c.flags & supervisor::CycleRecord::kWarmup) != 0);
+  // Only on the rare records the flight ring could not keep to the nanosecond.
+  if ((c.flags & supervisor::CycleRecord::kCoarse) != 0) w.field("microsecond_precision", true);
+  if ((c.flags & supervisor::CycleRecord::kClipped) != 0) w.field("clipped", true);
+  w.field("state", to_string(c.state));
+  w.end_object();
+  w.end_object();
+  w.begin_object()
+      .field("name", "latency_us")
+      .field("ph", "C")
+      .field("ts", us(c.start_ns))
+      .field("pid", t.pid)
+      .key("args")
+      .begin_object()
+      .field("latency_us", us(c.latency_ns()))
+      .end_object()
+      .end_object();
+  w.begin_object()
+      .field("name", "user_us")
+      .field("ph", "C")
+      .field("ts", us(c.start_ns))
+      .field("pid", t.pid)
+      .key("args")
+      .begin_object()
+      .field("user_us", us(c.user_ns()))
+      .end_object()
+      .end_object();
+}
+
+// The fault that froze the record: for a deadline the silence before it, then the fault and its
+// detection as instants.
+void write_fault(exporter::JsonWriter& w, const supervisor::FlightRecord& r, Track t) {
+  const Event& e = r.event;
+  Nanos at = e.fault_ns;
+  if (at == 0 && !r.cycles.empty()) at = r.cycles.back().end_ns;
+  if (e.kind == EventKind::Deadline && !r.cycles.empty()) {
+    // The silence: from the last cycle's end to the detection.
+    const Nanos from = r.cycles.back().end_ns;
+    w.begin_object()
+        .field("name", "no cycle (silent)")
+        .field("cat", "fault")
+        .field("ph", "X")
+        .field("ts", us(from))
+        .field("dur", us(std::max<Nanos>(e.detected_ns - from, 0)))
+        .field("pid", t.pid)
+        .field("tid", t.tid)
+        .end_object();
+  }
+  w.begin_object();
+  w.field("name", fmt::format("{}: {}", to_string(e.kind), e.detail));
+  w.field("cat", "fault");
+  w.field("ph", "i");
+  w.field("s", "p");
+  w.field("ts", us(at));
+  w.field("pid", t.pid).field("tid", t.tid);
+  w.key("args").begin_object();
+  w.field("cycle", e.cycle);
+  w.field("severity", to_string(e.severity));
+  w.field("detected_us", us(e.detected_ns));
+  w.field("latency_us", us(e.latency_ns()));
+  w.end_object();
+  w.end_object();
+  w.begin_object()
+      .field("name", "detected")
+      .field("cat", "fault")
+      .field("ph", "i")
+      .field("s", "t")
+      .field("ts", us(e.detected_ns))
+      .field("pid", t.pid)
+      .field("tid", t.tid)
+      .end_object();
+}
+
+// What the record is about, for the viewer's metadata panel.
+void write_other_data(exporter::JsonWriter& w, const supervisor::FlightRecord& r) {
+  const Event& e = r.event;
+  w.begin_object();
+  w.field("component", r.component);
+  w.field("reason", r.on_demand ? std::string("on demand")
+                                : fmt::format("{}: {}", to_string(e.kind), e.detail));
+  w.field("event_seq", e.seq);
+  w.field("fault_cycle", e.cycle);
+  w.field("fault_ns", e.fault_ns);
+  w.field("detected_ns", e.detected_ns);
+  w.field("frozen_ns", r.frozen_ns);
+  w.field("cycles", static_cast<std::uint64_t>(r.cycles.size()));
+  w.end_object();
+}
+
 }  // namespace
 
 std::string event_json(const Event& e) {
@@ -57,132 +194,21 @@ std::string event_json(const Event& e) {
 
 std::string trace_event_json(const supervisor::FlightRecord& r) {
   const int pid = static_cast<int>(r.component_id) + 1;
-  const int tid = r.has_info && r.info.tid != 0 ? r.info.tid : pid;
+  const Track t{pid, r.has_info && r.info.tid != 0 ? r.info.tid : pid};
   exporter::JsonWriter w;
   w.begin_object();
   w.field("displayTimeUnit", "ms");
   w.key("traceEvents").begin_array();
-  meta(w, "process_name", pid, tid, "vigil: " + r.component);
-  std::string thread = r.component;
-  if (r.has_info) {
-    thread += fmt::format(
-        " ({}, {} {}, period {} us)", r.info.activity.empty() ? "-" : r.info.activity.view(),
-        platform::to_string(r.info.policy), r.info.priority, r.info.period_ns / kNanosPerMicro);
-  }
-  meta(w, "thread_name", pid, tid, thread);
-
+  write_names(w, r, t);
   const supervisor::CycleRecord* prev = nullptr;
   for (const supervisor::CycleRecord& c : r.cycles) {
-    const bool overrun = (c.flags & supervisor::CycleRecord::kOverrun) != 0;
-    if (prev != nullptr && c.cycle != prev->cycle + 1) {
-      w.begin_object()
-          .field("name", fmt::format("{} cycles missing (dropped)", c.cycle - prev->cycle - 1))
-          .field("ph", "i")
-          .field("s", "t")
-          .field("ts", us(c.start_ns))
-          .field("pid", pid)
-          .field("tid", tid)
-          .end_object();
-    }
-    w.begin_object();
-    w.field("name", overrun ? "cycle (overrun)" : "cycle");
-    w.field("cat", overrun ? "cycle,overrun" : "cycle");
-    w.field("ph", "X");
-    w.field("ts", us(c.start_ns));
-    w.field("dur", us(c.end_ns - c.start_ns));
-    w.field("pid", pid).field("tid", tid);
-    w.key("args").begin_object();
-    w.field("cycle", c.cycle);
-    w.field("release_us", us(c.release_ns));
-    w.field("latency_us", us(c.latency_ns()));
-    w.field("user_us", us(c.user_ns()));
-    w.field("overhead_us", us(c.overhead_ns));
-    w.field("overrun", overrun);
-    w.field("missed_before", c.missed_before);
-    w.field("warmup", (c.flags & supervisor::CycleRecord::kWarmup) != 0);
-    // Only on the rare records the flight ring could not keep to the nanosecond.
-    if ((c.flags & supervisor::CycleRecord::kCoarse) != 0) w.field("microsecond_precision", true);
-    if ((c.flags & supervisor::CycleRecord::kClipped) != 0) w.field("clipped", true);
-    w.field("state", to_string(c.state));
-    w.end_object();
-    w.end_object();
-    w.begin_object()
-        .field("name", "latency_us")
-        .field("ph", "C")
-        .field("ts", us(c.start_ns))
-        .field("pid", pid)
-        .key("args")
-        .begin_object()
-        .field("latency_us", us(c.latency_ns()))
-        .end_object()
-        .end_object();
-    w.begin_object()
-        .field("name", "user_us")
-        .field("ph", "C")
-        .field("ts", us(c.start_ns))
-        .field("pid", pid)
-        .key("args")
-        .begin_object()
-        .field("user_us", us(c.user_ns()))
-        .end_object()
-        .end_object();
+    write_cycle(w, c, prev, t);
     prev = &c;
   }
-
-  const Event& e = r.event;
-  if (!r.on_demand) {
-    Nanos at = e.fault_ns;
-    if (at == 0 && !r.cycles.empty()) at = r.cycles.back().end_ns;
-    if (e.kind == EventKind::Deadline && !r.cycles.empty()) {
-      // The silence: from the last cycle's end to the detection.
-      const Nanos from = r.cycles.back().end_ns;
-      w.begin_object()
-          .field("name", "no cycle (silent)")
-          .field("cat", "fault")
-          .field("ph", "X")
-          .field("ts", us(from))
-          .field("dur", us(std::max<Nanos>(e.detected_ns - from, 0)))
-          .field("pid", pid)
-          .field("tid", tid)
-          .end_object();
-    }
-    w.begin_object();
-    w.field("name", fmt::format("{}: {}", to_string(e.kind), e.detail));
-    w.field("cat", "fault");
-    w.field("ph", "i");
-    w.field("s", "p");
-    w.field("ts", us(at));
-    w.field("pid", pid).field("tid", tid);
-    w.key("args").begin_object();
-    w.field("cycle", e.cycle);
-    w.field("severity", to_string(e.severity));
-    w.field("detected_us", us(e.detected_ns));
-    w.field("latency_us", us(e.latency_ns()));
-    w.end_object();
-    w.end_object();
-    w.begin_object()
-        .field("name", "detected")
-        .field("cat", "fault")
-        .field("ph", "i")
-        .field("s", "t")
-        .field("ts", us(e.detected_ns))
-        .field("pid", pid)
-        .field("tid", tid)
-        .end_object();
-  }
+  if (!r.on_demand) write_fault(w, r, t);
   w.end_array();
-
-  w.key("otherData").begin_object();
-  w.field("component", r.component);
-  w.field("reason", r.on_demand ? std::string("on demand")
-                                : fmt::format("{}: {}", to_string(e.kind), e.detail));
-  w.field("event_seq", e.seq);
-  w.field("fault_cycle", e.cycle);
-  w.field("fault_ns", e.fault_ns);
-  w.field("detected_ns", e.detected_ns);
-  w.field("frozen_ns", r.frozen_ns);
-  w.field("cycles", static_cast<std::uint64_t>(r.cycles.size()));
-  w.end_object();
+  w.key("otherData");
+  write_other_data(w, r);
   w.end_object();
   return w.take();
 }

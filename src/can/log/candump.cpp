@@ -40,11 +40,12 @@ std::string quote(char c) {
   return fmt::format("byte 0x{:02X}", u);
 }
 
-// Parses the frame field `s` (which starts at offset `base` of its line) into `f`.
-bool parse_frame(std::string_view s, std::size_t base, Frame& f, Problem& p) {
-  f = Frame{};
+// The identifier of the frame field `s` (which starts at offset `base` of its line), read from
+// `pos` = 0 up to the '#' it leaves `pos` on: 3 hex digits (standard), 8 (extended, or an error
+// frame's class with CAN_ERR_FLAG).
+bool parse_identifier(std::string_view s, std::size_t base, std::size_t& pos, Frame& f,
+                      Problem& p) {
   const std::size_t n = s.size();
-  std::size_t pos = 0;
   std::uint32_t raw = 0;
   while (pos < n && s[pos] != '#') {
     const std::uint8_t v = hex_value(s[pos]);
@@ -61,7 +62,7 @@ bool parse_frame(std::string_view s, std::size_t base, Frame& f, Problem& p) {
         return fail(p, base, fmt::format("standard identifier {:03X} exceeds 7FF", raw));
       }
       f.id = raw;
-      break;
+      return true;
     case 8:
       if (raw > (kErrFlag | kMaxExtendedId)) {
         return fail(p, base, fmt::format("identifier {:08X} has bits above the 29-bit id", raw));
@@ -73,7 +74,7 @@ bool parse_frame(std::string_view s, std::size_t base, Frame& f, Problem& p) {
         f.extended = true;
         f.id = raw;
       }
-      break;
+      return true;
     case 5:
       return fail(p, base, "CAN XL frames (5-digit priority field) are not supported");
     default:
@@ -81,53 +82,59 @@ bool parse_frame(std::string_view s, std::size_t base, Frame& f, Problem& p) {
           p, base,
           fmt::format("identifier has {} hex digits; expected 3 (standard) or 8 (extended)", pos));
   }
-  ++pos;  // '#'
+}
 
-  // Remote frame: R, optional length digit 0..8, and after 8 an optional raw DLC "_9".."_F".
-  if (pos < n && (s[pos] == 'R' || s[pos] == 'r')) {
-    if (f.error) return fail(p, base + pos, "an error frame cannot be a remote frame");
-    f.rtr = true;
-    ++pos;
-    if (pos < n && s[pos] != '_') {
-      if (s[pos] < '0' || s[pos] > '8') {
-        return fail(
-            p, base + pos,
-            fmt::format("remote frame length must be one digit 0-8, found {}", quote(s[pos])));
-      }
-      f.length = static_cast<std::uint8_t>(s[pos] - '0');
-      ++pos;
+// A remote frame, from the 'R' at `pos` to the end: R, optional length digit 0..8, and after 8
+// an optional raw DLC "_9".."_F".
+bool parse_remote(std::string_view s, std::size_t base, std::size_t pos, Frame& f, Problem& p) {
+  const std::size_t n = s.size();
+  if (f.error) return fail(p, base + pos, "an error frame cannot be a remote frame");
+  f.rtr = true;
+  ++pos;
+  if (pos < n && s[pos] != '_') {
+    if (s[pos] < '0' || s[pos] > '8') {
+      return fail(
+          p, base + pos,
+          fmt::format("remote frame length must be one digit 0-8, found {}", quote(s[pos])));
     }
-    if (pos < n && s[pos] == '_') {
-      if (f.length != 8) return fail(p, base + pos, "a raw DLC ('_') must follow the length 8");
-      ++pos;
-      const std::uint8_t dlc = pos < n ? hex_value(s[pos]) : 0xFF;
-      if (dlc < 9 || dlc > 15) return fail(p, base + pos, "raw DLC after '_' must be one of 9-F");
-      f.length = dlc;
-      ++pos;
-    }
-    if (pos != n) {
-      return fail(p, base + pos,
-                  fmt::format("unexpected {} after the remote frame", quote(s[pos])));
-    }
-    return true;
-  }
-
-  std::size_t max_bytes = kMaxClassicDataLength;
-  if (pos < n && s[pos] == '#') {
-    if (f.error) return fail(p, base + pos, "an error frame cannot be a CAN FD frame");
-    ++pos;
-    const std::uint8_t flags = pos < n ? hex_value(s[pos]) : 0xFF;
-    if (flags > 0xF) return fail(p, base + pos, "CAN FD flags after '##' must be one hex digit");
-    if ((flags & ~(kFdFlagBrs | kFdFlagEsi | kFdFlagFdf)) != 0) {
-      return fail(p, base + pos, fmt::format("unknown CAN FD flag bits in {:X}", flags));
-    }
-    f.fd = true;
-    f.brs = (flags & kFdFlagBrs) != 0;
-    f.esi = (flags & kFdFlagEsi) != 0;
-    max_bytes = kMaxFdDataLength;
+    f.length = static_cast<std::uint8_t>(s[pos] - '0');
     ++pos;
   }
+  if (pos < n && s[pos] == '_') {
+    if (f.length != 8) return fail(p, base + pos, "a raw DLC ('_') must follow the length 8");
+    ++pos;
+    const std::uint8_t dlc = pos < n ? hex_value(s[pos]) : 0xFF;
+    if (dlc < 9 || dlc > 15) return fail(p, base + pos, "raw DLC after '_' must be one of 9-F");
+    f.length = dlc;
+    ++pos;
+  }
+  if (pos != n) {
+    return fail(p, base + pos, fmt::format("unexpected {} after the remote frame", quote(s[pos])));
+  }
+  return true;
+}
 
+// The CAN FD flags digit after the second '#' at `pos`; leaves `pos` after it.
+bool parse_fd_flags(std::string_view s, std::size_t base, std::size_t& pos, Frame& f, Problem& p) {
+  if (f.error) return fail(p, base + pos, "an error frame cannot be a CAN FD frame");
+  ++pos;
+  const std::uint8_t flags = pos < s.size() ? hex_value(s[pos]) : 0xFF;
+  if (flags > 0xF) return fail(p, base + pos, "CAN FD flags after '##' must be one hex digit");
+  if ((flags & ~(kFdFlagBrs | kFdFlagEsi | kFdFlagFdf)) != 0) {
+    return fail(p, base + pos, fmt::format("unknown CAN FD flag bits in {:X}", flags));
+  }
+  f.fd = true;
+  f.brs = (flags & kFdFlagBrs) != 0;
+  f.esi = (flags & kFdFlagEsi) != 0;
+  ++pos;
+  return true;
+}
+
+// The data bytes from `pos` (hex pairs, optionally separated by single '.'), up to the end or a
+// '_' it leaves `pos` on; sets the length.
+bool parse_data(std::string_view s, std::size_t base, std::size_t& pos, Frame& f, Problem& p) {
+  const std::size_t n = s.size();
+  const std::size_t max_bytes = f.fd ? kMaxFdDataLength : kMaxClassicDataLength;
   const std::size_t data_start = pos;
   std::size_t count = 0;
   while (true) {
@@ -160,22 +167,39 @@ bool parse_frame(std::string_view s, std::size_t base, Frame& f, Problem& p) {
         fmt::format("{} data bytes is not a CAN FD length (0-8, 12, 16, 20, 24, 32, 48, 64)",
                     count));
   }
-  if (pos < n) {  // '_' raw DLC of a Classical CAN frame with 8 data bytes
-    if (f.fd) return fail(p, base + pos, "a CAN FD frame has no raw DLC ('_')");
-    if (f.error) return fail(p, base + pos, "an error frame has no raw DLC ('_')");
-    if (count != kMaxClassicDataLength) {
-      return fail(p, base + pos, "a raw DLC ('_') needs 8 data bytes before it");
-    }
-    ++pos;
-    const std::uint8_t dlc = pos < n ? hex_value(s[pos]) : 0xFF;
-    if (dlc < 9 || dlc > 15) return fail(p, base + pos, "raw DLC after '_' must be one of 9-F");
-    f.length = dlc;
-    ++pos;
-    if (pos != n) {
-      return fail(p, base + pos, fmt::format("unexpected {} after the raw DLC", quote(s[pos])));
-    }
+  return true;
+}
+
+// The raw DLC "_9".."_F" of a Classical CAN frame with 8 data bytes, from the '_' at `pos` to
+// the end.
+bool parse_raw_dlc(std::string_view s, std::size_t base, std::size_t pos, Frame& f, Problem& p) {
+  const std::size_t n = s.size();
+  if (f.fd) return fail(p, base + pos, "a CAN FD frame has no raw DLC ('_')");
+  if (f.error) return fail(p, base + pos, "an error frame has no raw DLC ('_')");
+  if (f.length != kMaxClassicDataLength) {
+    return fail(p, base + pos, "a raw DLC ('_') needs 8 data bytes before it");
+  }
+  ++pos;
+  const std::uint8_t dlc = pos < n ? hex_value(s[pos]) : 0xFF;
+  if (dlc < 9 || dlc > 15) return fail(p, base + pos, "raw DLC after '_' must be one of 9-F");
+  f.length = dlc;
+  ++pos;
+  if (pos != n) {
+    return fail(p, base + pos, fmt::format("unexpected {} after the raw DLC", quote(s[pos])));
   }
   return true;
+}
+
+// Parses the frame field `s` (which starts at offset `base` of its line) into `f`.
+bool parse_frame(std::string_view s, std::size_t base, Frame& f, Problem& p) {
+  f = Frame{};
+  std::size_t pos = 0;
+  if (!parse_identifier(s, base, pos, f, p)) return false;
+  ++pos;  // '#'
+  if (pos < s.size() && (s[pos] == 'R' || s[pos] == 'r')) return parse_remote(s, base, pos, f, p);
+  if (pos < s.size() && s[pos] == '#' && !parse_fd_flags(s, base, pos, f, p)) return false;
+  if (!parse_data(s, base, pos, f, p)) return false;
+  return pos == s.size() || parse_raw_dlc(s, base, pos, f, p);  // '_': a raw DLC
 }
 
 enum class LineKind : std::uint8_t { Frame, Comment, Malformed };

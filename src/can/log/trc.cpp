@@ -6,6 +6,7 @@
 #include <array>
 #include <cerrno>
 #include <istream>
+#include <optional>
 #include <utility>
 
 #include "can/log/line_reader.hpp"
@@ -374,6 +375,35 @@ bool parse_start_time(std::string_view s, Nanos& out) {
   return !__builtin_add_overflow(whole, part, &out);
 }
 
+// Why `tok` is not a message number ("12", in version 1 "12)"); null when it is one.
+const char* number_error(std::string_view tok, bool v1) {
+  std::string_view digits = tok;
+  if (v1) {
+    if (tok.size() < 2 || tok.back() != ')') return "message number must be digits followed by ')'";
+    digits.remove_suffix(1);
+  }
+  if (digits.empty() || digits.find_first_not_of("0123456789") != std::string_view::npos) {
+    return v1 ? "message number must be digits followed by ')'" : "message number must be digits";
+  }
+  return nullptr;
+}
+
+// A bus column ("1" to "256", or "-": none) into the 0-based `bus`; false when it is neither.
+bool parse_bus(std::string_view t, std::uint8_t& bus) {
+  if (t == "-") return true;
+  std::uint32_t v = 0;
+  if (!parse_uint(t, 256, v) || v == 0) return false;
+  bus = static_cast<std::uint8_t>(v - 1);
+  return true;
+}
+
+// What the fixed columns of a record give besides the frame's own fields.
+struct ColumnValues {
+  Nanos offset = 0;         // the O column
+  std::uint32_t size = 0;   // the L or l column
+  std::size_t size_at = 0;  // where it is in the line
+};
+
 using Outcome = detail::LineOutcome;
 
 }  // namespace
@@ -391,6 +421,21 @@ struct TrcReader::Impl {
   Outcome start_records();
   Outcome record(std::string_view line);
   Outcome error_record(std::string_view line);
+
+  // The steps of `record`, by group of fields; those that return an optional return an outcome
+  // when the line ends there (a malformed field, a status line).
+  std::optional<Outcome> record_type(std::string_view line, TypeInfo& type);
+  std::optional<Outcome> fixed_columns(std::string_view line, const TypeInfo& type,
+                                       ColumnValues& cols);
+  std::optional<Outcome> identifier(std::string_view tok, std::size_t at, const TypeInfo& type);
+  Outcome payload(std::string_view line, const TypeInfo& type, const ColumnValues& cols);
+  Outcome data_frame(std::string_view line, Kind kind, const TypeInfo& type,
+                     const ColumnValues& cols, std::size_t data_at);
+  Outcome remote_frame(const ColumnValues& cols, std::size_t given, std::size_t data_at);
+  Outcome v1_error_frame(std::string_view line, const ColumnValues& cols, std::size_t first,
+                         std::size_t data_at);
+  std::optional<Outcome> data_bytes(std::string_view line, std::size_t first, std::size_t n,
+                                    std::size_t to);
 
   Outcome malformed(std::size_t offset, std::string message) {
     problem.offset = offset;
@@ -545,32 +590,42 @@ Outcome TrcReader::Impl::error_record(std::string_view line) {
 }
 
 Outcome TrcReader::Impl::record(std::string_view line) {
-  Tokens& t = tokens;
-  t.split(line);
-  if (t.count == 0) return Outcome::Comment;
+  tokens.split(line);
+  if (tokens.count == 0) return Outcome::Comment;
 
   TypeInfo type = type_of(Kind::Data);
-  if (layout.has(Col::Type)) {
-    const auto at = static_cast<std::size_t>(layout.at(Col::Type));
-    if (t.count <= at) return malformed(line.size(), "missing type column");
-    type = classify(t.tok[at], layout.v1);
-    if (type.kind == Kind::Unknown) {
-      return malformed(offset_of(line, t.tok[at]),
-                       fmt::format("unknown record type '{}'", t.tok[at]));
-    }
-  }
+  if (const auto o = record_type(line, type)) return *o;
   if (type.kind == Kind::Skip) return Outcome::Skipped;
   if (type.kind == Kind::ErrorFrame && !layout.v1) return error_record(line);
-  if (t.overflow) return malformed(line.size(), "too many fields");
+  if (tokens.overflow) return malformed(line.size(), "too many fields");
 
-  Frame& f = entry.frame;
-  f = Frame{};
+  entry.frame = Frame{};
   entry.direction = type.direction;
-  Nanos offset = 0;
-  std::uint32_t size_value = 0;  // the L or l column
-  std::size_t size_at = 0;       // where it is in the line
-  std::string why;
-  for (std::size_t i = 0; i < layout.fixed(); ++i) {
+  ColumnValues cols;
+  if (const auto o = fixed_columns(line, type, cols)) return *o;
+  return payload(line, type, cols);
+}
+
+// The T column: what the record is.
+std::optional<Outcome> TrcReader::Impl::record_type(std::string_view line, TypeInfo& type) {
+  if (!layout.has(Col::Type)) return std::nullopt;
+  const auto at = static_cast<std::size_t>(layout.at(Col::Type));
+  if (tokens.count <= at) return malformed(line.size(), "missing type column");
+  type = classify(tokens.tok[at], layout.v1);
+  if (type.kind == Kind::Unknown) {
+    return malformed(offset_of(line, tokens.tok[at]),
+                     fmt::format("unknown record type '{}'", tokens.tok[at]));
+  }
+  return std::nullopt;
+}
+
+// The columns before the data (number, offset, bus, id, direction, size), then the timestamp.
+std::optional<Outcome> TrcReader::Impl::fixed_columns(std::string_view line, const TypeInfo& type,
+                                                      ColumnValues& cols) {
+  Frame& f = entry.frame;
+  const Tokens& t = tokens;
+  const std::size_t fixed = layout.fixed();
+  for (std::size_t i = 0; i < fixed; ++i) {
     const Col c = layout.cols[i];
     if (i >= t.count) {
       return malformed(line.size(), fmt::format("missing {} column", col_name(c)));
@@ -578,87 +633,80 @@ Outcome TrcReader::Impl::record(std::string_view line) {
     const std::string_view tok = t.tok[i];
     const std::size_t at = offset_of(line, tok);
     switch (c) {
-      case Col::Number: {
-        std::string_view digits = tok;
-        if (layout.v1) {
-          if (tok.size() < 2 || tok.back() != ')') {
-            return malformed(at, "message number must be digits followed by ')'");
-          }
-          digits.remove_suffix(1);
-        }
-        if (digits.empty() || digits.find_first_not_of("0123456789") != std::string_view::npos) {
-          return malformed(at, layout.v1 ? "message number must be digits followed by ')'"
-                                         : "message number must be digits");
-        }
+      case Col::Number:
+        if (const char* why = number_error(tok, layout.v1)) return malformed(at, why);
         break;
-      }
       case Col::Offset:
-        if (!parse_offset(tok, offset, why)) return malformed(at, why);
+        if (std::string why; !parse_offset(tok, cols.offset, why)) return malformed(at, why);
         break;
-      case Col::Type:
-        break;
-      case Col::Bus: {
-        std::uint32_t v = 0;
-        if (tok != "-") {
-          if (!parse_uint(tok, 256, v) || v == 0) {
-            return malformed(at, fmt::format("bus '{}' is not a number 1-256", tok));
-          }
-          f.bus = static_cast<std::uint8_t>(v - 1);
+      case Col::Bus:
+        if (!parse_bus(tok, f.bus)) {
+          return malformed(at, fmt::format("bus '{}' is not a number 1-256", tok));
         }
         break;
-      }
-      case Col::Id: {
-        if (layout.cols[0] == Col::Number && !layout.has(Col::Type) && tok == "FFFFFFFF") {
-          return Outcome::Skipped;  // version 1.0 bus status ("error warning") line
-        }
-        if (tok.empty() || tok.size() > 8) {
-          return malformed(at, fmt::format("identifier '{}' must have 1 to 8 hex digits", tok));
-        }
-        std::uint32_t id = 0;
-        for (char ch : tok) {
-          const std::uint8_t v = hex_value(ch);
-          if (v > 0xF) {
-            return malformed(at, fmt::format("identifier '{}' is not hexadecimal", tok));
-          }
-          id = (id << 4) | v;
-        }
-        f.extended = tok.size() > 4;
-        if (type.kind != Kind::ErrorFrame && id > (f.extended ? kMaxExtendedId : kMaxStandardId)) {
-          return malformed(
-              at, fmt::format("identifier {} exceeds {}", tok, f.extended ? "1FFFFFFF" : "7FF"));
-        }
-        f.id = id;
+      case Col::Id:
+        if (const auto o = identifier(tok, at, type)) return o;
         break;
-      }
       case Col::Dir: {
         const auto d = parse_dir(tok);
         if (!d) return malformed(at, fmt::format("direction '{}' must be Rx or Tx", tok));
         entry.direction = d;
         break;
       }
-      case Col::Reserved:
-        break;
       case Col::Length:
-        size_at = at;
-        if (!parse_uint(tok, 64, size_value)) {
+        cols.size_at = at;
+        if (!parse_uint(tok, 64, cols.size)) {
           return malformed(at, fmt::format("data length '{}' is not a number 0-64", tok));
         }
         break;
       case Col::Dlc:
-        size_at = at;
-        if (!parse_uint(tok, kMaxDlc, size_value)) {
+        cols.size_at = at;
+        if (!parse_uint(tok, kMaxDlc, cols.size)) {
           return malformed(at, fmt::format("DLC '{}' is not a number 0-15", tok));
         }
         break;
+      case Col::Type:
+      case Col::Reserved:
       case Col::Data:
         break;
     }
   }
-  if (!timestamp(offset, f.timestamp)) {
-    return malformed(offset_of(line, t.tok[static_cast<std::size_t>(layout.at(Col::Offset))]),
+  if (!timestamp(cols.offset, f.timestamp)) {
+    return malformed(offset_of(line, tokens.tok[static_cast<std::size_t>(layout.at(Col::Offset))]),
                      "timestamp out of range");
   }
-  const bool by_dlc = layout.has(Col::Dlc);
+  return std::nullopt;
+}
+
+// The I column: 1 to 4 hex digits for a standard id, 5 to 8 for an extended one.
+std::optional<Outcome> TrcReader::Impl::identifier(std::string_view tok, std::size_t at,
+                                                   const TypeInfo& type) {
+  Frame& f = entry.frame;
+  if (layout.cols[0] == Col::Number && !layout.has(Col::Type) && tok == "FFFFFFFF") {
+    return Outcome::Skipped;  // version 1.0 bus status ("error warning") line
+  }
+  if (tok.empty() || tok.size() > 8) {
+    return malformed(at, fmt::format("identifier '{}' must have 1 to 8 hex digits", tok));
+  }
+  std::uint32_t id = 0;
+  for (char ch : tok) {
+    const std::uint8_t v = hex_value(ch);
+    if (v > 0xF) return malformed(at, fmt::format("identifier '{}' is not hexadecimal", tok));
+    id = (id << 4) | v;
+  }
+  f.extended = tok.size() > 4;
+  if (type.kind != Kind::ErrorFrame && id > (f.extended ? kMaxExtendedId : kMaxStandardId)) {
+    return malformed(at,
+                     fmt::format("identifier {} exceeds {}", tok, f.extended ? "1FFFFFFF" : "7FF"));
+  }
+  f.id = id;
+  return std::nullopt;
+}
+
+// The data column, by kind of record.
+Outcome TrcReader::Impl::payload(std::string_view line, const TypeInfo& type,
+                                 const ColumnValues& cols) {
+  const Tokens& t = tokens;
   std::size_t first = layout.fixed();
   const std::size_t given = t.count - first;
   const std::size_t data_at = given > 0 ? offset_of(line, t.tok[first]) : line.size();
@@ -673,88 +721,111 @@ Outcome TrcReader::Impl::record(std::string_view line) {
       ++first;
     }
   }
-
-  std::size_t expect = 0;
   switch (kind) {
     case Kind::Data:
-      if (!by_dlc && size_value > kMaxClassicDataLength) {
-        return malformed(
-            size_at, fmt::format("data length {} exceeds 8 for a Classical CAN frame", size_value));
-      }
-      f.length = static_cast<std::uint8_t>(size_value);
-      expect = f.data_size();
-      break;
     case Kind::Fd:
-      f.fd = true;
-      f.brs = type.brs;
-      f.esi = type.esi;
-      if (by_dlc) {
-        f.length = dlc_to_length(static_cast<std::uint8_t>(size_value));
-      } else if (is_fd_length(size_value)) {
-        f.length = static_cast<std::uint8_t>(size_value);
-      } else {
-        return malformed(size_at, fmt::format("data length {} is not a CAN FD length (0-8, 12, 16, "
-                                              "20, 24, 32, 48, 64)",
-                                              size_value));
-      }
-      expect = f.length;
-      break;
-    case Kind::Remote: {
-      if (!by_dlc && size_value > kMaxClassicDataLength) {
-        return malformed(size_at,
-                         fmt::format("data length {} exceeds 8 for a remote frame", size_value));
-      }
-      f.rtr = true;
-      f.length = static_cast<std::uint8_t>(size_value);
-      // Version 1 writes "RTR" as the data; version 2 nothing (a lone "RTR" is accepted too).
-      const bool marker = given == 1 && t.tok[first] == "RTR";
-      if (given != 0 && !marker) {
-        return malformed(data_at, "a remote frame carries no data bytes");
-      }
-      return Outcome::Frame;
-    }
-    case Kind::ErrorFrame: {
-      // Version 1 error record: the id column holds the error type, the data column the
-      // direction, position and counters; keep PEAK's bytes in that order.
-      const std::size_t n = t.count - first;
-      if (n != size_value) {
-        return malformed(data_at, fmt::format("expected {} data bytes, found {}", size_value, n));
-      }
-      if (n + 1 > kMaxClassicDataLength) {
-        return malformed(data_at, "error record with more than 7 data bytes");
-      }
-      const std::uint32_t code = f.id;
-      f.id = 0;
-      f.extended = false;
-      f.error = true;
-      f.data[0] = static_cast<std::uint8_t>(code & 0xFF);
-      for (std::size_t i = 0; i < n; ++i) {
-        const std::string_view tok = t.tok[first + i];
-        if (!is_hex_byte(tok)) {
-          return malformed(offset_of(line, tok),
-                           fmt::format("'{}' is not a data byte (two hex digits)", tok));
-        }
-        f.data[i + 1] = hex_byte(tok);
-      }
-      f.length = static_cast<std::uint8_t>(n + 1);
-      return Outcome::Frame;
-    }
+      return data_frame(line, kind, type, cols, data_at);
+    case Kind::Remote:
+      return remote_frame(cols, given, data_at);
+    case Kind::ErrorFrame:
+      return v1_error_frame(line, cols, first, data_at);
     case Kind::Skip:
     case Kind::Unknown:
-      return Outcome::Skipped;
+      break;
   }
+  return Outcome::Skipped;
+}
+
+// A data frame (Classical CAN or CAN FD): its length, then its bytes.
+Outcome TrcReader::Impl::data_frame(std::string_view line, Kind kind, const TypeInfo& type,
+                                    const ColumnValues& cols, std::size_t data_at) {
+  Frame& f = entry.frame;
+  const bool by_dlc = layout.has(Col::Dlc);
+  std::size_t expect = 0;
+  if (kind == Kind::Data) {
+    if (!by_dlc && cols.size > kMaxClassicDataLength) {
+      return malformed(
+          cols.size_at,
+          fmt::format("data length {} exceeds 8 for a Classical CAN frame", cols.size));
+    }
+    f.length = static_cast<std::uint8_t>(cols.size);
+    expect = f.data_size();
+  } else {
+    f.fd = true;
+    f.brs = type.brs;
+    f.esi = type.esi;
+    if (by_dlc) {
+      f.length = dlc_to_length(static_cast<std::uint8_t>(cols.size));
+    } else if (is_fd_length(cols.size)) {
+      f.length = static_cast<std::uint8_t>(cols.size);
+    } else {
+      return malformed(cols.size_at,
+                       fmt::format("data length {} is not a CAN FD length (0-8, 12, 16, "
+                                   "20, 24, 32, 48, 64)",
+                                   cols.size));
+    }
+    expect = f.length;
+  }
+  const std::size_t first = layout.fixed();
+  const std::size_t given = tokens.count - first;
   if (given != expect) {
     return malformed(data_at, fmt::format("expected {} data bytes, found {}", expect, given));
   }
-  for (std::size_t i = 0; i < expect; ++i) {
-    const std::string_view tok = t.tok[first + i];
+  if (const auto o = data_bytes(line, first, expect, 0)) return *o;
+  return Outcome::Frame;
+}
+
+// A remote frame: a length and no data.
+Outcome TrcReader::Impl::remote_frame(const ColumnValues& cols, std::size_t given,
+                                      std::size_t data_at) {
+  Frame& f = entry.frame;
+  if (!layout.has(Col::Dlc) && cols.size > kMaxClassicDataLength) {
+    return malformed(cols.size_at,
+                     fmt::format("data length {} exceeds 8 for a remote frame", cols.size));
+  }
+  f.rtr = true;
+  f.length = static_cast<std::uint8_t>(cols.size);
+  // Version 1 writes "RTR" as the data; version 2 nothing (a lone "RTR" is accepted too).
+  const bool marker = given == 1 && tokens.tok[layout.fixed()] == "RTR";
+  if (given != 0 && !marker) return malformed(data_at, "a remote frame carries no data bytes");
+  return Outcome::Frame;
+}
+
+Outcome TrcReader::Impl::v1_error_frame(std::string_view line, const ColumnValues& cols,
+                                        std::size_t first, std::size_t data_at) {
+  // Version 1 error record: the id column holds the error type, the data column the
+  // direction, position and counters; keep PEAK's bytes in that order.
+  Frame& f = entry.frame;
+  const std::size_t n = tokens.count - first;
+  if (n != cols.size) {
+    return malformed(data_at, fmt::format("expected {} data bytes, found {}", cols.size, n));
+  }
+  if (n + 1 > kMaxClassicDataLength) {
+    return malformed(data_at, "error record with more than 7 data bytes");
+  }
+  const std::uint32_t code = f.id;
+  f.id = 0;
+  f.extended = false;
+  f.error = true;
+  f.data[0] = static_cast<std::uint8_t>(code & 0xFF);
+  if (const auto o = data_bytes(line, first, n, 1)) return *o;
+  f.length = static_cast<std::uint8_t>(n + 1);
+  return Outcome::Frame;
+}
+
+// `n` data bytes, from token `first` on, into the frame's data from byte `to` on. Inline: it runs
+// for every frame, and GCC 12 leaves it out of line otherwise.
+inline std::optional<Outcome> TrcReader::Impl::data_bytes(std::string_view line, std::size_t first,
+                                                          std::size_t n, std::size_t to) {
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::string_view tok = tokens.tok[first + i];
     if (!is_hex_byte(tok)) {
       return malformed(offset_of(line, tok),
                        fmt::format("'{}' is not a data byte (two hex digits)", tok));
     }
-    f.data[i] = hex_byte(tok);
+    entry.frame.data[to + i] = hex_byte(tok);
   }
-  return Outcome::Frame;
+  return std::nullopt;
 }
 
 Outcome TrcReader::Impl::parse(std::string_view line) {
