@@ -22,8 +22,8 @@
 #include "vigil/export/text_report.hpp"
 #include "vigil/log/service.hpp"
 #include "vigil/log/source.hpp"
-#include "vigil/service/component_log.hpp"
 #include "vigil/platform/process.hpp"
+#include "vigil/service/component_log.hpp"
 #include "vigil/version.hpp"
 
 namespace vigil::app {
@@ -111,25 +111,25 @@ int run_demo(const DemoOptions& o) {
   if (!o.events.empty()) event_file = &pipeline.add_output<exporter::EventLogOutput>(o.events);
   exporter::TraceOutput* traces = nullptr;
   if (!o.trace_dir.empty()) {
-    traces = &pipeline.add_output<exporter::TraceOutput>(exporter::TraceWriterOptions{
-        .directory = o.trace_dir, .log = [](const std::string& line) {
-          std::fprintf(stderr, "vigil demo: %s\n", line.c_str());
-        }});
+    traces = &pipeline.add_output<exporter::TraceOutput>(
+        exporter::TraceWriterOptions{.directory = o.trace_dir, .log = [](const std::string& line) {
+                                       std::fprintf(stderr, "vigil demo: %s\n", line.c_str());
+                                     }});
   }
   auto& event_lines = pipeline.add_output<exporter::EventLineOutput>(
       exporter::EventLineOutput::Options{.file = live ? nullptr : stderr});
   // The text view: every monitor cycle (redrawn in place on a terminal), and the final report.
   std::vector<const exporter::TextPanel*> panels{&log};
   if (live) panels.push_back(&event_lines);
-  auto& text = pipeline.add_output<exporter::TextOutput>(exporter::TextOutputOptions{
-      .file = stdout,
-      .every_cycle = !o.no_live,
-      .details_at_stop = o.details,
-      .color = color_mode(o.color),
-      .title = fmt::format("vigil demo — {}", system.spec().name),
-      .redraw = live,
-      .panels = std::move(panels),
-      .final_title = "Stopped"});
+  auto& text = pipeline.add_output<exporter::TextOutput>(
+      exporter::TextOutputOptions{.file = stdout,
+                                  .every_cycle = !o.no_live,
+                                  .details_at_stop = o.details,
+                                  .color = color_mode(o.color),
+                                  .title = fmt::format("vigil demo — {}", system.spec().name),
+                                  .redraw = live,
+                                  .panels = std::move(panels),
+                                  .final_title = "Stopped"});
 
   platform::install_stop_signals();  // Ctrl-C and SIGTERM stop cleanly
   if (auto r = system.start(); !r) {
@@ -152,8 +152,8 @@ int run_demo(const DemoOptions& o) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   if (platform::stop_requested()) text.set_final_title("Interrupted");
-  if (!system.stop_within(std::chrono::duration_cast<std::chrono::nanoseconds>(kDemoStopTimeout)
-                              .count())) {
+  if (!system.stop_within(
+          std::chrono::duration_cast<std::chrono::nanoseconds>(kDemoStopTimeout).count())) {
     // A component never returned from on_update: report what the monitor (still running, it
     // stops after the activities) last saw, and leave without joining the blocked thread.
     const ReportSet last = system.reports();

@@ -25,9 +25,7 @@
 
 namespace vigil::service {
 
-class ComponentLog final : public exporter::Output,
-                           public Contributor,
-                           public exporter::TextPanel {
+class ComponentLog final : public exporter::Output, public Contributor, public exporter::TextPanel {
  public:
   /// `recent_lines`: the last lines of each component added to its report.
   explicit ComponentLog(log::LogServiceOptions options = {}, std::size_t recent_lines = 5)
