@@ -156,8 +156,9 @@ TEST_CASE("CAN: with both cores loaded and the CAN supervisor late, no healthy n
                      << (tally.reported_at - last) / kMs << " ms after its last frame");
   CHECK(tally.reports > 50);
   CHECK(tally.flips == 0);
-  // The observer really was late beyond the limit: up to `now`, the healthy drives would flip.
-  CHECK(tally.max_lag > 400 * kMs);
+  // The observer really was late beyond the limit (its stall is 400 ms; a slow reporter, as under
+  // a sanitizer, may sample less of it): up to `now`, the healthy drives would flip.
+  CHECK(tally.max_lag > 2 * kLimit);
   CHECK(tally.old_rule_flips > 0);
   // Drive 5 is reported, never before its limit had passed, and at the latest one observer
   // period (and a little scheduling) after.

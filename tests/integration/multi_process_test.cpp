@@ -148,17 +148,10 @@ struct Daemon {
     auto d = test::Daemon::create(o);
     REQUIRE(d.has_value());
     sup = std::move(*d);
-    subscription = sup->service().events().subscribe([this](const Event& e) {
-      std::lock_guard lock(mutex);
-      events.push_back(e);
-    });
     if (thread) REQUIRE(sup->start().has_value());
   }
   // The daemon first: its thread calls the subscriber, which uses the members below.
-  ~Daemon() {
-    sup->service().events().unsubscribe(subscription);
-    sup.reset();
-  }
+  ~Daemon() { sup.reset(); }
   Daemon(const Daemon&) = delete;
   Daemon& operator=(const Daemon&) = delete;
   // Waits until an event of kind `k` (about `pid` if not 0) arrived; returns it.
@@ -167,6 +160,7 @@ struct Daemon {
     const auto end = std::chrono::steady_clock::now() + timeout;
     while (std::chrono::steady_clock::now() < end) {
       if (!threaded) sup->step();
+      poll_events();
       {
         std::lock_guard lock(mutex);
         for (const auto& e : events) {
@@ -178,6 +172,7 @@ struct Daemon {
     return std::nullopt;
   }
   std::size_t count(EventKind k) {
+    poll_events();
     std::lock_guard lock(mutex);
     return static_cast<std::size_t>(
         std::count_if(events.begin(), events.end(), [&](const auto& e) { return e.kind == k; }));
@@ -193,8 +188,15 @@ struct Daemon {
   }
 
   bool threaded;  // false: the test steps the daemon (wait_event and wait_joined do)
+  // The events so far, read from the hub (no subscriber: a subscriber is a thread, and some
+  // tests fork after the daemon was made).
+  void poll_events() {
+    std::vector<Event> more = sup->take_events();
+    std::lock_guard lock(mutex);
+    events.insert(events.end(), more.begin(), more.end());
+  }
+
   std::unique_ptr<test::Daemon> sup;
-  std::uint64_t subscription = 0;
   std::mutex mutex;
   std::vector<Event> events;
 };
