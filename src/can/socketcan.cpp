@@ -9,8 +9,8 @@
 #include <sys/socket.h>
 #include <sys/time.h>
 #include <sys/uio.h>
-#include <time.h>
 #include <unistd.h>
+#include <ctime>
 
 #include <fmt/format.h>
 

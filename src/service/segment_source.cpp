@@ -15,6 +15,7 @@
 
 #include "vigil/bus/shm_port.hpp"
 #include "vigil/bus/shm_segment.hpp"
+#include "vigil/platform/process.hpp"
 #include "vigil/platform/process_watch.hpp"
 #include "vigil/platform/shm.hpp"
 #include "vigil/platform/thread.hpp"
@@ -154,8 +155,8 @@ struct SegmentSource::Impl {
 
   [[nodiscard]] Nanos now() const { return aggregator.options().clock.now(); }
 
-  // An event of the aggregator's hub, as the supervisor's own: the fault time is when it was
-  // noticed (a process's death has no earlier stamp the source could trust).
+  // An event of the aggregator's hub, as the supervisor's own. No fault time: a process's death
+  // or a segment's arrival has no earlier stamp the source could trust (0: unknown).
   void event(EventKind k, std::int32_t pid, std::string component, std::string message) {
     Event e;
     e.kind = k;
@@ -164,7 +165,7 @@ struct SegmentSource::Impl {
                                                    : EventSeverity::Info;
     e.component = component.empty() ? fmt::format("pid {}", pid) : std::move(component);
     e.pid = pid;
-    e.fault_ns = e.detected_ns = now();
+    e.detected_ns = now();
     e.detail = std::move(message);
     (void)aggregator.events().publish(std::move(e));
   }
@@ -853,5 +854,26 @@ SegmentSourceStats SegmentSource::stats() const {
 }
 
 const SegmentSourceOptions& SegmentSource::options() const noexcept { return impl_->options; }
+
+std::string format_processes(const std::vector<ProcessInfo>& processes) {
+  std::string out = fmt::format("{:<16} {:>7} {:<19} {:>3} {:<40} {}\n", "PROCESS", "PID",
+                                "STARTED", "RUN", "STATE", "COMMAND");
+  for (const auto& p : processes) {
+    std::string state = p.alive ? fmt::format("running, {} component{}", p.components.size(),
+                                              p.components.size() == 1 ? "" : "s")
+                                : p.exit + (p.exit_source.empty() || p.exit_source == "unknown"
+                                                ? std::string()
+                                                : " [" + p.exit_source + "]");
+    out += fmt::format("{:<16} {:>7} {:<19} {:>3} {:<40} {}\n", p.name, p.pid,
+                       platform::format_unix_time(p.started_unix_ns), p.incarnation, state,
+                       p.command_line);
+  }
+  return out;
+}
+
+void SegmentSource::append(std::string& out) const {
+  out += '\n';
+  out += format_processes(processes());
+}
 
 }  // namespace vigil::service

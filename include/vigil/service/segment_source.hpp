@@ -32,6 +32,7 @@
 
 #include "vigil/error.hpp"
 #include "vigil/expected.hpp"
+#include "vigil/export/outputs.hpp"
 #include "vigil/monitor/report.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/service/contributor.hpp"
@@ -98,7 +99,11 @@ struct SegmentSourceStats {
   StatsSummary cycle_ns;           ///< time per cycle
 };
 
-class SegmentSource final : public Source, public Contributor {
+/// The process table, one line per process: name, pid, start time, incarnation, state (running
+/// with its components, or how it ended), command line; a header line first.
+[[nodiscard]] std::string format_processes(const std::vector<ProcessInfo>& processes);
+
+class SegmentSource final : public Source, public Contributor, public exporter::TextPanel {
  public:
   /// Prepares a source for `options.name` draining into `aggregator` (which must outlive it;
   /// its clock stamps the source's events and reports). Nothing runs before step() or start().
@@ -130,6 +135,8 @@ class SegmentSource final : public Source, public Contributor {
 
   /// The processes: alive ones, then those whose end is still reported.
   [[nodiscard]] std::vector<ProcessInfo> processes() const;
+  /// The process table (`format_processes`) under a text view's summary.
+  void append(std::string& out) const override;
   [[nodiscard]] SegmentSourceStats stats() const;
   [[nodiscard]] const SegmentSourceOptions& options() const noexcept;
 
