@@ -425,38 +425,32 @@ CanReport CanMonitor::evaluate(const CanAggregator& aggregator, Nanos now) const
   return evaluate(aggregator.snapshot(c->group_specs()), now);
 }
 
-CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
-  std::shared_ptr<const CanConfig> cfg;
-  std::vector<std::pair<std::string, CanNodeCheck>> checks;
-  {
-    std::lock_guard lock(mutex_);
-    cfg = config_;
-    checks = checks_;
-  }
-  CanReport r;
-  r.time_ns = now;
-  // Silence is judged up to the time the sniffers' tables were read, and no later than `now`:
-  // a late CAN supervisor makes silences shorter, never longer (see the file comment).
-  r.observed_ns = snapshot.observed_ns < 0 ? now : std::min(now, snapshot.observed_ns);
-  r.observer_lag_ns = now - r.observed_ns;
-  r.node_map = snapshot.sniffers.empty() ? cfg->node_map : snapshot.sniffers.front().node_map;
-  r.snapshot = std::move(snapshot);
-  judge_ids(r, *cfg);
+namespace {
 
-  std::map<std::pair<std::uint8_t, std::uint32_t>, NodeReport> seen;
-  for (const NodeStats& s : r.snapshot.nodes) {
+// Nodes by (bus, node).
+using NodesByKey = std::map<std::pair<std::uint8_t, std::uint32_t>, NodeReport>;
+
+// The snapshot's nodes, with their statistics in each direction.
+NodesByKey seen_nodes(const CanSnapshot& snapshot) {
+  NodesByKey seen;
+  for (const NodeStats& s : snapshot.nodes) {
     NodeReport& n = seen[{s.bus, s.node}];
     n.bus = s.bus;
     n.node = s.node;
     (s.direction == Direction::Rx ? n.rx : n.tx) = s;
   }
+  return seen;
+}
 
-  // Expected nodes: named ones, and the explicit members of groups.
+// Marks the nodes `cfg` expects (named ones, and the explicit members of groups) in `seen`: one
+// on a given bus is added there when not seen; one on any bus marks every node of its number,
+// and is returned when there is none.
+std::vector<NodeReport> mark_expected(const CanConfig& cfg, NodesByKey& seen) {
   std::vector<std::pair<std::optional<std::uint8_t>, std::uint32_t>> expected;
-  for (const NodeConfig& n : cfg->nodes) {
+  for (const NodeConfig& n : cfg.nodes) {
     if (n.expected) expected.emplace_back(n.bus, n.node);
   }
-  for (const GroupConfig& g : cfg->groups) {
+  for (const GroupConfig& g : cfg.groups) {
     if (!g.expected) continue;
     for (const std::uint32_t node : g.members.nodes) expected.emplace_back(g.members.bus, node);
   }
@@ -485,36 +479,34 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
       unseen.push_back(std::move(n));
     }
   }
+  return unseen;
+}
 
-  for (auto& [key, n] : seen) r.nodes.push_back(std::move(n));
-  for (NodeReport& n : unseen) r.nodes.push_back(std::move(n));
-  for (NodeReport& n : r.nodes) {
-    if (n.node == kNoNode) {
-      n.liveness = Liveness::NoNode;
-      n.name = "(no node)";
-      continue;
-    }
-    const NodeConfig* named = nullptr;
-    if (n.bus) {
-      named = cfg->find_node(*n.bus, n.node);
-    } else {
-      for (const NodeConfig& c : cfg->nodes) {
-        if (!c.bus && c.node == n.node) {
-          named = &c;
-          break;
-        }
+// A node's name (configured, or as the node map writes it), groups and thresholds.
+void configure(NodeReport& n, const CanConfig& cfg, NodeMapKind node_map) {
+  const NodeConfig* named = nullptr;
+  if (n.bus) {
+    named = cfg.find_node(*n.bus, n.node);
+  } else {
+    for (const NodeConfig& c : cfg.nodes) {
+      if (!c.bus && c.node == n.node) {
+        named = &c;
+        break;
       }
     }
-    n.named = named != nullptr;
-    n.name = named != nullptr ? named->name : format_node(r.node_map, n.node);
-    for (const GroupConfig& g : cfg->groups) {
-      const bool member = n.bus ? g.members.contains(*n.bus, n.node)
-                                : !g.members.bus && g.members.contains(0, n.node);
-      if (member) n.groups.push_back(g.members.name);
-    }
-    n.thresholds = resolve(*cfg, n.bus, n.node);
-    builtin_checks(n, r);
   }
+  n.named = named != nullptr;
+  n.name = named != nullptr ? named->name : format_node(node_map, n.node);
+  for (const GroupConfig& g : cfg.groups) {
+    const bool member = n.bus ? g.members.contains(*n.bus, n.node)
+                              : !g.members.bus && g.members.contains(0, n.node);
+    if (member) n.groups.push_back(g.members.name);
+  }
+  n.thresholds = resolve(cfg, n.bus, n.node);
+}
+
+// The checks added with add_check, each on every node; one that throws is the node's error.
+void custom_checks(const std::vector<std::pair<std::string, CanNodeCheck>>& checks, CanReport& r) {
   for (const auto& [name, check] : checks) {
     for (NodeReport& n : r.nodes) {
       if (!n.is_node()) continue;
@@ -527,6 +519,42 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
       }
     }
   }
+}
+
+}  // namespace
+
+CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
+  std::shared_ptr<const CanConfig> cfg;
+  std::vector<std::pair<std::string, CanNodeCheck>> checks;
+  {
+    std::lock_guard lock(mutex_);
+    cfg = config_;
+    checks = checks_;
+  }
+  CanReport r;
+  r.time_ns = now;
+  // Silence is judged up to the time the sniffers' tables were read, and no later than `now`:
+  // a late CAN supervisor makes silences shorter, never longer (see the file comment).
+  r.observed_ns = snapshot.observed_ns < 0 ? now : std::min(now, snapshot.observed_ns);
+  r.observer_lag_ns = now - r.observed_ns;
+  r.node_map = snapshot.sniffers.empty() ? cfg->node_map : snapshot.sniffers.front().node_map;
+  r.snapshot = std::move(snapshot);
+  judge_ids(r, *cfg);
+
+  NodesByKey seen = seen_nodes(r.snapshot);
+  std::vector<NodeReport> unseen = mark_expected(*cfg, seen);
+  for (auto& [key, n] : seen) r.nodes.push_back(std::move(n));
+  for (NodeReport& n : unseen) r.nodes.push_back(std::move(n));
+  for (NodeReport& n : r.nodes) {
+    if (n.node == kNoNode) {
+      n.liveness = Liveness::NoNode;
+      n.name = "(no node)";
+      continue;
+    }
+    configure(n, *cfg, r.node_map);
+    builtin_checks(n, r);
+  }
+  custom_checks(checks, r);
   overall(r, options_);
   return r;
 }
