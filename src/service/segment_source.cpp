@@ -513,7 +513,21 @@ struct SegmentSource::Impl {
   std::size_t step() {
     const Nanos t0 = now();
     const std::uint64_t m0 = messages;
-    // (1) Deaths: one poll over every pidfd, /proc for processes without one.
+    detect_deaths();
+    discover(t0);
+    drain_all();
+    forget_placements(t0);
+    const Nanos t1 = now();
+    supervisor::SupervisorCycle c{
+        cycles + 1, t0, t1 - t0, static_cast<std::size_t>(messages - m0), segments.size(), 0};
+    aggregator.on_cycle(c);
+    ++cycles;
+    cycle_time.add(t1 - t0);
+    return static_cast<std::size_t>(messages - m0);
+  }
+
+  // (1) Deaths: one poll over every pidfd, /proc for processes without one.
+  void detect_deaths() {
     std::vector<int>& fds = step_fds;
     std::vector<Process*>& owners = step_owners;
     fds.clear();
@@ -537,7 +551,10 @@ struct SegmentSource::Impl {
         }
       }
     }
-    // (2) New segments: when the directory changed, at every rescan, and the pending ones.
+  }
+
+  // (2) New segments: when the directory changed, at every rescan, and the pending ones.
+  void discover(Nanos t0) {
     if (!dir_watch && options.watch_directory) {
       if (auto w = platform::ShmDirectoryWatch::open()) dir_watch.emplace(std::move(*w));
     }
@@ -555,10 +572,13 @@ struct SegmentSource::Impl {
       for (const auto& [name, since] : pending) retry.push_back(name);
       for (const auto& name : retry) open_segment(name);
     }
-    // (3) Drain; (4) segments whose component left. In the aggregator's id order (the order
-    // segments were opened), so that its record lookups hit their hint and bring in the next
-    // records ahead, as for the in-process supervisor; the list is rebuilt only when segments
-    // come or go.
+  }
+
+  // (3) Drain; (4) segments whose component left.
+  void drain_all() {
+    // In the aggregator's id order (the order segments were opened), so that its record lookups hit
+    // their hint and bring in the next records ahead, as for the in-process supervisor; the list is
+    // rebuilt only when segments come or go.
     std::vector<Segment*>& all = step_segments;  // reused: no allocation per cycle
     if (order_stale) {
       all.clear();
@@ -604,7 +624,10 @@ struct SegmentSource::Impl {
               fmt::format("component {} of process {} left", component, pid));
       }
     }
-    // Placements of components the aggregator has forgotten.
+  }
+
+  // Placements of components the aggregator has forgotten.
+  void forget_placements(Nanos t0) {
     if (t0 > next_forget) {
       std::erase_if(placements, [&](const auto& kv) {
         return kv.second.forget_at != 0 && t0 > kv.second.forget_at;
@@ -614,13 +637,6 @@ struct SegmentSource::Impl {
         if (pl.forget_at != 0) next_forget = std::min(next_forget, pl.forget_at);
       }
     }
-    const Nanos t1 = now();
-    supervisor::SupervisorCycle c{
-        cycles + 1, t0, t1 - t0, static_cast<std::size_t>(messages - m0), segments.size(), 0};
-    aggregator.on_cycle(c);
-    ++cycles;
-    cycle_time.add(t1 - t0);
-    return static_cast<std::size_t>(messages - m0);
   }
 
   // --- reports -------------------------------------------------------------------------------
