@@ -5,7 +5,8 @@
 /// docs/reference/http.md lists every endpoint; docs/guide/http.md shows how to use them.
 ///
 /// Design:
-///  - **Copy-on-publish.** A publisher (normally the monitor's thread, see http_service.hpp)
+///  - **Copy-on-publish.** A publisher (normally the monitor's thread, through
+///  exporter::HttpOutput, see outputs.hpp)
 ///    hands over each cycle's reports with `publish()`, which builds an immutable
 ///    `MetricsSnapshot` and swaps a `shared_ptr` under a mutex held for the swap only. HTTP
 ///    threads take a reference to the current snapshot and render from it (each body is
