@@ -6,8 +6,8 @@
 ///
 /// Design:
 ///  - **Copy-on-publish.** A publisher (normally the monitor's thread, through
-///  exporter::HttpOutput, see outputs.hpp)
-///    hands over each cycle's reports with `publish()`, which builds an immutable
+///    `exporter::HttpOutput`, see outputs.hpp) hands over each cycle's reports with
+///    `publish()`, which builds an immutable
 ///    `MetricsSnapshot` and swaps a `shared_ptr` under a mutex held for the swap only. HTTP
 ///    threads take a reference to the current snapshot and render from it (each body is
 ///    rendered once per snapshot and shared by every request that asks for it). Nothing here
