@@ -188,6 +188,8 @@ std::string event_json(const Event& e) {
                   e.component_id, e.cycle, e.fault_ns, e.detected_ns, e.latency_ns(), e.count,
                   e.latched, e.traced);
   exporter::append_json_string(out, e.detail);
+  // The process of an event about another process (`vigil supervise`); absent for this one's.
+  if (e.pid != 0) out += fmt::format(R"(,"pid":{})", e.pid);
   out += '}';
   return out;
 }

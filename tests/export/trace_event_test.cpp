@@ -105,6 +105,13 @@ TEST_CASE("Events are one JSON object per line, escaped", "[export][events]") {
   CHECK(j["component"].str() == "arm \"left\"");
   CHECK(j["detail"].str() == "line\nbreak");
   CHECK(j["latency_ns"].number() == 500);
+  CHECK(line.find("\"pid\"") == std::string::npos);  // this process's own component
+  // An event about another process (vigil supervise) names it.
+  e.kind = EventKind::ProcessExited;
+  e.pid = 4321;
+  const Json p = JsonParser::parse(event_json(e));
+  CHECK(p["kind"].str() == "process_exited");
+  CHECK(p["pid"].number() == 4321);
 }
 
 TEST_CASE("EventLogWriter writes every event as a JSON line", "[export][events]") {
