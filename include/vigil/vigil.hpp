@@ -23,7 +23,7 @@
 #include "vigil/platform/thread_stats.hpp"
 #include "vigil/service/supervision_service.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
-#include "vigil/supervisor/supervisor.hpp"
+#include "vigil/supervisor/drain_loop.hpp"
 #include "vigil/task/default_registry.hpp"
 #include "vigil/task/instrumentation.hpp"
 #include "vigil/task/messages.hpp"

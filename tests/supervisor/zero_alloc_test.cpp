@@ -30,7 +30,7 @@ void million_cycles_allocate_nothing() {
   REQUIRE(platform::allocation_counting_available());
   Registry<task::Message> reg;
   ComponentAggregator agg;
-  TaskSupervisor sup(reg, agg, {.period_ns = kNanosPerMilli});
+  ComponentDrainLoop sup(reg, agg, {.period_ns = kNanosPerMilli});
   REQUIRE(sup.start().has_value());
   std::uint64_t allocations = ~std::uint64_t{0};
   std::uint64_t loss_count = ~std::uint64_t{0};
@@ -122,7 +122,7 @@ TEST_CASE("Counters stay exact under loss: overruns, exceptions and RT losses",
     release += 2000;
   }
   ComponentAggregator agg;
-  TaskSupervisor loop(reg, agg);
+  ComponentDrainLoop loop(reg, agg);
   loop.step();
   fc.set(release);
   sup.run([] {}, release);  // one more cycle carries the final totals
