@@ -6,11 +6,13 @@
 #include <string>
 #include <utility>
 
+#include "vigil/deploy/system.hpp"
 #include "vigil/platform/clock.hpp"
 
 namespace vigil::deploy {
 
-CanExtension::CanExtension(can::CanConfig config) : config_(std::move(config)) {
+CanExtension::CanExtension(can::CanConfig config, supervisor::EventHub* events)
+    : config_(std::move(config)), events_(events) {
   statistics_ = std::make_unique<can::CanAggregator>(registry_);
   // Its clock is the frames' (platform::now_ns, as the sniffers' callers and SocketCan stamp
   // them, even when supervision reads the TSC): the start of its cycles is the time node
@@ -138,6 +140,7 @@ void CanExtension::add_reports(ReportSet& reports,
   const Nanos stopped = stopped_at_.load(std::memory_order_relaxed);
   const Nanos now = stopped != 0 ? stopped : platform::now_ns();
   const can::CanReport r = monitor_->evaluate(*statistics_, now);
+  publish_changes(r, now);
   reports.components.push_back(supervisor_report(r, running));
   std::map<std::string, GroupTally> groups;
   std::map<std::pair<std::uint8_t, std::uint32_t>, std::string> names;  // of the nodes seen
@@ -184,14 +187,48 @@ void CanExtension::add_reports(ReportSet& reports,
   for (auto& [name, h] : by_name) histograms->push_back(std::move(h));
 }
 
+void CanExtension::publish_changes(const can::CanReport& r, Nanos now) {
+  if (events_ == nullptr) return;
+  for (const auto& n : r.nodes) {
+    if (!n.is_node() || !n.bus) continue;
+    const bool silent = n.liveness == can::Liveness::NotResponding;
+    const std::string name = fmt::format("can{}/{}", *n.bus, n.name);
+    const auto it = not_responding_.find(name);
+    const bool was = it != not_responding_.end() && it->second;
+    if (silent == was) continue;
+    not_responding_[name] = silent;
+    supervisor::Event e;
+    e.component = name;
+    e.detected_ns = platform::now_ns();
+    // The frames' time: the node's latest frame is `silence` before the observation.
+    const Nanos last_frame = n.silence_ns >= 0 ? r.observed_ns - n.silence_ns : 0;
+    if (silent) {
+      e.kind = supervisor::EventKind::NotResponding;
+      e.severity = supervisor::EventSeverity::Error;
+      // It failed when its silence passed the limit (a request left unanswered: when seen).
+      e.fault_ns = last_frame > 0 && n.silence_limit_ns >= 0 && n.silence_ns > n.silence_limit_ns
+                       ? last_frame + n.silence_limit_ns
+                       : r.observed_ns;
+      e.detail = n.status.summary();
+    } else {
+      e.kind = supervisor::EventKind::Responding;
+      e.severity = supervisor::EventSeverity::Info;
+      e.fault_ns = last_frame > 0 ? last_frame : now;  // its first frame again, or about then
+      e.detail = fmt::format("{} again", can::to_string(n.liveness));
+    }
+    events_->publish(std::move(e));
+  }
+}
+
 void register_can_extension() {
   static const bool once = [] {
     register_extension(std::string(kCanSection),
-                       [](const config::Node& section,
-                          System&) -> expected<std::unique_ptr<Extension>, config::ConfigErrors> {
+                       [](const config::Node& section, System& system)
+                           -> expected<std::unique_ptr<Extension>, config::ConfigErrors> {
                          can::CanConfig cfg = can::load_can_config(section);
                          if (section.has_errors()) return vigil::unexpected(section.errors());
-                         return std::make_unique<CanExtension>(std::move(cfg));
+                         return std::make_unique<CanExtension>(std::move(cfg),
+                                                               &system.service().events());
                        });
     return true;
   }();

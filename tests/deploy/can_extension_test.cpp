@@ -3,7 +3,9 @@
 #include "vigil/deploy/can_extension.hpp"
 
 #include <catch2/catch.hpp>
+#include <mutex>
 #include <thread>
+#include <vector>
 
 #include "vigil/deploy/system.hpp"
 #include "vigil/platform/clock.hpp"
@@ -14,12 +16,14 @@ using namespace vigil::deploy;
 
 namespace {
 
-// Sends TPDO1 of nodes 1..3 every cycle (as read frames); node 3 stops after `quiet_after`.
+// Sends TPDO1 of nodes 1..3 every cycle (as read frames); node 3 is quiet from cycle
+// `quiet_after` + 1 to `back_after`.
 class Bus : public Task<Bus> {
  public:
   explicit Bus(const ComponentContext& c)
       : Task(c.name, c.supervision, c.registry()),
-        quiet_after_(c.parameters.optional<std::uint64_t>("quiet_after", 20)) {
+        quiet_after_(c.parameters.optional<std::uint64_t>("quiet_after", 20)),
+        back_after_(c.parameters.optional<std::uint64_t>("back_after", UINT64_MAX)) {
     auto* ext = c.system->extension<CanExtension>();
     if (ext == nullptr) throw std::runtime_error("needs a can: section");
     sniffer_ = std::make_unique<can::Sniffer<64>>(
@@ -28,7 +32,7 @@ class Bus : public Task<Bus> {
   void on_update() {
     ++cycle_;
     for (std::uint32_t node = 1; node <= 3; ++node) {
-      if (node == 3 && cycle_ > quiet_after_) continue;
+      if (node == 3 && cycle_ > quiet_after_ && cycle_ <= back_after_) continue;
       const Nanos t = platform::now_ns();
       can::Frame f = can::Frame::classic(0x180 + node, {0x01});
       f.timestamp = t;
@@ -38,6 +42,7 @@ class Bus : public Task<Bus> {
 
  private:
   std::uint64_t quiet_after_;
+  std::uint64_t back_after_;
   std::uint64_t cycle_ = 0;
   std::unique_ptr<can::Sniffer<64>> sniffer_;
 };
@@ -162,4 +167,54 @@ can: {node_map: canopn}
   auto sys = System::create(std::move(*spec), factory());
   REQUIRE_FALSE(sys.has_value());
   CHECK_THAT(config::to_string(sys.error()), Catch::StartsWith("can.yaml:4:17: can.node_map:"));
+}
+
+TEST_CASE("A CAN node that stops and starts responding is an event, with its fault time",
+          "[deploy][can][events]") {
+  // Node 3 is quiet from about 50 ms to about 300 ms (cycles of 5 ms); its limit is 100 ms.
+  auto spec = load_deployment_string(R"(
+activities: [{name: io, period: 5ms}]
+components: [{name: bus, type: test.can_bus, activity: io,
+              parameters: {quiet_after: 10, back_after: 60}}]
+supervision: {lock_memory: false, monitor_period: 20ms}
+can:
+  node_map: canopen
+  defaults: {not_responding: {after: 100ms}}
+  nodes: {drive_1: {node: 1, bus: 0}}
+)",
+                                     "can.yaml", factory());
+  REQUIRE(spec.has_value());
+  auto sys = System::create(std::move(*spec), factory());
+  REQUIRE(sys.has_value());
+  std::mutex m;
+  std::vector<Event> seen;
+  const auto sub = (*sys)->service().events().subscribe([&](const Event& e) {
+    if (e.kind != EventKind::NotResponding && e.kind != EventKind::Responding) return;
+    const std::lock_guard lock(m);
+    seen.push_back(e);
+  });
+  const Nanos start = platform::now_ns();
+  REQUIRE((*sys)->start().has_value());
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+  (*sys)->stop();
+  (*sys)->service().events().flush();
+  (*sys)->service().events().unsubscribe(sub);
+  const std::lock_guard lock(m);
+  REQUIRE(seen.size() == 2);  // one per change; none for the nodes that kept sending
+  const Event& down = seen[0];
+  CHECK(down.kind == EventKind::NotResponding);
+  CHECK(down.severity == EventSeverity::Error);
+  CHECK(down.component == "can0/3");
+  CHECK(down.detail.find("not responding") != std::string::npos);
+  // It failed when its silence passed the limit: 100 ms after its last frame.
+  CHECK(down.fault_ns > start + 100 * kNanosPerMilli);
+  CHECK(down.detected_ns >= down.fault_ns);
+  const Event& up = seen[1];
+  CHECK(up.kind == EventKind::Responding);
+  CHECK(up.severity == EventSeverity::Info);
+  CHECK(up.component == "can0/3");
+  CHECK(up.fault_ns > down.fault_ns);  // its first frame again
+  CHECK(up.detected_ns >= up.fault_ns);
+  CHECK(std::string(to_string(up.kind)) == "responding");
+  CHECK(std::string(to_string(down.kind)) == "not_responding");
 }

@@ -25,8 +25,10 @@
 /// threads that read the System's reports. Not RT-safe (only the sniffers are).
 
 #include <atomic>
+#include <map>
 #include <memory>
 #include <mutex>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -35,6 +37,7 @@
 #include "vigil/can/can_statistics.hpp"
 #include "vigil/can/sniffer.hpp"
 #include "vigil/deploy/extension.hpp"
+#include "vigil/supervisor/events.hpp"
 
 namespace vigil::deploy {
 
@@ -46,8 +49,10 @@ inline constexpr std::string_view kCanSupervisorName = "vigil.can-supervisor";
 /// CAN supervision configured by a deployment's `can:` section.
 class CanExtension : public Extension {
  public:
-  /// Builds the registry, aggregator, supervisor (not started) and monitor for `config`.
-  explicit CanExtension(can::CanConfig config);
+  /// Builds the registry, aggregator, supervisor (not started) and monitor for `config`. With
+  /// `events`, a node that stops responding and one that responds again are published there
+  /// (`EventKind::NotResponding`, `EventKind::Responding`), once per change.
+  explicit CanExtension(can::CanConfig config, supervisor::EventHub* events = nullptr);
   /// Starts the CAN supervisor thread; fails when the thread cannot be created.
   expected<void, Error> start() override;
   /// Records the moment the system began to stop: liveness is judged as of then afterwards.
@@ -77,9 +82,14 @@ class CanExtension : public Extension {
   std::mutex step_mutex_;
   std::unique_ptr<can::CanMonitor> monitor_;
   void add_reports(ReportSet& reports, std::vector<exporter::CanHistograms>* histograms);
+  void publish_changes(const can::CanReport& r, Nanos now);
   [[nodiscard]] Report supervisor_report(const can::CanReport& r, bool running) const;
 
   std::atomic<Nanos> stopped_at_{0};  // once stopping: the time liveness is judged at
+  supervisor::EventHub* events_ = nullptr;
+  // The nodes not responding at the latest evaluation, by report name (the thread evaluating:
+  // the monitor's, or a caller of step_monitor(); never two at once, see the service).
+  std::map<std::string, bool> not_responding_;
 };
 
 /// Registers the extension for the `can:` section (idempotent, thread-safe). Linking

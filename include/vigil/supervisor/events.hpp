@@ -46,6 +46,9 @@ enum class EventKind : std::uint8_t {
   Left,             ///< a component of another process left normally (segment closed, drained)
   ProcessExited,    ///< a supervised process ended; `detail` says how
   SegmentRejected,  ///< a segment failed validation; `detail` names the field and why
+  // What the units of a contributor report (CAN nodes):
+  NotResponding,  ///< a unit (a CAN node) sent nothing within its silence limit
+  Responding,     ///< a unit that was not responding sends again
 };
 /// Lower-case name of a kind ("exception", "overrun_limit", ...), as written in JSON.
 [[nodiscard]] const char* to_string(EventKind k) noexcept;
