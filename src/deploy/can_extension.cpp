@@ -222,14 +222,14 @@ void CanExtension::publish_changes(const can::CanReport& r, Nanos now) {
 
 void register_can_extension() {
   static const bool once = [] {
-    register_extension(std::string(kCanSection),
-                       [](const config::Node& section, System& system)
-                           -> expected<std::unique_ptr<Extension>, config::ConfigErrors> {
-                         can::CanConfig cfg = can::load_can_config(section);
-                         if (section.has_errors()) return vigil::unexpected(section.errors());
-                         return std::make_unique<CanExtension>(std::move(cfg),
-                                                               &system.service().events());
-                       });
+    register_extension(
+        std::string(kCanSection),
+        [](const config::Node& section,
+           System& system) -> expected<std::unique_ptr<Extension>, config::ConfigErrors> {
+          can::CanConfig cfg = can::load_can_config(section);
+          if (section.has_errors()) return vigil::unexpected(section.errors());
+          return std::make_unique<CanExtension>(std::move(cfg), &system.service().events());
+        });
     return true;
   }();
   (void)once;
