@@ -39,6 +39,14 @@ const char* to_string(EventKind k) noexcept {
       return "process_exited";
     case EventKind::SegmentRejected:
       return "segment_rejected";
+    case EventKind::AliveSupervision:
+      return "alive_supervision";
+    case EventKind::DeadlineSupervision:
+      return "deadline_supervision";
+    case EventKind::LogicalSupervision:
+      return "logical_supervision";
+    case EventKind::CheckpointMisuse:
+      return "checkpoint_misuse";
   }
   return "?";
 }

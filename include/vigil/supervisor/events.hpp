@@ -46,6 +46,12 @@ enum class EventKind : std::uint8_t {
   Left,             ///< a component of another process left normally (segment closed, drained)
   ProcessExited,    ///< a supervised process ended; `detail` says how
   SegmentRejected,  ///< a segment failed validation; `detail` names the field and why
+  // Health supervision (vigil/health; `HealthSupervision`): `detail` names the supervision first.
+  // Warn while the supervision is FAILED (within its tolerance), Error when it becomes EXPIRED.
+  AliveSupervision,     ///< too few or too many indications in a reference cycle, or never started
+  DeadlineSupervision,  ///< an end too early, missed (found when max passed), or a second start
+  LogicalSupervision,   ///< a checkpoint the graph does not allow after the previous one
+  CheckpointMisuse,     ///< a component reported a checkpoint id it did not declare (Warn)
 };
 /// Lower-case name of a kind ("exception", "overrun_limit", ...), as written in JSON.
 [[nodiscard]] const char* to_string(EventKind k) noexcept;
