@@ -86,6 +86,7 @@ struct Supervision {
   std::vector<char> initial;            // node -> is initial
   std::vector<char> final;              // node -> is final
   int current = -1;                     // node of the sequence under way (-1: between two)
+  bool synced = false;  // an initial checkpoint was seen since the activation
   std::deque<int> history;              // latest checkpoint handles seen
 };
 
@@ -265,6 +266,7 @@ struct HealthEngine::Impl {
     s.window_failed = false;
     s.started = false;
     s.current = -1;
+    s.synced = false;
   }
 
   static void stop_supervision(Supervision& s) {
@@ -398,6 +400,12 @@ struct HealthEngine::Impl {
     s.history.push_back(cp);
     while (s.history.size() > std::max<std::size_t>(config.history, 1)) s.history.pop_front();
     const int after = s.final[un] != 0 ? -1 : node;
+    // Activated in the middle of a sequence (its entities start one after the other, or a
+    // daemon attaches late): judged from the first initial checkpoint on.
+    if (!s.synced) {
+      if (s.initial[un] == 0) return;
+      s.synced = true;
+    }
     if (lost_before) {  // reports were lost just before: take this one as the new position
       s.current = after;
       return;
