@@ -574,6 +574,10 @@ struct HealthEngine::Impl {
     }
     now = at;
     const Nanos horizon = at - config.settle_ns;
+    // Nothing drained can have happened after now: a later time is another clock's (a
+    // transition made outside a cycle, stamped with the system clock while the cycles run on a
+    // replaced one). Taken as now.
+    for (Input& in : inputs) in.time = std::min(in.time, at);
     std::sort(inputs.begin(), inputs.end(), [](const Input& a, const Input& b) {
       return a.time != b.time ? a.time < b.time : a.seq < b.seq;
     });
@@ -589,6 +593,16 @@ struct HealthEngine::Impl {
   [[nodiscard]] Nanos next_deadline() const {
     Nanos when = kNever;
     for (const auto& s : sups) when = std::min(when, due(s));
+    // A start is known only once drained: an active deadline supervision waiting for one asks
+    // to be drained at least every max_ns, so that the start of a chain is seen before its
+    // deadline passes (and the missing end is found when it does).
+    Nanos poll = kNever;
+    for (const auto& s : sups) {
+      if (s.kind == SupervisionKind::Deadline && s.status != SupervisionStatus::Deactivated &&
+          !s.started && started) {
+        poll = std::min(poll, now + config.deadline[s.config].max_ns);
+      }
+    }
     for (const auto& in : inputs) when = std::min(when, in.time);
     if (!started) {
       // The grace periods count from the first advance(): ask for one at once.
@@ -596,7 +610,7 @@ struct HealthEngine::Impl {
         if (s.awaiting_start) return 0;
       }
     }
-    return when == kNever ? kNever : when + config.settle_ns;
+    return std::min(poll, when == kNever ? kNever : when + config.settle_ns);
   }
 
   void queue(InputKind kind, int id, Nanos t, std::uint64_t count) {

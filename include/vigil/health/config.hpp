@@ -28,6 +28,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "vigil/error.hpp"
@@ -38,6 +39,13 @@ namespace vigil::health {
 
 /// One checkpoint of one supervised entity.
 struct CheckpointRef {
+  CheckpointRef() = default;
+  /// `{"drive", "read"}`; `{"drive"}`: the entity's cycles. Implicit, for braced lists.
+  CheckpointRef(std::string entity_name,  // NOLINT(google-explicit-constructor)
+                std::string checkpoint_name = {})
+      : entity(std::move(entity_name)), checkpoint(std::move(checkpoint_name)) {}
+  CheckpointRef(const char* entity_name)  // NOLINT(google-explicit-constructor)
+      : entity(entity_name) {}
   std::string entity;  ///< the supervised entity: the component's name
   /// The checkpoint's declared name; empty: the entity's cycles (every supervised cycle of the
   /// component is one indication, with no checkpoint to declare).

@@ -92,7 +92,10 @@ class HealthEngine {
   /// then; failures found are stamped `detected_ns = now` and queued for take_failures().
   void advance(Nanos now);
   /// The earliest time at which advance() has something to judge: a due time or a waiting
-  /// input, plus `settle_ns`; kNever when nothing waits. Call advance() then.
+  /// input, plus `settle_ns`; kNever when nothing waits. Call advance() then. An active deadline
+  /// supervision waiting for its start also asks for an advance (a drain) at least every max_ns
+  /// after the latest one: its start is known only once drained, and must be before its
+  /// deadline passes for the missing end to be found when it does.
   [[nodiscard]] Nanos next_deadline() const noexcept;
   /// The failures found since the last call, in the order found.
   [[nodiscard]] std::vector<Failure> take_failures();
