@@ -100,7 +100,8 @@ class StepsTask : public Task<StepsTask> {
 
 struct StepsSubject {
   explicit StepsSubject(bool report)
-      : task(registry, report), activity(task, ManualConfig{.name = "bench", .period_ns = kPeriod}) {
+      : task(registry, report),
+        activity(task, ManualConfig{.name = "bench", .period_ns = kPeriod}) {
     (void)task.configure();
     (void)activity.start();
   }
@@ -198,7 +199,8 @@ void supervisor_per_checkpoint(benchmark::State& state) {
   for (int c = 0; c < kComponents; ++c) {
     const std::string n = "c" + std::to_string(c);
     cps.push_back(std::make_unique<Instrumentation>(n, SupervisionOptions{}, reg_cp));
-    ids.emplace_back(cps.back()->declare_checkpoint("read"), cps.back()->declare_checkpoint("write"));
+    ids.emplace_back(cps.back()->declare_checkpoint("read"),
+                     cps.back()->declare_checkpoint("write"));
     cps.back()->init(ManualInfo{.activity = "bench", .period_ns = kPeriod});
     samples.push_back(std::make_unique<Instrumentation>(n, SupervisionOptions{}, reg_s));
     samples.back()->init(ManualInfo{.activity = "bench", .period_ns = kPeriod});
@@ -234,10 +236,8 @@ void supervisor_per_checkpoint(benchmark::State& state) {
       });
   state.counters["messages_per_step"] = static_cast<double>(n_cp);
   const auto r = agg_cp.health_reports();
-  state.counters["health_failures"] =
-      static_cast<double>(std::count_if(r.begin(), r.end(), [](const auto& x) {
-        return x.failures > 0;
-      }));
+  state.counters["health_failures"] = static_cast<double>(
+      std::count_if(r.begin(), r.end(), [](const auto& x) { return x.failures > 0; }));
 }
 
 // --- 4. detection latency after a deadline ------------------------------------------------------

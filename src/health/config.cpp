@@ -74,7 +74,8 @@ Error bad(std::string what) { return Error(EINVAL, std::move(what)); }
 
 expected<void, Error> check_ref(const std::string& where, const char* field,
                                 const CheckpointRef& r) {
-  if (r.entity.empty()) return unexpected<Error>(bad(fmt::format("{}: {}: entity is empty", where, field)));
+  if (r.entity.empty())
+    return unexpected<Error>(bad(fmt::format("{}: {}: entity is empty", where, field)));
   if (r.checkpoint.size() > kMaxCheckpointName) {
     return unexpected<Error>(bad(fmt::format("{}: {}: checkpoint name '{}' is longer than {} bytes",
                                              where, field, r.checkpoint, kMaxCheckpointName)));
@@ -110,12 +111,12 @@ expected<void, Error> check_deadline(const DeadlineSupervisionConfig& c) {
   if (auto ok = check_ref(where, "start", c.start); !ok) return ok;
   if (auto ok = check_ref(where, "end", c.end); !ok) return ok;
   if (c.start == c.end) {
-    return unexpected<Error>(bad(fmt::format("{}: start and end are the same checkpoint ({})",
-                                             where, to_string(c.start))));
+    return unexpected<Error>(bad(
+        fmt::format("{}: start and end are the same checkpoint ({})", where, to_string(c.start))));
   }
   if (c.max_ns <= 0) {
-    return unexpected<Error>(bad(fmt::format("{}: max_ns must be positive (is {} ns)", where,
-                                             c.max_ns)));
+    return unexpected<Error>(
+        bad(fmt::format("{}: max_ns must be positive (is {} ns)", where, c.max_ns)));
   }
   if (c.min_ns < 0 || c.min_ns > c.max_ns) {
     return unexpected<Error>(bad(fmt::format("{}: min_ns ({}) > max_ns ({}) or negative", where,
@@ -149,15 +150,15 @@ expected<void, Error> check_logical(const LogicalSupervisionConfig& c) {
   for (const auto& r : c.initial) {
     if (auto ok = check_ref(where, "initial", r); !ok) return ok;
     if (index(r) >= named) {
-      return unexpected<Error>(bad(fmt::format("{}: initial checkpoint {} is in no transition",
-                                               where, to_string(r))));
+      return unexpected<Error>(
+          bad(fmt::format("{}: initial checkpoint {} is in no transition", where, to_string(r))));
     }
   }
   for (const auto& r : c.final) {
     if (auto ok = check_ref(where, "final", r); !ok) return ok;
     if (index(r) >= named) {
-      return unexpected<Error>(bad(
-          fmt::format("{}: final checkpoint {} is in no transition", where, to_string(r))));
+      return unexpected<Error>(
+          bad(fmt::format("{}: final checkpoint {} is in no transition", where, to_string(r))));
     }
   }
   // Every checkpoint must be reachable from an initial one.
@@ -182,9 +183,9 @@ expected<void, Error> check_logical(const LogicalSupervisionConfig& c) {
   }
   for (std::size_t i = 0; i < nodes.size(); ++i) {
     if (seen[i] == 0) {
-      return unexpected<Error>(bad(fmt::format(
-          "{}: checkpoint {} is unreachable from every initial checkpoint", where,
-          to_string(nodes[i]))));
+      return unexpected<Error>(
+          bad(fmt::format("{}: checkpoint {} is unreachable from every initial checkpoint", where,
+                          to_string(nodes[i]))));
     }
   }
   return {};
@@ -195,7 +196,8 @@ expected<void, Error> check_logical(const LogicalSupervisionConfig& c) {
 expected<void, Error> validate(const HealthConfig& config) {
   std::set<std::string, std::less<>> names;
   const auto name_ok = [&](const char* kind, const std::string& name) -> expected<void, Error> {
-    if (name.empty()) return unexpected<Error>(bad(fmt::format("{} supervision without a name", kind)));
+    if (name.empty())
+      return unexpected<Error>(bad(fmt::format("{} supervision without a name", kind)));
     if (!names.insert(name).second) {
       return unexpected<Error>(bad(fmt::format("{} '{}': the name is used twice", kind, name)));
     }

@@ -81,13 +81,13 @@ struct Supervision {
   int start_cp = -1;  // alive: its checkpoint
   int end_cp = -1;
   // Logical.
-  std::vector<int> nodes;               // node -> checkpoint handle
-  std::vector<std::vector<int>> next;   // node -> allowed next nodes
-  std::vector<char> initial;            // node -> is initial
-  std::vector<char> final;              // node -> is final
-  int current = -1;                     // node of the sequence under way (-1: between two)
-  bool synced = false;  // an initial checkpoint was seen since the activation
-  std::deque<int> history;              // latest checkpoint handles seen
+  std::vector<int> nodes;              // node -> checkpoint handle
+  std::vector<std::vector<int>> next;  // node -> allowed next nodes
+  std::vector<char> initial;           // node -> is initial
+  std::vector<char> final;             // node -> is final
+  int current = -1;                    // node of the sequence under way (-1: between two)
+  bool synced = false;                 // an initial checkpoint was seen since the activation
+  std::deque<int> history;             // latest checkpoint handles seen
 };
 
 }  // namespace
@@ -341,8 +341,7 @@ struct HealthEngine::Impl {
     const std::uint64_t most = std::uint64_t{c.expected_indications} + c.max_margin;
     if (!s.window_failed && s.window_count > most) {
       s.window_failed = true;
-      fail(s, FailureKind::TooManyIndications, checkpoints[static_cast<std::size_t>(cp)].entity,
-           t,
+      fail(s, FailureKind::TooManyIndications, checkpoints[static_cast<std::size_t>(cp)].entity, t,
            fmt::format("{}: {} indications within {} of a {} reference cycle (at most {}: "
                        "expected {} +{})",
                        checkpoints[static_cast<std::size_t>(cp)].label, s.window_count,
@@ -354,8 +353,8 @@ struct HealthEngine::Impl {
   void deadline_start(Supervision& s, Nanos t) {
     const auto& c = config.deadline[s.config];
     if (s.started) {
-      fail(s, FailureKind::DeadlineRestarted, checkpoints[static_cast<std::size_t>(s.start_cp)].entity,
-           t,
+      fail(s, FailureKind::DeadlineRestarted,
+           checkpoints[static_cast<std::size_t>(s.start_cp)].entity, t,
            fmt::format("{} again {} after the previous one, before {}",
                        checkpoints[static_cast<std::size_t>(s.start_cp)].label,
                        ms(t - s.start_time), to_string(c.end)));
@@ -411,11 +410,11 @@ struct HealthEngine::Impl {
       return;
     }
     ++s.evaluations;
-    const bool valid = s.current < 0 ? s.initial[un] != 0
-                                     : std::find(s.next[static_cast<std::size_t>(s.current)].begin(),
-                                                 s.next[static_cast<std::size_t>(s.current)].end(),
-                                                 node) !=
-                                           s.next[static_cast<std::size_t>(s.current)].end();
+    const bool valid = s.current < 0
+                           ? s.initial[un] != 0
+                           : std::find(s.next[static_cast<std::size_t>(s.current)].begin(),
+                                       s.next[static_cast<std::size_t>(s.current)].end(),
+                                       node) != s.next[static_cast<std::size_t>(s.current)].end();
     if (valid) {
       pass(s);
       s.current = after;
@@ -435,13 +434,12 @@ struct HealthEngine::Impl {
     }
     const std::string seen = checkpoints[static_cast<std::size_t>(cp)].label;
     std::string text =
-        s.current < 0
-            ? fmt::format("{} at the start of a sequence; allowed: {}", seen, allowed)
-            : fmt::format("{} after {}; allowed: {}", seen,
-                          checkpoints[static_cast<std::size_t>(
-                                          s.nodes[static_cast<std::size_t>(s.current)])]
-                              .label,
-                          allowed.empty() ? std::string("none") : allowed);
+        s.current < 0 ? fmt::format("{} at the start of a sequence; allowed: {}", seen, allowed)
+                      : fmt::format("{} after {}; allowed: {}", seen,
+                                    checkpoints[static_cast<std::size_t>(
+                                                    s.nodes[static_cast<std::size_t>(s.current)])]
+                                        .label,
+                                    allowed.empty() ? std::string("none") : allowed);
     if (!last.empty()) text += fmt::format("; last: {}", last);
     s.current = after;  // resynchronise on the checkpoint seen
     fail(s, FailureKind::InvalidTransition, checkpoints[static_cast<std::size_t>(cp)].entity, t,
@@ -472,10 +470,10 @@ struct HealthEngine::Impl {
       const auto& c = config.deadline[s.config];
       s.started = false;
       ++s.evaluations;
-      fail(s, FailureKind::DeadlineMissed, checkpoints[static_cast<std::size_t>(s.end_cp)].entity,
-           s.start_time + c.max_ns,
-           fmt::format("no {} within {} of {}", to_string(c.end), ms(c.max_ns),
-                       to_string(c.start)));
+      fail(
+          s, FailureKind::DeadlineMissed, checkpoints[static_cast<std::size_t>(s.end_cp)].entity,
+          s.start_time + c.max_ns,
+          fmt::format("no {} within {} of {}", to_string(c.end), ms(c.max_ns), to_string(c.start)));
       return;
     }
     // Alive.
@@ -507,9 +505,9 @@ struct HealthEngine::Impl {
           fail(s, FailureKind::TooFewIndications, e, end,
                fmt::format("{}: {} indication{} in a {} reference cycle (at least {}: expected "
                            "{} -{})",
-                           checkpoints[static_cast<std::size_t>(s.start_cp)].label,
-                           s.window_count, s.window_count == 1 ? "" : "s", ms(s.window_ns),
-                           least, c.expected_indications, c.min_margin));
+                           checkpoints[static_cast<std::size_t>(s.start_cp)].label, s.window_count,
+                           s.window_count == 1 ? "" : "s", ms(s.window_ns), least,
+                           c.expected_indications, c.min_margin));
         } else {
           pass(s);
         }
@@ -637,8 +635,8 @@ struct HealthEngine::Impl {
     r.max_duration_ns = s.max_duration;
     r.started = s.started;
     if (s.current >= 0) {
-      r.current = checkpoints[static_cast<std::size_t>(s.nodes[static_cast<std::size_t>(s.current)])]
-                      .label;
+      r.current =
+          checkpoints[static_cast<std::size_t>(s.nodes[static_cast<std::size_t>(s.current)])].label;
     }
     r.has_failure = s.has_failure;
     r.last_failure = s.last;

@@ -97,8 +97,8 @@ void HealthSupervision::advance(Nanos now, std::vector<Event>& out) {
   for (auto& f : engine_.take_failures()) {
     Event e;
     e.kind = kind_of(f.kind);
-    e.severity = f.status == health::SupervisionStatus::Expired ? EventSeverity::Error
-                                                                 : EventSeverity::Warn;
+    e.severity =
+        f.status == health::SupervisionStatus::Expired ? EventSeverity::Error : EventSeverity::Warn;
     if (const auto it = ids_.find(f.entity); it != ids_.end()) e.component_id = it->second;
     e.component = f.entity;
     e.fault_ns = f.fault_ns;
@@ -116,8 +116,9 @@ void HealthSupervision::advance(Nanos now, std::vector<Event>& out) {
     e.component = b.name;
     e.detected_ns = now;
     e.count = b.misuses - b.misuses_raised;
-    e.detail = fmt::format("{} report{} of a checkpoint id the component did not declare ({} in all)",
-                           e.count, e.count == 1 ? "" : "s", b.misuses);
+    e.detail =
+        fmt::format("{} report{} of a checkpoint id the component did not declare ({} in all)",
+                    e.count, e.count == 1 ? "" : "s", b.misuses);
     b.misuses_raised = b.misuses;
     out.push_back(std::move(e));
   }

@@ -102,8 +102,7 @@ TEST_CASE("Alive: correct windows take failures back (FAILED -> OK)", "[health][
   CHECK(e.status("drive_alive") == SupervisionStatus::Ok);
 }
 
-TEST_CASE("Alive: too often fails at the indication beyond the max margin",
-          "[health][alive]") {
+TEST_CASE("Alive: too often fails at the indication beyond the max margin", "[health][alive]") {
   HealthEngine e(alive_config(/*tolerance=*/0));
   const int tick = e.checkpoint("drive", "tick");
   e.start(kT0);
@@ -121,8 +120,7 @@ TEST_CASE("Alive: too often fails at the indication beyond the max margin",
   CHECK(e.reports()[0].failures == 1);
 }
 
-TEST_CASE("Alive: reports dropped by a full port are counted from the gaps",
-          "[health][alive]") {
+TEST_CASE("Alive: reports dropped by a full port are counted from the gaps", "[health][alive]") {
   HealthEngine e(alive_config());
   const int tick = e.checkpoint("drive", "tick");
   e.start(kT0);
@@ -402,11 +400,11 @@ TEST_CASE("Logical: a sequence must begin at an initial checkpoint", "[health][l
 
 TEST_CASE("Logical: across entities", "[health][logical]") {
   HealthConfig c;
-  c.logical.push_back({.name = "handshake",
-                       .initial = {{"a", "request"}},
-                       .final = {{"a", "done"}},
-                       .transitions = {{{"a", "request"}, {"b", "reply"}},
-                                       {{"b", "reply"}, {"a", "done"}}}});
+  c.logical.push_back(
+      {.name = "handshake",
+       .initial = {{"a", "request"}},
+       .final = {{"a", "done"}},
+       .transitions = {{{"a", "request"}, {"b", "reply"}}, {{"b", "reply"}, {"a", "done"}}}});
   HealthEngine e(c);
   e.start(kT0);
   e.activate(e.entity("a"), kT0);

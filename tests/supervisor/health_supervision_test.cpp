@@ -76,10 +76,8 @@ TEST_CASE("Checkpoints and cycles drained from ports feed health supervision (fa
                        .min_margin = 2,
                        .max_margin = 2,
                        .startup_grace_ns = 0});
-  cfg.deadline.push_back({.name = "a_to_b",
-                          .start = {"a", "begin"},
-                          .end = {"b", "end"},
-                          .max_ns = 3 * kMs});
+  cfg.deadline.push_back(
+      {.name = "a_to_b", .start = {"a", "begin"}, .end = {"b", "end"}, .max_ns = 3 * kMs});
   cfg.logical.push_back({.name = "b_order",
                          .initial = {{"b", "begin"}},
                          .final = {{"b", "end"}},

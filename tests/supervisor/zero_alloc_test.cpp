@@ -10,8 +10,8 @@
 #include "vigil/exec/periodic_activity.hpp"
 #include "vigil/platform/rt_loss.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
-#include "vigil/task/task.hpp"
 #include "vigil/task/instrumentation.hpp"
+#include "vigil/task/task.hpp"
 
 using namespace vigil;
 using namespace vigil::supervisor;
@@ -98,11 +98,11 @@ TEST_CASE("Checkpoint reports allocate nothing on the component's thread, superv
   Registry<task::Message> reg;
   ComponentAggregator agg;
   health::HealthConfig cfg;
-  cfg.logical.push_back({.name = "order",
-                         .initial = {{"cp", "read"}},
-                         .final = {{"cp", "write"}},
-                         .transitions = {{{"cp", "read"}, {"cp", "compute"}},
-                                         {{"cp", "compute"}, {"cp", "write"}}}});
+  cfg.logical.push_back(
+      {.name = "order",
+       .initial = {{"cp", "read"}},
+       .final = {{"cp", "write"}},
+       .transitions = {{{"cp", "read"}, {"cp", "compute"}}, {{"cp", "compute"}, {"cp", "write"}}}});
   REQUIRE(agg.supervise_health(cfg).has_value());
   TaskSupervisor sup(reg, agg, {.period_ns = kNanosPerMilli});
   REQUIRE(sup.start().has_value());

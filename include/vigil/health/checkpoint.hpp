@@ -56,8 +56,7 @@ class CheckpointId {
   friend constexpr bool operator==(CheckpointId, CheckpointId) noexcept = default;
 
  private:
-  friend constexpr CheckpointId detail::make_checkpoint_id(std::uint32_t,
-                                                           std::uint16_t) noexcept;
+  friend constexpr CheckpointId detail::make_checkpoint_id(std::uint32_t, std::uint16_t) noexcept;
   constexpr CheckpointId(std::uint32_t owner, std::uint16_t index) noexcept
       : owner_(owner), index_(index) {}
   std::uint32_t owner_ = 0;

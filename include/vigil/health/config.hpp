@@ -100,7 +100,7 @@ struct Transition {
 /// begins at an initial checkpoint and ends at a final one (after which an initial one must
 /// come next); a graph without final checkpoints cycles for ever.
 struct LogicalSupervisionConfig {
-  std::string name;  ///< unique among every supervision
+  std::string name;                    ///< unique among every supervision
   std::vector<CheckpointRef> initial;  ///< at least one
   std::vector<CheckpointRef> final;    ///< may be empty (a cyclic graph)
   std::vector<Transition> transitions;

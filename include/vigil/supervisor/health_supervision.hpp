@@ -35,8 +35,8 @@ namespace vigil::supervisor {
 /// Per-component checkpoint statistics (a program's view of its checkpoints' health).
 struct CheckpointUse {
   std::string component;
-  std::uint64_t reports = 0;   ///< checkpoint reports drained (every checkpoint, supervised or not)
-  std::uint32_t misuses = 0;   ///< reports of ids the component did not declare
+  std::uint64_t reports = 0;  ///< checkpoint reports drained (every checkpoint, supervised or not)
+  std::uint32_t misuses = 0;  ///< reports of ids the component did not declare
 };
 
 class HealthSupervision {
@@ -82,8 +82,8 @@ class HealthSupervision {
   struct Binding {
     std::string name;
     int entity = -1;
-    int cycles = -1;                 // the engine's handle of its cycles, or -1
-    std::vector<int> checkpoints;    // report index -> engine handle; -2: not resolved yet
+    int cycles = -1;               // the engine's handle of its cycles, or -1
+    std::vector<int> checkpoints;  // report index -> engine handle; -2: not resolved yet
     std::uint64_t reports = 0;
     std::uint32_t misuses = 0;
     std::uint32_t misuses_raised = 0;

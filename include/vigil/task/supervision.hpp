@@ -242,7 +242,8 @@ class CycleRecorder {
     }
     // Room for every declaration at once: a report never reads a vector that moves.
     if (checkpoints_.empty()) {
-      checkpoints_.assign(health::kMaxCheckpoints, Message{std::in_place_type<health::CheckpointReport>});
+      checkpoints_.assign(health::kMaxCheckpoints,
+                          Message{std::in_place_type<health::CheckpointReport>});
     }
     health::CheckpointReport& r = report(checkpoint_count_);
     r.index = checkpoint_count_;
