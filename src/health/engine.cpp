@@ -93,6 +93,7 @@ struct Supervision {
 }  // namespace
 
 struct HealthEngine::Impl {
+  static constexpr Nanos kMinusInfinity = INT64_MIN;
   HealthConfig config;
   std::vector<Entity> entities;
   std::vector<CheckpointNode> checkpoints;
@@ -395,17 +396,23 @@ struct HealthEngine::Impl {
 
   void logical_checkpoint(Supervision& s, int cp, int node, Nanos t, bool lost_before) {
     const auto un = static_cast<std::size_t>(node);
-    const std::string last = history_text(s);
-    s.history.push_back(cp);
-    while (s.history.size() > std::max<std::size_t>(config.history, 1)) s.history.pop_front();
+    // The checkpoints before this one (for a failure's text), then this one.
+    const auto remember = [&] {
+      s.history.push_back(cp);
+      while (s.history.size() > std::max<std::size_t>(config.history, 1)) s.history.pop_front();
+    };
     const int after = s.final[un] != 0 ? -1 : node;
     // Activated in the middle of a sequence (its entities start one after the other, or a
     // daemon attaches late): judged from the first initial checkpoint on.
     if (!s.synced) {
-      if (s.initial[un] == 0) return;
+      if (s.initial[un] == 0) {
+        remember();
+        return;
+      }
       s.synced = true;
     }
     if (lost_before) {  // reports were lost just before: take this one as the new position
+      remember();
       s.current = after;
       return;
     }
@@ -416,10 +423,13 @@ struct HealthEngine::Impl {
                                        s.next[static_cast<std::size_t>(s.current)].end(),
                                        node) != s.next[static_cast<std::size_t>(s.current)].end();
     if (valid) {
+      remember();
       pass(s);
       s.current = after;
       return;
     }
+    const std::string last = history_text(s);
+    remember();
     std::string allowed;
     const auto add = [&](int n) {
       if (!allowed.empty()) allowed += ", ";
@@ -535,7 +545,13 @@ struct HealthEngine::Impl {
     }
   }
 
+  // A lower bound of every supervision's due time: lowered whenever one may become earlier
+  // (an input applied), raised to the true minimum by a scan. Most inputs then pass without
+  // looking at every supervision.
+  Nanos min_due = kNever;
+
   void fire_until(Nanos limit) {
+    if (min_due > limit) return;
     for (;;) {
       Supervision* first = nullptr;
       Nanos when = kNever;
@@ -546,18 +562,45 @@ struct HealthEngine::Impl {
           first = &s;
         }
       }
-      if (first == nullptr || when > limit) return;
+      if (first == nullptr || when > limit) {
+        min_due = when;
+        return;
+      }
       fire(*first, limit);
+    }
+  }
+
+  void lower_due(int entity_or_checkpoint, bool is_entity) {
+    const auto lower = [&](int si) {
+      min_due = std::min(min_due, due(sups[static_cast<std::size_t>(si)]));
+    };
+    if (is_entity) {
+      for (const int si : entities[static_cast<std::size_t>(entity_or_checkpoint)].supervisions) {
+        lower(si);
+      }
+    } else {
+      for (const Use& u : checkpoints[static_cast<std::size_t>(entity_or_checkpoint)].uses) {
+        lower(u.supervision);
+      }
     }
   }
 
   void apply(const Input& in) {
     switch (in.kind) {
-      case InputKind::Checkpoint:
+      case InputKind::Checkpoint: {
+        const int e = checkpoints[static_cast<std::size_t>(in.id)].entity;
+        const bool was_active = entities[static_cast<std::size_t>(e)].active;
         on_checkpoint(in.id, in.time, in.count);
+        if (was_active) {
+          lower_due(in.id, false);
+        } else {
+          lower_due(e, true);  // activated by its first report
+        }
         break;
+      }
       case InputKind::Activate:
         on_activate(in.id, in.time);
+        lower_due(in.id, true);
         break;
       case InputKind::Deactivate:
         on_deactivate(in.id);
@@ -569,6 +612,7 @@ struct HealthEngine::Impl {
     if (!started) {
       started = true;
       origin = at;
+      min_due = kMinusInfinity;  // grace periods now have an end: scan
     }
     now = at;
     const Nanos horizon = at - config.settle_ns;
@@ -680,6 +724,7 @@ void HealthEngine::start(Nanos now) {
   if (impl_->started) return;
   impl_->started = true;
   impl_->origin = now;
+  impl_->min_due = Impl::kMinusInfinity;  // grace periods now have an end: scan
 }
 
 void HealthEngine::activate(int entity, Nanos time) {

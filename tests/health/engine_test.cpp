@@ -465,3 +465,34 @@ TEST_CASE("A bad configuration is refused with a message naming the field", "[he
   CHECK(validate(alive_config()).has_value());
   CHECK(validate(logical_config()).has_value());
 }
+
+TEST_CASE("Deadlines of several supervisions are judged in time order among other inputs",
+          "[health][deadline]") {
+  HealthConfig cfg;
+  cfg.deadline.push_back(
+      {.name = "slow", .start = {"a", "s"}, .end = {"a", "e"}, .max_ns = 5 * kMs});
+  cfg.deadline.push_back({.name = "fast",
+                          .start = {"b", "s"},
+                          .end = {"b", "e"},
+                          .max_ns = 2 * kMs,
+                          .failed_tolerance = 100});
+  HealthEngine e(cfg);
+  e.start(kT0);
+  const int as = e.checkpoint("a", "s");
+  const int bs = e.checkpoint("b", "s");
+  const int be = e.checkpoint("b", "e");
+  e.report(as, kT0 + 10 * kMs);  // never ended: missed at +15 ms
+  for (int i = 0; i < 20; ++i) {
+    e.report(bs, kT0 + 11 * kMs + i * kMs);
+    // "fast" pairs of 0.5 and 0.9 ms, all within their max, judged between the "slow" start
+    // and its missed deadline.
+    e.report(be, kT0 + 11 * kMs + i * kMs + (i % 4 == 3 ? 900'000 : 500'000));
+  }
+  e.advance(kT0 + 40 * kMs);
+  const auto f = e.take_failures();
+  REQUIRE(f.size() == 1);
+  CHECK(f[0].supervision == "slow");
+  CHECK(f[0].fault_ns == kT0 + 15 * kMs);
+  CHECK(e.reports()[1].evaluations == 20);
+  CHECK(e.status("fast") == SupervisionStatus::Ok);
+}
