@@ -76,12 +76,17 @@ TEST_CASE("A task reports declared checkpoints with time, cycle, count and name"
   CHECK(s.checkpoint_misuses() == 0);
 }
 
-TEST_CASE("A checkpoint name must be 1 to 63 bytes", "[task][checkpoint]") {
+TEST_CASE("A checkpoint name must be 1 to 63 bytes, declared before the component runs",
+          "[task][checkpoint]") {
   Registry<Message> reg;
   Instrumentation in("x", {}, reg);
   CHECK_THROWS_AS(in.declare_checkpoint(""), std::invalid_argument);
   CHECK_THROWS_AS(in.declare_checkpoint(std::string(64, 'a')), std::invalid_argument);
-  CHECK(in.declare_checkpoint(std::string(63, 'a')).valid());
+  const CheckpointId a = in.declare_checkpoint(std::string(63, 'a'));
+  CHECK(a.valid());
+  in.init();
+  CHECK_THROWS_AS(in.declare_checkpoint("late"), std::logic_error);  // while running
+  CHECK(in.declare_checkpoint(std::string(63, 'a')) == a);           // known: still answered
 }
 
 TEST_CASE("Reporting an id the component did not declare is a counted, reported misuse",

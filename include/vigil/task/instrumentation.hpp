@@ -129,8 +129,8 @@ class BasicInstrumentation {
   }
 
   /// Declares checkpoint `name` and returns its id (the same name again: the same id). Before
-  /// the loop runs (e.g. before init()). Not RT-safe; throws std::invalid_argument for an empty
-  /// name or one longer than 63 bytes.
+  /// init() (std::logic_error once it runs). Not RT-safe; throws std::invalid_argument for an
+  /// empty name or one longer than 63 bytes.
   health::CheckpointId declare_checkpoint(std::string_view name) {
     return recorder_.declare_checkpoint(name);
   }

@@ -225,10 +225,11 @@ class CycleRecorder {
   }
 
   /// Declares checkpoint `name` and returns its id; the same name again returns the same id.
-  /// Not RT-safe (the first declaration allocates room for kMaxCheckpoints reports); call it
-  /// before the component runs, from the thread that configures it. Throws
-  /// std::invalid_argument for an empty name or one longer than kMaxCheckpointName bytes, and
-  /// std::length_error beyond kMaxCheckpoints.
+  /// Not RT-safe (allocates one report, 128 bytes); call it before the component runs (its
+  /// configuration, or before Instrumentation::init), from the thread that configures it.
+  /// Throws std::invalid_argument for an empty name or one longer than kMaxCheckpointName bytes,
+  /// std::length_error beyond kMaxCheckpoints, std::logic_error while the component runs (a
+  /// report may be reading the list).
   health::CheckpointId declare_checkpoint(std::string_view name) {
     if (name.empty() || name.size() > health::kMaxCheckpointName) {
       throw std::invalid_argument("checkpoint name '" + std::string(name) + "' of " + name_ +
@@ -237,14 +238,14 @@ class CycleRecorder {
     for (std::uint16_t i = 0; i < checkpoint_count_; ++i) {
       if (report(i).name.view() == name) return health::detail::make_checkpoint_id(owner_, i);
     }
+    if (state_ == TaskState::Running) {
+      throw std::logic_error(name_ + ": checkpoint '" + std::string(name) +
+                             "' declared while running; declare checkpoints when configuring");
+    }
     if (checkpoint_count_ == health::kMaxCheckpoints) {
       throw std::length_error(name_ + ": more than 256 checkpoints");
     }
-    // Room for every declaration at once: a report never reads a vector that moves.
-    if (checkpoints_.empty()) {
-      checkpoints_.assign(health::kMaxCheckpoints,
-                          Message{std::in_place_type<health::CheckpointReport>});
-    }
+    checkpoints_.emplace_back(std::in_place_type<health::CheckpointReport>);
     health::CheckpointReport& r = report(checkpoint_count_);
     r.index = checkpoint_count_;
     r.name.assign(name);
@@ -509,8 +510,8 @@ class CycleRecorder {
   Message sample_{std::in_place_type<CycleSample>};
   ExceptionReport exception_;
   StateChange change_;
-  // Checkpoints: one report per declaration, built in place (kMaxCheckpoints, allocated at the
-  // first declaration), and the report of a misuse.
+  // Checkpoints: one report per declaration, built in place (the list grows only while the
+  // component does not run), and the report of a misuse.
   std::vector<Message> checkpoints_;
   Message misuse_{std::in_place_type<health::CheckpointReport>};
   std::uint32_t owner_ = next_owner();

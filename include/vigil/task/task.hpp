@@ -100,9 +100,9 @@ class Task : public TaskCore {
 
   /// Declares checkpoint `name` of this component (AUTOSAR PHM: a checkpoint of the supervised
   /// entity) and returns its id; the same name again returns the same id. Call it from the
-  /// constructor or on_configure(), never while the component runs. Not RT-safe (the first
-  /// declaration allocates). Throws std::invalid_argument for an empty name or one longer than
-  /// 63 bytes (from on_configure(): the configuration fails with that reason).
+  /// constructor or on_configure(), never while the component runs (std::logic_error). Not
+  /// RT-safe (allocates a report). Throws std::invalid_argument for an empty name or one longer
+  /// than 63 bytes (from on_configure(): the configuration fails with that reason).
   health::CheckpointId declare_checkpoint(std::string_view name) {
     return recorder_.declare_checkpoint(name);
   }
