@@ -7,7 +7,9 @@
 //    200 (below the port's 256: no push fails), a consumer polling every 10 ms, as in
 //    task/overhead_bench.cpp.
 // 2. health/checkpoint/cycle_with_3: a supervised Task cycle reporting three checkpoints against
-//    the same cycle reporting none (no goal: it shows what three checkpoints add to a cycle).
+//    the same cycle reporting none (no goal: it shows what three checkpoints add to a cycle);
+//    and the same three reported at the cycle's start time (`checkpoint(id, time)`: no clock
+//    read, a push each).
 // 3. health/supervisor/per_checkpoint: the supervisor's cost per checkpoint report: a
 //    TaskSupervisor step() draining 100 components x 200 reports, each checkpoint watched by a
 //    logical, a deadline and an alive supervision, plus the judging of the drain (advance),
@@ -77,29 +79,40 @@ struct CheckpointSubject {
 
 // --- 2. a cycle with three checkpoints against the same cycle without ----------------------------
 
+// What a cycle reports: nothing, three checkpoints (a clock read each), or three checkpoints at
+// the cycle's own start time (no clock read).
+enum class Reports { None, Now, CycleTime };
+
 class StepsTask : public Task<StepsTask> {
  public:
-  StepsTask(Registry<task::Message>& registry, bool report)
+  StepsTask(Registry<task::Message>& registry, Reports report)
       : Task("bench_steps", {}, registry), report_(report) {
     read_ = declare_checkpoint("read");
     compute_ = declare_checkpoint("compute");
     write_ = declare_checkpoint("write");
   }
   void on_update() {
-    if (report_) checkpoint(read_);
+    step(read_);
     empty_update();
-    if (report_) checkpoint(compute_);
+    step(compute_);
     empty_update();
-    if (report_) checkpoint(write_);
+    step(write_);
   }
 
  private:
-  bool report_;
+  [[gnu::always_inline]] void step(CheckpointId id) noexcept {
+    if (report_ == Reports::Now) {
+      checkpoint(id);
+    } else if (report_ == Reports::CycleTime) {
+      checkpoint(id, cycle().start_ns);
+    }
+  }
+  Reports report_;
   CheckpointId read_, compute_, write_;
 };
 
 struct StepsSubject {
-  explicit StepsSubject(bool report)
+  explicit StepsSubject(Reports report)
       : task(registry, report),
         activity(task, ManualConfig{.name = "bench", .period_ns = kPeriod}) {
     (void)task.configure();
@@ -137,9 +150,9 @@ void report_vs_floor(benchmark::State& state) {
   state.counters["goal_ratio_max"] = 1.2;
 }
 
-void cycle_with_3(benchmark::State& state) {
-  StepsSubject without(false);
-  StepsSubject with(true);
+void cycle_with_3(benchmark::State& state, Reports how) {
+  StepsSubject without(Reports::None);
+  StepsSubject with(how);
   Poller poller({without.drain(), with.drain()});
   // 3 checkpoints + 1 sample per cycle: 50 cycles fill 200 of the 256 slots.
   constexpr int kCycles = 50;
@@ -334,7 +347,10 @@ void register_all() {
         ->Unit(benchmark::kNanosecond);
   };
   add("health/checkpoint/report", kBatchesPerRep, report_vs_floor);
-  add("health/checkpoint/cycle_with_3", kBatchesPerRep, cycle_with_3);
+  add("health/checkpoint/cycle_with_3", kBatchesPerRep,
+      [](benchmark::State& s) { cycle_with_3(s, Reports::Now); });
+  add("health/checkpoint/cycle_with_3_at_cycle_start", kBatchesPerRep,
+      [](benchmark::State& s) { cycle_with_3(s, Reports::CycleTime); });
   add("health/supervisor/per_checkpoint", 20, supervisor_per_checkpoint);
   add("health/detection_latency/p50", 1, [](benchmark::State& s) { detection_latency(s, 0.5); });
   add("health/detection_latency/p90", 1, [](benchmark::State& s) { detection_latency(s, 0.9); });
