@@ -11,7 +11,7 @@
 #                 minutes under callgrind)
 #   PER_PORT      the row's messages per port and drain: 10 or 256 (default 10)
 #
-# Prints the instructions per message drained of what the benchmark times: `Supervisor::step()`
+# Prints the instructions per message drained of what the benchmark times: `DrainLoop::step()`
 # (inclusive, without the first step's joins) and the aggregator's final `catch_up()`; and of
 # that, the statistics' catch-up (`take_pending_*`, wherever it is called from). Every step of the run counts, the warm-up's too: compare builds, not these
 # figures with the benchmark's time. A CPU callgrind does not emulate (AVX-512) is not what the
@@ -56,7 +56,7 @@ for i, line in enumerate(lines):
     if "Components::fill" in line and fills is None:
         m = re.search(r"\(([\d,]+)x\)", lines[i - 1])
         fills = int(m.group(1).replace(",", "")) if m else None
-    elif re.search(r"Supervisor<.*>::step\(\)", line) and step is None:
+    elif re.search(r"DrainLoop<.*>::step\(\)", line) and step is None:
         step = inclusive(i)
     elif "ComponentAggregator::on_join" in line and joins is None:
         joins = inclusive(i)
@@ -65,7 +65,7 @@ for i, line in enumerate(lines):
     elif re.search(r"take_pending_(bits|base)\b", line):
         catch_up = (catch_up or 0) + inclusive(i)
 if fills is None or step is None:
-    sys.exit("callgrind-supervisor.sh: the profile has no Components::fill or Supervisor::step()")
+    sys.exit("callgrind-supervisor.sh: the profile has no Components::fill or DrainLoop::step()")
 messages = fills * components * per_port
 total = step - (joins or 0) + (final or 0)
 print(f"components:{components}/per_port:{per_port}: {messages} messages; "

@@ -34,7 +34,7 @@
 #include "vigil/can/can_statistics.hpp"
 #include "vigil/can/filter.hpp"
 #include "vigil/can/sniffer.hpp"
-#include "vigil/supervisor/supervisor.hpp"
+#include "vigil/supervisor/drain_loop.hpp"
 #endif
 
 extern char** environ;
@@ -338,7 +338,7 @@ void sniffer_per_frame(benchmark::State& state) {
                                         (static_cast<double>(state.iterations()) * kCanBatch);
 }
 
-// can/supervisor_frames_per_s: Supervisor<CanMessage, CanAggregator>::step() draining
+// can/supervisor_frames_per_s: DrainLoop<CanMessage, CanAggregator>::step() draining
 // `sniffers` ports pre-filled with `per_port` records each (sniffers fed from the log outside
 // the timing). Value = frames / CPU time of step() (the CPU clock's cost subtracted), median
 // over the iterations. No goal was set.
@@ -359,7 +359,7 @@ void can_supervisor(benchmark::State& state) {
         can::SnifferOptions{.node_map = can::NodeMap::j1939()}));
   }
   can::CanAggregator aggregator(registry);
-  can::CanSupervisor supervisor(registry.ports(), aggregator);
+  can::CanDrainLoop supervisor(registry.ports(), aggregator);
   std::size_t next = 0;
   Nanos t = platform::now_ns();
   auto fill = [&] {

@@ -54,8 +54,8 @@ struct World {
       r.state = TaskState::Running;
       r.counters.cycles = r.samples = 2000;
       r.counters.overruns = i % 7;
-      r.user_ns = user[i].summary();
-      r.total_ns = r.user_ns;
+      r.execution_ns = user[i].summary();
+      r.total_ns = r.execution_ns;
       r.latency_ns = latency[i].summary();
       r.measured_period_ns = period[i].summary();
       r.silence_ns = 3 * kNanosPerMilli;
@@ -96,7 +96,7 @@ struct World {
       h.execution = exporter::reduce_to_buckets(user[i]);
       h.total = exporter::reduce_to_buckets(user[i], 150);
       h.latency = exporter::reduce_to_buckets(latency[i]);
-      h.period = exporter::reduce_to_buckets(period[i]);
+      h.measured_period = exporter::reduce_to_buckets(period[i]);
       out.push_back(std::move(h));
     }
     return out;

@@ -11,7 +11,7 @@
 //    and the same three reported at the cycle's start time (`checkpoint(id, time)`: no clock
 //    read, a push each).
 // 3. health/supervisor/per_checkpoint: the supervisor's cost per checkpoint report: a
-//    TaskSupervisor step() draining 100 components x 200 reports, each checkpoint watched by a
+//    ComponentDrainLoop step() draining 100 components x 200 reports, each checkpoint watched by a
 //    logical, a deadline and an alive supervision, plus the judging of the drain (advance),
 //    against the same step() draining as many cycle samples (the floor: the supervisor's cost
 //    per ordinary message).
@@ -201,13 +201,13 @@ void supervisor_per_checkpoint(benchmark::State& state) {
     state.SkipWithError("bad configuration");
     return;
   }
-  supervisor::TaskSupervisor sup_cp(reg_cp, agg_cp);
+  supervisor::ComponentDrainLoop sup_cp(reg_cp, agg_cp);
   std::vector<std::unique_ptr<Instrumentation>> cps;
   std::vector<std::pair<CheckpointId, CheckpointId>> ids;
   // Floor: ports full of cycle samples.
   Registry<task::Message> reg_s;
   supervisor::ComponentAggregator agg_s({.state_events = false});
-  supervisor::TaskSupervisor sup_s(reg_s, agg_s);
+  supervisor::ComponentDrainLoop sup_s(reg_s, agg_s);
   std::vector<std::unique_ptr<Instrumentation>> samples;
   for (int c = 0; c < kComponents; ++c) {
     const std::string n = "c" + std::to_string(c);
@@ -281,7 +281,7 @@ Latencies measure_latencies() {
                           .max_ns = kMax,
                           .failed_tolerance = 1'000'000'000});  // FAILED, raised every time
   (void)agg.supervise_health(cfg);
-  supervisor::TaskSupervisor sup(reg, agg);  // SCHED_OTHER, the default 10 ms period
+  supervisor::ComponentDrainLoop sup(reg, agg);  // SCHED_OTHER, the default 10 ms period
   Instrumentation stage("stage", {}, reg);
   const CheckpointId begin = stage.declare_checkpoint("begin");
   stage.init(ManualInfo{.activity = "bench"});

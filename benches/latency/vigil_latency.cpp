@@ -27,7 +27,7 @@
 #include "vigil/exec/periodic_activity.hpp"
 #include "vigil/platform/memory.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
-#include "vigil/supervisor/supervisor.hpp"
+#include "vigil/supervisor/drain_loop.hpp"
 #include "vigil/task/task.hpp"
 
 namespace {
@@ -120,9 +120,9 @@ int main(int argc, char** argv) {
                qos_set ? "held" : "not available (results include idle-state exits)");
 
   // The supervisor drains the component's port every 10 ms, as in a deployment, on a CPU other
-  // than the measured one (what Supervisor::start() does, plus the pinning it does not offer).
+  // than the measured one (what DrainLoop::start() does, plus the pinning it does not offer).
   vigil::supervisor::ComponentAggregator aggregator;
-  vigil::supervisor::TaskSupervisor supervisor(vigil::default_registry(), aggregator);
+  vigil::supervisor::ComponentDrainLoop supervisor(vigil::default_registry(), aggregator);
   std::atomic<bool> quit{false};
   const int ncpu = vigil::platform::cpu_count();
   const int supervisor_cpu = ncpu > 1 ? (o.cpu + 1) % ncpu : -1;

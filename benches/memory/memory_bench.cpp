@@ -79,7 +79,7 @@ void supervised_component(benchmark::State& state) {
     state.PauseTiming();
     Registry<task::Message> registry;
     supervisor::ComponentAggregator aggregator;
-    supervisor::TaskSupervisor supervisor(registry, aggregator);
+    supervisor::ComponentDrainLoop supervisor(registry, aggregator);
     MonitorOptions mo;
     mo.read_thread_stats = false;
     Monitor monitor(aggregator, mo);
@@ -136,7 +136,7 @@ void can_sniffer(benchmark::State& state) {
   for (auto _ : state) {
     can::CanRegistry registry;
     can::CanAggregator aggregator(registry);
-    can::CanSupervisor supervisor(registry.ports(), aggregator);
+    can::CanDrainLoop supervisor(registry.ports(), aggregator);
     (void)supervisor.step();
     const std::size_t heap0 = heap_in_use();
     auto sniffer = std::make_unique<can::Sniffer<1024>>(registry, "bus0");
@@ -153,7 +153,7 @@ void can_node(benchmark::State& state) {
   for (auto _ : state) {
     can::CanRegistry registry;
     can::CanAggregator aggregator(registry);
-    can::CanSupervisor supervisor(registry.ports(), aggregator);
+    can::CanDrainLoop supervisor(registry.ports(), aggregator);
     can::Sniffer<1024> sniffer(registry, "bus0", {.node_map = can::NodeMap::canopen()});
     (void)supervisor.step();
     const std::size_t heap0 = heap_in_use();

@@ -21,7 +21,7 @@
 #include "vigil/monitor/monitor.hpp"
 #include "vigil/platform/thread.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
-#include "vigil/supervisor/supervisor.hpp"
+#include "vigil/supervisor/drain_loop.hpp"
 
 namespace vigil::bench {
 namespace {
@@ -111,7 +111,7 @@ struct World {
 
   Registry<task::Message> registry;
   supervisor::ComponentAggregator aggregator;
-  supervisor::TaskSupervisor supervisor;
+  supervisor::ComponentDrainLoop supervisor;
   Monitor monitor;
   std::vector<bus::Membership<task::Message, kCapacity>> members;
   std::vector<std::uint64_t> cycles;

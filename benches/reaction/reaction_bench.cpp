@@ -97,7 +97,7 @@ EventKind kind_of(Fault f) {
 struct Shared {
   Registry<task::Message> reg;
   supervisor::ComponentAggregator agg;
-  supervisor::TaskSupervisor sup{reg, agg};
+  supervisor::ComponentDrainLoop sup{reg, agg};
   Nanos t0 = platform::now_ns();  // the monitor's 1 s grid starts here
   std::mutex m;
   std::condition_variable cv;

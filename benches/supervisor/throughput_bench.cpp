@@ -3,7 +3,7 @@
 //
 // throughput: `components` ports (capacity 256, as a Task's) are pre-filled with `per_port`
 // CycleSamples each (consecutive cycles, a sampled overhead on one in 16, as a component sends),
-// outside the timing; then one `Supervisor<Message, ComponentAggregator>::step()` is timed.
+// outside the timing; then one `DrainLoop<Message, ComponentAggregator>::step()` is timed.
 // per_port = 10 is what a 1 kHz component queues in the supervisor's 10 ms period; 256 is a
 // full port. Value = messages / CPU time of the thread in step() (the cost of reading the CPU
 // clock subtracted), summed over the iterations of a repetition (the mean, not the median: the
@@ -13,7 +13,7 @@
 //
 // cpu_share: measured directly. A producer thread (pinned to VIGIL_BENCH_CPU) pushes one sample
 // into each of 1,000 ports every millisecond; a supervisor thread (pinned to the consumer CPU)
-// calls step() every 10 ms, as Supervisor::start() does. Value = the supervisor thread's CPU time
+// calls step() every 10 ms, as DrainLoop::start() does. Value = the supervisor thread's CPU time
 // (CLOCK_THREAD_CPUTIME_ID, system calls included) / wall time, in % of one core, over 1 s.
 // `cpu_share_1kHz/drain_visit_only`: the same with a handler that only reads each message, the
 // part of that share that is the drain across cores (the rest is the aggregation).
@@ -29,7 +29,7 @@
 #include "support/bench_support.hpp"
 #include "vigil/bus/registry.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
-#include "vigil/supervisor/supervisor.hpp"
+#include "vigil/supervisor/drain_loop.hpp"
 
 namespace vigil::bench {
 namespace {
@@ -93,7 +93,7 @@ struct NullHandler {
   void on_leave(const Entry&) {}
   void begin(const Entry&) {}
   void end(const Entry&, const supervisor::PortDrain&) {}
-  void on_cycle(const supervisor::SupervisorCycle&) {}
+  void on_cycle(const supervisor::DrainCycle&) {}
   template <class M>
   void on(const Entry&, const M& m) {
     if constexpr (std::is_same_v<M, task::CycleSample>) sum += static_cast<std::uint64_t>(m.end_ns);
@@ -116,7 +116,7 @@ void throughput(benchmark::State& state) {
   const auto per_port = static_cast<std::size_t>(state.range(1));
   Components comps(n);
   Handler handler;
-  supervisor::Supervisor<task::Message, Handler> supervisor(comps.registry, handler);
+  supervisor::DrainLoop<task::Message, Handler> supervisor(comps.registry, handler);
   (void)supervisor.step();  // joins
   // Warm-up: until the aggregator's warm-up (100 ms of the components' clock, 1 ms per sample)
   // is over, so that the timed steps are the steady state: records and histograms touched and
@@ -176,7 +176,7 @@ void cpu_share(benchmark::State& state) {
   for (auto _ : state) {
     Components comps(n);
     Handler handler;
-    supervisor::Supervisor<task::Message, Handler> supervisor(comps.registry, handler);
+    supervisor::DrainLoop<task::Message, Handler> supervisor(comps.registry, handler);
     (void)supervisor.step();
     std::atomic<bool> quit{false};
     Nanos cpu = 0;
@@ -184,7 +184,7 @@ void cpu_share(benchmark::State& state) {
     std::uint64_t visited = 0;
     std::thread consumer([&] {
       pin_to_cpu(consumer_cpu());
-      const Nanos period = supervisor::SupervisorOptions{}.period_ns;
+      const Nanos period = supervisor::DrainOptions{}.period_ns;
       const Nanos c0 = thread_cpu_ns();
       const Nanos w0 = platform::now_ns();
       Nanos next = w0;

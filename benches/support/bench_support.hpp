@@ -32,7 +32,7 @@
 #include <vector>
 
 #include "vigil/platform/clock.hpp"
-#include "vigil/supervisor/supervisor.hpp"
+#include "vigil/supervisor/drain_loop.hpp"
 #include "vigil/task/messages.hpp"
 #include "vigil/task/supervision.hpp"
 
@@ -89,7 +89,7 @@ inline Nanos cpu_clock_cost() {
 [[gnu::noinline]] inline void empty_update() noexcept { benchmark::ClobberMemory(); }
 
 /// The period the consumer polls at: the supervisor's default (10 ms).
-inline Nanos consumer_period_ns() { return supervisor::SupervisorOptions{}.period_ns; }
+inline Nanos consumer_period_ns() { return supervisor::DrainOptions{}.period_ns; }
 
 /// A consumer thread, pinned, that pops every queue it was given once per period (never spins),
 /// as the supervisor does, and counts its polls so that a producer can wait for the next one.

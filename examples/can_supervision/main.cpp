@@ -126,7 +126,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   can::CanAggregator statistics(registry);
-  can::CanSupervisor supervisor(
+  can::CanDrainLoop supervisor(
       registry.ports(), statistics,
       {.period_ns = 100 * vigil::kNanosPerMilli, .thread_name = "can-supervisor"});
   can::CanMonitor monitor(*config);

@@ -434,7 +434,7 @@ void CanAggregator::end(const Entry& /*e*/, const supervisor::PortDrain& d) {
   m.mutex.unlock();
 }
 
-void CanAggregator::on_cycle(const supervisor::SupervisorCycle& c) {
+void CanAggregator::on_cycle(const supervisor::DrainCycle& c) {
   std::lock_guard lock(impl_->mutex);
   impl_->cycles = c.cycle;
 }

@@ -26,7 +26,7 @@ struct LogReplay::Impl {
   Sniffer<kPortCapacity> sniffer;
   CanAggregator aggregator;
   Nanos clock_ns = 0;
-  CanSupervisor supervisor;
+  CanDrainLoop supervisor;
   std::size_t pending = 0;
   std::uint64_t frames = 0;
   Nanos first = 0;
@@ -44,10 +44,10 @@ struct LogReplay::Impl {
                                                   .max_ids = options.max_ids,
                                                   .max_nodes = options.max_nodes}),
         supervisor(registry.ports(), aggregator,
-                   supervisor::SupervisorOptions{.period_ns = 100 * kNanosPerMilli,
-                                                 .batch = 256,
-                                                 .thread_name = "vigil-can-replay",
-                                                 .clock = Clock{&replay_now, &clock_ns}}) {}
+                   supervisor::DrainOptions{.period_ns = 100 * kNanosPerMilli,
+                                            .batch = 256,
+                                            .thread_name = "vigil-can-replay",
+                                            .clock = Clock{&replay_now, &clock_ns}}) {}
 
   void feed(const Frame& f, Direction d) {
     if (frames == 0) {

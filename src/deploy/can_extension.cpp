@@ -15,9 +15,9 @@ CanExtension::CanExtension(can::CanConfig config) : config_(std::move(config)) {
   // Its clock is the frames' (platform::now_ns, as the sniffers' callers and SocketCan stamp
   // them, even when supervision reads the TSC): the start of its cycles is the time node
   // silences are judged up to.
-  supervisor_ = std::make_unique<can::CanSupervisor>(
+  supervisor_ = std::make_unique<can::CanDrainLoop>(
       registry_.ports(), *statistics_,
-      supervisor::SupervisorOptions{
+      supervisor::DrainOptions{
           .period_ns = 100 * kNanosPerMilli,
           .thread_name = "vigil-can-sup",
           .clock = Clock{[](const void*) noexcept { return platform::now_ns(); }, nullptr}});
@@ -42,7 +42,7 @@ void CanExtension::contribute(exporter::Snapshot& snapshot) {
 }
 
 Report CanExtension::supervisor_report(const can::CanReport& r, bool running) const {
-  const supervisor::SupervisorStats st = supervisor_->stats();
+  const supervisor::DrainStats st = supervisor_->stats();
   Report s;
   s.kind = ReportKind::Supervisor;
   s.name = std::string(kCanSupervisorName);
@@ -70,6 +70,59 @@ Report CanExtension::supervisor_report(const can::CanReport& r, bool running) co
   return s;
 }
 
+namespace {
+
+// What a group's report is made of: the sum and worst of its nodes.
+struct GroupTally {
+  std::uint64_t frames = 0;
+  std::uint64_t nodes = 0;
+  std::uint64_t responding = 0;
+  Status status;
+};
+
+// A CAN node's report: its liveness, frames and gaps under CAN names.
+Report node_report(const can::CanReport& r, const can::NodeReport& n) {
+  Report rep;
+  rep.kind = ReportKind::Unit;
+  rep.unit_kind = std::string(can::kNodeUnit);
+  rep.name = fmt::format("can{}/{}", n.bus ? std::to_string(*n.bus) : std::string("*"), n.name);
+  rep.status = n.status;
+  rep.state_label = std::string(can::to_string(n.liveness));
+  rep.add_field(Field::of_count("frames_rx", n.rx ? n.rx->frames : 0));
+  rep.add_field(Field::of_count("frames_tx", n.tx ? n.tx->frames : 0));
+  if (n.rx) {
+    rep.add_field(Field::of_distribution("rx_gap", n.rx->gap_ns));
+    rep.add_field(Field::of_distribution("read_time", n.rx->io_ns));
+  }
+  if (n.tx) rep.add_field(Field::of_distribution("tx_gap", n.tx->gap_ns));
+  if (n.silence_ns >= 0) rep.add_field(Field::of_duration("silence", n.silence_ns));
+  if (n.silence_limit_ns >= 0) {
+    rep.add_field(Field::of_duration("silence_limit", n.silence_limit_ns));
+    rep.add_field(Field::of_text("limit", n.limit_learned ? "learned" : "configured"));
+  }
+  if (n.limit_id >= 0 && static_cast<std::size_t>(n.limit_id) < r.ids.size()) {
+    const Nanos period = r.ids[static_cast<std::size_t>(n.limit_id)].period_ns;
+    if (period >= 0) rep.add_field(Field::of_duration("period_learned", period));
+  }
+  return rep;
+}
+
+// A CAN group's report: the worst of its nodes, its frames, its nodes responding.
+Report group_report(const std::string& name, GroupTally& t) {
+  Report g;
+  g.kind = ReportKind::Unit;
+  g.unit_kind = std::string(can::kGroupUnit);
+  g.name = "can group " + name;
+  g.status = std::move(t.status);
+  g.state_label = g.status.level() == StatusLevel::Ok ? "all responding" : "degraded";
+  g.add_field(Field::of_count("frames", t.frames));
+  g.add_field(Field::of_count("nodes", t.nodes));
+  g.add_field(Field::of_count("responding", t.responding));
+  return g;
+}
+
+}  // namespace
+
 void CanExtension::add_reports(ReportSet& reports,
                                std::vector<exporter::CanHistograms>* histograms) {
   bool running = false;
@@ -86,51 +139,25 @@ void CanExtension::add_reports(ReportSet& reports,
   const Nanos now = stopped != 0 ? stopped : platform::now_ns();
   const can::CanReport r = monitor_->evaluate(*statistics_, now);
   reports.components.push_back(supervisor_report(r, running));
-  std::map<std::string, Report> groups;
+  std::map<std::string, GroupTally> groups;
   std::map<std::pair<std::uint8_t, std::uint32_t>, std::string> names;  // of the nodes seen
   for (const auto& n : r.nodes) {
     if (!n.is_node()) continue;  // the frames of no node (SYNC, NMT...) are not judged
-    Report rep;
-    rep.kind = ReportKind::CanNode;
-    rep.name = fmt::format("can{}/{}", n.bus ? std::to_string(*n.bus) : std::string("*"), n.name);
+    Report rep = node_report(r, n);
     if (histograms != nullptr && n.bus) names.emplace(std::pair{*n.bus, n.node}, rep.name);
-    rep.status = n.status;
-    rep.silence_ns = n.silence_ns;
-    const std::uint64_t rx = n.rx ? n.rx->frames : 0;
-    const std::uint64_t tx = n.tx ? n.tx->frames : 0;
-    rep.counters.cycles = rx + tx;  // frames, for the summary's count column
-    if (n.rx) {
-      rep.latency_ns = n.rx->io_ns;  // read time
-      rep.user_ns = n.rx->gap_ns;    // time between frames received
-    }
-    rep.state_label = std::string(can::to_string(n.liveness));
-    rep.add("frames_rx", std::to_string(rx));
-    rep.add("frames_tx", std::to_string(tx));
-    if (n.silence_ns >= 0) rep.add("silence", format_nanos(static_cast<double>(n.silence_ns)));
-    if (n.silence_limit_ns >= 0) {
-      rep.add("silence_limit",
-              fmt::format("{} ({})", format_nanos(static_cast<double>(n.silence_limit_ns)),
-                          n.limit_learned ? "learned" : "configured"));
-    }
-    if (n.rx) {
-      rep.add("rx_gap", fmt::format("p50 {} max {}", format_nanos(double(n.rx->gap_ns.p50)),
-                                    format_nanos(double(n.rx->gap_ns.max))));
-    }
+    const std::uint64_t frames = (n.rx ? n.rx->frames : 0) + (n.tx ? n.tx->frames : 0);
     for (const auto& g : n.groups) {
-      Report& gr = groups[g];
-      gr.kind = ReportKind::CanGroup;
-      gr.name = "can group " + g;
-      gr.counters.cycles += rx + tx;
+      GroupTally& t = groups[g];
+      t.frames += frames;
+      ++t.nodes;
+      if (n.liveness == can::Liveness::Responding) ++t.responding;
       if (n.status.level() != StatusLevel::Ok) {
-        gr.merge(n.status.level(), fmt::format("{}: {}", n.name, n.status.summary()));
+        t.status.merge(n.status.level(), fmt::format("{}: {}", n.name, n.status.summary()));
       }
     }
     reports.components.push_back(std::move(rep));
   }
-  for (auto& [name, g] : groups) {
-    g.state_label = g.status.level() == StatusLevel::Ok ? "all responding" : "degraded";
-    reports.components.push_back(std::move(g));
-  }
+  for (auto& [name, t] : groups) reports.components.push_back(group_report(name, t));
   if (histograms == nullptr) return;
   // The buckets, from the aggregator's histograms: one more pass under its lock, right after
   // the snapshot the reports were judged on (a batch applied in between shows in the buckets,
@@ -139,18 +166,18 @@ void CanExtension::add_reports(ReportSet& reports,
   const auto group_specs = config_.group_specs();
   statistics_->visit_gap_distributions(group_specs, [&](const can::GapDistribution& d) {
     std::string name;
-    ReportKind kind = ReportKind::CanNode;
+    bool group = false;
     if (d.group.empty()) {
       const auto it = names.find({d.bus, d.node});
       if (it == names.end()) return;  // the frames of no node
       name = it->second;
     } else {
       name = "can group " + std::string(d.group);
-      kind = ReportKind::CanGroup;
+      group = true;
     }
     exporter::CanHistograms& h = by_name[name];
     h.name = name;
-    h.kind = kind;
+    h.group = group;
     (d.direction == can::Direction::Tx ? h.tx_gap : h.rx_gap) = exporter::reduce_to_buckets(d);
   });
   histograms->reserve(histograms->size() + by_name.size());

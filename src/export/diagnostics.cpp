@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include "vigil/can/can_monitor.hpp"
 #include "vigil/export/json_writer.hpp"
 
 namespace vigil::exporter {
@@ -25,18 +26,20 @@ std::string hardware_id(const Report& r) {
     case ReportKind::Supervisor:
     case ReportKind::Monitor:
       return "vigil";
-    case ReportKind::CanNode: {
-      // "can0/drive_5" -> "can0:drive_5"
-      std::string id = r.name;
-      if (const auto slash = id.find('/'); slash != std::string::npos) id[slash] = ':';
-      return id;
-    }
-    case ReportKind::CanGroup: {
-      constexpr std::string_view kPrefix = "can group ";
-      std::string_view g = r.name;
-      if (g.starts_with(kPrefix)) g.remove_prefix(kPrefix.size());
-      return "can:" + std::string(g);
-    }
+    case ReportKind::Unit:
+      if (r.is_unit(can::kNodeUnit)) {
+        // "can0/drive_5" -> "can0:drive_5"
+        std::string id = r.name;
+        if (const auto slash = id.find('/'); slash != std::string::npos) id[slash] = ':';
+        return id;
+      }
+      if (r.is_unit(can::kGroupUnit)) {
+        constexpr std::string_view kPrefix = "can group ";
+        std::string_view g = r.name;
+        if (g.starts_with(kPrefix)) g.remove_prefix(kPrefix.size());
+        return "can:" + std::string(g);
+      }
+      return {};
   }
   return {};
 }
@@ -63,7 +66,7 @@ std::string to_diagnostics_json(const ReportSet& reports, std::int64_t wall_time
     w.field("message", message.empty() ? std::string(to_string(r.status.level())) : message);
     w.field("hardware_id", hardware_id(r));
     w.key("values").begin_array();
-    kv(w, "kind", to_string(r.kind));
+    kv(w, "kind", std::string(r.kind_name()));
     kv(w, "state", r.state_label.empty() ? std::string(to_string(r.state)) : r.state_label);
     if (r.kind == ReportKind::Component) {
       kv(w, "activity", r.activity);
@@ -75,9 +78,9 @@ std::string to_diagnostics_json(const ReportSet& reports, std::int64_t wall_time
       kv(w, "rt_losses", std::to_string(r.counters.total_losses()));
       kv(w, "exceptions", std::to_string(r.counters.exceptions));
       kv(w, "dropped", std::to_string(r.counters.dropped));
-      if (r.user_ns.count > 0) {
-        kv(w, "execution_p99", nanos_text(r.user_ns.p99));
-        kv(w, "execution_max", nanos_text(r.user_ns.max));
+      if (r.execution_ns.count > 0) {
+        kv(w, "execution_p99", nanos_text(r.execution_ns.p99));
+        kv(w, "execution_max", nanos_text(r.execution_ns.max));
       }
       if (r.latency_ns.count > 0) {
         kv(w, "latency_p99", nanos_text(r.latency_ns.p99));
@@ -86,8 +89,8 @@ std::string to_diagnostics_json(const ReportSet& reports, std::int64_t wall_time
       if (r.has_exception) {
         kv(w, "last_exception", fmt::format("{}: {}", r.exception.type, r.exception.message));
       }
-    } else if (r.kind == ReportKind::CanNode || r.kind == ReportKind::CanGroup) {
-      kv(w, "frames", std::to_string(r.counters.cycles));
+    } else if (r.kind == ReportKind::Unit) {
+      for (const Field& f : r.fields) kv(w, f.name, format_field(f));
     } else {
       kv(w, "cycles", std::to_string(r.counters.cycles));
     }

@@ -166,7 +166,7 @@ void write_buckets(exporter::JsonWriter& w, const BucketCounts& b) {
 std::string histograms_json(const MetricsSnapshot& s) {
   exporter::JsonWriter w;
   w.begin_object();
-  w.field("schema", 1);
+  w.field("schema", 2);
   w.field("cycle", s.reports.cycle);
   w.key("bounds_s").begin_array();
   for (Nanos b : kBucketBoundsNs) w.value(static_cast<double>(b) / 1e9);
@@ -182,8 +182,8 @@ std::string histograms_json(const MetricsSnapshot& s) {
     write_buckets(w, h.total);
     w.key("latency");
     write_buckets(w, h.latency);
-    w.key("period");
-    write_buckets(w, h.period);
+    w.key("measured_period");
+    write_buckets(w, h.measured_period);
     w.end_object();
   }
   w.end_array();
@@ -520,7 +520,7 @@ namespace {
 std::string index_page() {
   return "<!doctype html><meta charset=utf-8><title>vigil</title><h1>vigil</h1><ul>"
          "<li><a href=/metrics>/metrics</a> Prometheus / OpenMetrics</li>"
-         "<li><a href=/api/v1/reports>/api/v1/reports</a> reports (JSON schema 1)</li>"
+         "<li><a href=/api/v1/reports>/api/v1/reports</a> reports (JSON schema 2)</li>"
          "<li><a href=/api/v1/diagnostics>/api/v1/diagnostics</a> ROS 2 DiagnosticArray</li>"
          "<li><a href=/api/v1/histograms>/api/v1/histograms</a> timing histograms</li>"
          "<li><a href=/api/v1/history>/api/v1/history</a> recent p99s and overruns</li>"

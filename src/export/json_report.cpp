@@ -111,13 +111,13 @@ void write_latch(JsonWriter& w, const supervisor::LatchedFault& latch) {
 
 void write_timing(JsonWriter& w, const Report& r) {
   w.begin_object();
-  w.key("user_ns");
-  write_json(w, r.user_ns);
+  w.key("execution_ns");
+  write_json(w, r.execution_ns);
   w.key("total_ns");
   write_json(w, r.total_ns);
   w.key("latency_ns");
   write_json(w, r.latency_ns);
-  w.key("period_ns");
+  w.key("measured_period_ns");
   write_json(w, r.measured_period_ns);
   w.key("overhead_ns");
   write_json(w, r.overhead_ns);
@@ -141,11 +141,8 @@ void write_exception(JsonWriter& w, const monitor::ExceptionInfo& e) {
   w.end_object();
 }
 
-// Name, kind, status with its messages, identity and placement.
-void write_identity(JsonWriter& w, const Report& r) {
-  w.field("name", r.name);
-  w.field("kind", to_string(r.kind));
-  w.field("id", r.id);
+// The status, its messages and its findings (level and text).
+void write_status(JsonWriter& w, const Report& r) {
   w.field("status", to_string(r.status.level()));
   w.key("messages").begin_array();
   for (const auto& m : r.status.messages()) w.value(m.text);
@@ -155,6 +152,14 @@ void write_identity(JsonWriter& w, const Report& r) {
     w.begin_object().field("level", to_string(m.level)).field("text", m.text).end_object();
   }
   w.end_array();
+}
+
+// Name, kind, status with its messages, identity and placement.
+void write_identity(JsonWriter& w, const Report& r) {
+  w.field("name", r.name);
+  w.field("kind", r.kind_name());
+  w.field("id", r.id);
+  write_status(w, r);
   w.field("alive", r.alive);
   w.field("configured", r.configured);
   w.field("state", r.state_label.empty() ? std::string(to_string(r.state)) : r.state_label);
@@ -169,9 +174,53 @@ void write_identity(JsonWriter& w, const Report& r) {
   w.field("period_ns", r.period_ns);
 }
 
+// The key/values added by checks.
+void write_values(JsonWriter& w, const Report& r) {
+  w.key("values").begin_array();
+  for (const auto& kv : r.values) {
+    w.begin_object().field("key", kv.key).field("value", kv.value).end_object();
+  }
+  w.end_array();
+}
+
+// A unit: its name, kind, status and state, and its fields under their names (durations with the
+// "_ns" suffix, as everywhere in the schema).
+void write_unit(JsonWriter& w, const Report& r) {
+  w.begin_object();
+  w.field("name", r.name);
+  w.field("kind", r.kind_name());
+  write_status(w, r);
+  w.field("state", r.state_label);
+  w.key("fields").begin_object();
+  for (const Field& f : r.fields) {
+    switch (f.type) {
+      case Field::Type::Count:
+        w.field(f.name, f.count);
+        break;
+      case Field::Type::Duration:
+        w.field(f.name + "_ns", f.duration_ns);
+        break;
+      case Field::Type::Distribution:
+        w.key(f.name + "_ns");
+        write_json(w, f.distribution);
+        break;
+      case Field::Type::Text:
+        w.field(f.name, f.text);
+        break;
+    }
+  }
+  w.end_object();
+  write_values(w, r);
+  w.end_object();
+}
+
 }  // namespace
 
 void write_json(JsonWriter& w, const Report& r) {
+  if (r.kind == ReportKind::Unit) {
+    write_unit(w, r);
+    return;
+  }
   w.begin_object();
   write_identity(w, r);
   w.key("counters");
@@ -203,11 +252,7 @@ void write_json(JsonWriter& w, const Report& r) {
   } else {
     w.null();
   }
-  w.key("values").begin_array();
-  for (const auto& kv : r.values) {
-    w.begin_object().field("key", kv.key).field("value", kv.value).end_object();
-  }
-  w.end_array();
+  write_values(w, r);
   w.end_object();
 }
 

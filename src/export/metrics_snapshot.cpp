@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "vigil/assert.hpp"
+#include "vigil/can/can_monitor.hpp"
 
 namespace vigil::exporter {
 
@@ -14,11 +15,11 @@ std::vector<ComponentHistograms> collect_histograms(
     ComponentHistograms h;
     h.id = d.id;
     h.name = std::string(d.name);
-    h.execution = reduce_to_buckets(*d.user);
-    h.total = reduce_to_buckets(*d.user, d.total_shift_ns,
+    h.execution = reduce_to_buckets(*d.execution);
+    h.total = reduce_to_buckets(*d.execution, d.total_shift_ns,
                                 d.total.mean * static_cast<double>(d.total.count));
     h.latency = reduce_to_buckets(*d.latency);
-    h.period = reduce_to_buckets(*d.period);
+    h.measured_period = reduce_to_buckets(*d.measured_period);
     out.push_back(std::move(h));
   });
   // visit_distributions() visits in id order: nothing to sort.
@@ -35,7 +36,7 @@ HistoryFrame make_history_frame(const ReportSet& reports) {
   for (const Report& r : reports.components) {
     if (r.kind != ReportKind::Component) continue;
     f.points.push_back(HistoryPoint{.name = r.name,
-                                    .execution_p99_ns = r.user_ns.p99,
+                                    .execution_p99_ns = r.execution_ns.p99,
                                     .latency_p99_ns = r.latency_ns.p99,
                                     .overruns = r.counters.overruns,
                                     .window_overruns = r.window.overruns,
@@ -54,11 +55,12 @@ const ComponentHistograms* MetricsSnapshot::histograms_of(const Report& report) 
 }
 
 const CanHistograms* MetricsSnapshot::can_histograms_of(const Report& report) const noexcept {
-  if (report.kind != ReportKind::CanNode && report.kind != ReportKind::CanGroup) return nullptr;
+  const bool group = report.is_unit(can::kGroupUnit);
+  if (!group && !report.is_unit(can::kNodeUnit)) return nullptr;
   const auto it = std::lower_bound(
       can_histograms.begin(), can_histograms.end(), report.name,
       [](const CanHistograms& h, const std::string& name) { return h.name < name; });
-  if (it == can_histograms.end() || it->name != report.name || it->kind != report.kind) {
+  if (it == can_histograms.end() || it->name != report.name || it->group != group) {
     return nullptr;
   }
   return &*it;

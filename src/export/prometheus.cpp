@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <array>
 #include <charconv>
 #include <cmath>
@@ -11,6 +12,7 @@
 #include <vector>
 
 #include "utf8.hpp"
+#include "vigil/can/can_monitor.hpp"
 #include "vigil/version.hpp"
 
 namespace vigil::exporter {
@@ -322,8 +324,27 @@ bool is_component(const Report& r) { return r.kind == ReportKind::Component; }
 bool has_thread(const Report& r) { return r.thread.has_value(); }
 bool is_supervisor(const Report& r) { return r.kind == ReportKind::Supervisor; }
 bool is_monitor(const Report& r) { return r.kind == ReportKind::Monitor; }
-bool is_can_node(const Report& r) { return r.kind == ReportKind::CanNode; }
-bool is_can_group(const Report& r) { return r.kind == ReportKind::CanGroup; }
+bool is_can_node(const Report& r) { return r.is_unit(can::kNodeUnit); }
+bool is_can_group(const Report& r) { return r.is_unit(can::kGroupUnit); }
+
+// A unit's count field, if it has it.
+std::optional<std::uint64_t> count_field(const Report& r, std::string_view name) {
+  const Field* f = r.field(name);
+  if (f == nullptr || f->type != Field::Type::Count) return std::nullopt;
+  return f->count;
+}
+// A unit's duration field, if it has it.
+std::optional<Nanos> duration_field(const Report& r, std::string_view name) {
+  const Field* f = r.field(name);
+  if (f == nullptr || f->type != Field::Type::Duration) return std::nullopt;
+  return f->duration_ns;
+}
+// A unit's distribution field; an empty one when it has none.
+const StatsSummary& distribution_field(const Report& r, std::string_view name) {
+  static const StatsSummary kNone{};
+  const Field* f = r.field(name);
+  return f != nullptr && f->type == Field::Type::Distribution ? f->distribution : kNone;
+}
 
 // What a section writer reads and writes.
 struct Section {
@@ -347,13 +368,19 @@ void process_families(const Section& s) {
            "Unix time at which the monitor published the reports served.");
   w.sample("vigil_report_timestamp_seconds", {}, {},
            static_cast<double>(s.snap.wall_time_ns) / 1e9);
-  w.family("vigil_reports", Type::Gauge, "Reports served, by kind of report.");
-  std::array<std::uint64_t, 5> n{};
-  for (const Report& r : s.snap.reports.components) ++n[static_cast<std::size_t>(r.kind)];
-  for (ReportKind k : {ReportKind::Component, ReportKind::Supervisor, ReportKind::Monitor,
-                       ReportKind::CanNode, ReportKind::CanGroup}) {
-    w.sample_u("vigil_reports", {}, {{"kind", to_string(k)}}, n[static_cast<std::size_t>(k)]);
+  w.family("vigil_reports", Type::Gauge,
+           "Reports served, by kind of report (the monitor's kinds, then each kind of unit).");
+  // The monitor's kinds always (0 included), then the units' kinds in order of appearance.
+  std::vector<std::pair<std::string_view, std::uint64_t>> n{{to_string(ReportKind::Component), 0},
+                                                            {to_string(ReportKind::Supervisor), 0},
+                                                            {to_string(ReportKind::Monitor), 0}};
+  for (const Report& r : s.snap.reports.components) {
+    const std::string_view kind = r.kind_name();
+    auto it = std::find_if(n.begin(), n.end(), [&](const auto& e) { return e.first == kind; });
+    if (it == n.end()) it = n.insert(n.end(), {kind, 0});
+    ++it->second;
   }
+  for (const auto& [kind, count] : n) w.sample_u("vigil_reports", {}, {{"kind", kind}}, count);
 }
 
 // Every report: status and state.
@@ -363,14 +390,14 @@ void status_families(const Section& s) {
            "Status of a component (or of the supervisor, monitor, CAN node or group): "
            "0 OK, 1 WARN, 2 ERROR, 3 STALE.");
   s.each(any_report, [&](const Report& r) {
-    w.sample_u("vigil_component_status", r.name, {{"kind", to_string(r.kind)}},
+    w.sample_u("vigil_component_status", r.name, {{"kind", r.kind_name()}},
                static_cast<std::uint64_t>(r.status.level()));
   });
   w.family("vigil_component_state", Type::Gauge,
            "Lifecycle state: 1 for the current one. Components have one series per state; CAN "
            "nodes and groups one for their state in words.");
   s.each(any_report, [&](const Report& r) {
-    const char* kind = to_string(r.kind);
+    const std::string_view kind = r.kind_name();
     if (!r.state_label.empty()) {
       w.sample_u("vigil_component_state", r.name, {{"kind", kind}, {"state", r.state_label}}, 1);
       return;
@@ -474,7 +501,7 @@ void component_histogram_families(const Section& s) {
       s, "vigil_component_execution_seconds",
       "Time spent in the component's on_update(), per cycle.",
       [](const ComponentHistograms& h) -> const BucketCounts& { return h.execution; },
-      [](const Report& r) -> const StatsSummary& { return r.user_ns; });
+      [](const Report& r) -> const StatsSummary& { return r.execution_ns; });
   component_histogram(
       s, "vigil_component_total_seconds",
       "Time per cycle including supervision (on_update() plus the latest measured overhead).",
@@ -486,9 +513,9 @@ void component_histogram_families(const Section& s) {
       [](const ComponentHistograms& h) -> const BucketCounts& { return h.latency; },
       [](const Report& r) -> const StatsSummary& { return r.latency_ns; });
   component_histogram(
-      s, "vigil_component_cycle_period_seconds",
+      s, "vigil_component_measured_period_seconds",
       "Measured period: start-to-start time of consecutive cycles.",
-      [](const ComponentHistograms& h) -> const BucketCounts& { return h.period; },
+      [](const ComponentHistograms& h) -> const BucketCounts& { return h.measured_period; },
       [](const Report& r) -> const StatsSummary& { return r.measured_period_ns; });
 }
 
@@ -631,8 +658,8 @@ void can_node_families(const Section& s) {
   w.family("vigil_can_frames_total", Type::Counter,
            "CAN frames of a node by direction: rx (from the node), tx (to the node).");
   s.each(is_can_node, [&](const Report& r) {
-    const auto rx = value_u64(r, "frames_rx");
-    const auto tx = value_u64(r, "frames_tx");
+    const auto rx = count_field(r, "frames_rx");
+    const auto tx = count_field(r, "frames_tx");
     if (rx) w.sample_u("vigil_can_frames_total", r.name, {{"direction", "rx"}}, *rx);
     if (tx) w.sample_u("vigil_can_frames_total", r.name, {{"direction", "tx"}}, *tx);
   });
@@ -643,7 +670,7 @@ void can_node_families(const Section& s) {
     const CanHistograms* h = s.snap.can_histograms_of(r);
     // Without buckets (a publisher that collected none): the count and sum of the report's
     // receive gaps.
-    const StatsSummary& rx = r.user_ns;
+    const StatsSummary& rx = distribution_field(r, "rx_gap");
     direction_histogram_samples(w, "vigil_can_gap_seconds", r.name, "rx",
                                 h != nullptr && h->rx_gap ? &*h->rx_gap : nullptr, rx.count,
                                 rx.mean * static_cast<double>(rx.count));
@@ -654,14 +681,15 @@ void can_node_families(const Section& s) {
   w.family("vigil_can_read_seconds", Type::Summary,
            "Time of the read call that returned a CAN node's frame.");
   s.each(is_can_node, [&](const Report& r) {
-    summary_samples(w, "vigil_can_read_seconds", r.name, r.latency_ns);
+    summary_samples(w, "vigil_can_read_seconds", r.name, distribution_field(r, "read_time"));
   });
   w.family("vigil_can_silence_seconds", Type::Gauge,
            "Time since the latest frame received from a CAN node (absent when never received).");
-  s.each([](const Report& r) { return r.kind == ReportKind::CanNode && r.silence_ns >= 0; },
-         [&](const Report& r) {
-           w.sample("vigil_can_silence_seconds", r.name, {}, seconds(r.silence_ns));
-         });
+  s.each(is_can_node, [&](const Report& r) {
+    if (auto silence = duration_field(r, "silence")) {
+      w.sample("vigil_can_silence_seconds", r.name, {}, seconds(*silence));
+    }
+  });
 }
 
 void can_group_families(const Section& s) {
@@ -669,7 +697,9 @@ void can_group_families(const Section& s) {
   w.family("vigil_can_group_frames_total", Type::Counter,
            "CAN frames of a group's nodes, both directions.");
   s.each(is_can_group, [&](const Report& r) {
-    w.sample_u("vigil_can_group_frames_total", r.name, {}, r.counters.cycles);
+    if (auto frames = count_field(r, "frames")) {
+      w.sample_u("vigil_can_group_frames_total", r.name, {}, *frames);
+    }
   });
   w.family("vigil_can_group_gap_seconds", Type::Histogram,
            "Time between consecutive frames of each member of a CAN group, merged, by "

@@ -4,6 +4,8 @@
 
 #include "vigil/platform/process.hpp"
 
+#include <algorithm>
+#include <cctype>
 #include <cstdlib>
 #include <cstring>
 
@@ -84,10 +86,82 @@ std::string losses_line(const std::array<std::uint64_t, task::kLossCauses>& loss
 
 constexpr std::size_t kNameWidth = 24;
 // "mean/p99/max" and "p99/max": a duration is at most 7 characters ("-5.00us", "1.50ms").
-constexpr std::size_t kUserWidth = 23;
+constexpr std::size_t kExecutionWidth = 23;
 constexpr std::size_t kLatencyWidth = 15;
 
 std::string nanos_of(Nanos v) { return format_nanos(static_cast<double>(v)); }
+
+// A unit's field in a table cell: a count, a duration, a distribution as p50/p99/max, words.
+std::string cell_of(const Field& f) {
+  switch (f.type) {
+    case Field::Type::Count:
+      return std::to_string(f.count);
+    case Field::Type::Duration:
+      return nanos_of(f.duration_ns);
+    case Field::Type::Distribution:
+      if (f.distribution.count == 0) return "-";
+      return nanos_of(f.distribution.p50) + "/" + nanos_of(f.distribution.p99) + "/" +
+             nanos_of(f.distribution.max);
+    case Field::Type::Text:
+      return printable(f.text);
+  }
+  return "?";
+}
+
+// A field's column title: its name in capitals, words apart ("rx_gap" -> "RX GAP P50/P99/MAX").
+std::string title_of(const Field& f) {
+  std::string t;
+  for (const char c : f.name) {
+    t += c == '_' ? ' ' : static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  }
+  if (f.type == Field::Type::Distribution) t += " P50/P99/MAX";
+  return t;
+}
+
+// The units of one kind as a table: status, name, state, a column per field name (in the order
+// of first appearance), the messages. Columns are as wide as their widest cell.
+std::string format_unit_table(const std::vector<const Report*>& units, bool color) {
+  std::vector<std::string> titles;  // by field name, in order of first appearance
+  std::vector<std::string> names;
+  for (const Report* u : units) {
+    for (const Field& f : u->fields) {
+      if (std::find(names.begin(), names.end(), f.name) != names.end()) continue;
+      names.push_back(f.name);
+      titles.push_back(title_of(f));
+    }
+  }
+  std::size_t name_width = kNameWidth;
+  std::size_t state_width = 14;
+  for (const Report* u : units) {
+    name_width = std::max(name_width, printable(u->name).size());
+    state_width = std::max(state_width, state_of(*u).size());
+  }
+  std::vector<std::size_t> widths;
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    std::size_t width = titles[i].size();
+    for (const Report* u : units) {
+      if (const Field* f = u->field(names[i])) width = std::max(width, cell_of(*f).size());
+    }
+    widths.push_back(width);
+  }
+  std::string out = fmt::format("{:<7} {:<{}} {:<{}}", "STATUS", units.front()->kind_name(),
+                                name_width, "STATE", state_width);
+  for (std::size_t i = 0; i < names.size(); ++i)
+    out += fmt::format("  {:>{}}", titles[i], widths[i]);
+  out += "  MESSAGES\n";
+  for (const Report* u : units) {
+    out += status_word(u->status.level(), color, 7);
+    out += fmt::format(" {:<{}} {:<{}}", printable(u->name), name_width, state_of(*u), state_width);
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      const Field* f = u->field(names[i]);
+      out += fmt::format("  {:>{}}", f != nullptr ? cell_of(*f) : std::string("-"), widths[i]);
+    }
+    const std::string messages = u->status.summary();
+    if (!messages.empty()) out += "  " + printable(messages);
+    out += '\n';
+  }
+  return out;
+}
 
 }  // namespace
 
@@ -110,26 +184,35 @@ bool use_color(ColorMode mode, std::FILE* out) {
 
 std::string format_summary_header() {
   return fmt::format("{:<7} {:<{}} {:<14} {:>10}  {:<{}} {:>{}} {:>8} {:>7}  {}", "STATUS", "NAME",
-                     kNameWidth, "STATE", "CYCLES", "USER MEAN/P99/MAX", kUserWidth, "LAT P99/MAX",
-                     kLatencyWidth, "OVERRUNS", "LOSSES", "MESSAGES");
+                     kNameWidth, "STATE", "CYCLES", "EXEC MEAN/P99/MAX", kExecutionWidth,
+                     "LAT P99/MAX", kLatencyWidth, "OVERRUNS", "LOSSES", "MESSAGES");
 }
 
 std::string format_summary_line(const Report& r, bool color) {
+  if (r.kind == ReportKind::Unit) {
+    // A unit alone: its state and its fields by name.
+    std::string line = status_word(r.status.level(), color, 7);
+    line += fmt::format(" {:<{}} {:<14}", printable(r.name), kNameWidth, state_of(r));
+    for (const Field& f : r.fields) line += fmt::format("  {} {}", printable(f.name), cell_of(f));
+    const std::string messages = r.status.summary();
+    if (!messages.empty()) line += "  " + printable(messages);
+    return line;
+  }
   // The max beside the p99: one long cycle among thousands puts the mean above the p99, and
   // the max says why (and it is the latency figure cyclictest users read).
-  const std::string user = r.user_ns.count == 0
-                               ? std::string("-")
-                               : format_nanos(r.user_ns.mean) + "/" + nanos_of(r.user_ns.p99) +
-                                     "/" + nanos_of(r.user_ns.max);
+  const std::string execution = r.execution_ns.count == 0 ? std::string("-")
+                                                          : format_nanos(r.execution_ns.mean) +
+                                                                "/" + nanos_of(r.execution_ns.p99) +
+                                                                "/" + nanos_of(r.execution_ns.max);
   const std::string latency = r.latency_ns.count == 0
                                   ? std::string("-")
                                   : nanos_of(r.latency_ns.p99) + "/" + nanos_of(r.latency_ns.max);
   std::string line = status_word(r.status.level(), color, 7);
-  line +=
-      fmt::format(" {:<{}} {:<14} {:>10}  {:<{}} {:>{}} {:>8} {:>7}", printable(r.name), kNameWidth,
-                  state_of(r), r.counters.cycles, user, kUserWidth, latency, kLatencyWidth,
-                  r.counters.overruns - std::min(r.counters.overruns, r.warmup.overruns),
-                  r.counters.total_losses());
+  line += fmt::format(" {:<{}} {:<14} {:>10}  {:<{}} {:>{}} {:>8} {:>7}", printable(r.name),
+                      kNameWidth, state_of(r), r.counters.cycles, execution, kExecutionWidth,
+                      latency, kLatencyWidth,
+                      r.counters.overruns - std::min(r.counters.overruns, r.warmup.overruns),
+                      r.counters.total_losses());
   const std::string messages = r.status.summary();
   if (!messages.empty()) {
     line += "  ";
@@ -139,11 +222,28 @@ std::string format_summary_line(const Report& r, bool color) {
 }
 
 std::string format_summary(const ReportSet& reports, bool color) {
+  // The components, the supervisor and the monitor in one table; then each kind of unit in a
+  // table of its own, with its own columns, in the order the kinds first appear.
   std::string out = format_summary_header();
   out += '\n';
+  std::vector<std::string_view> kinds;
   for (const Report& r : reports.components) {
+    if (r.kind == ReportKind::Unit) {
+      if (std::find(kinds.begin(), kinds.end(), r.unit_kind) == kinds.end()) {
+        kinds.push_back(r.unit_kind);
+      }
+      continue;
+    }
     out += format_summary_line(r, color);
     out += '\n';
+  }
+  for (const std::string_view kind : kinds) {
+    std::vector<const Report*> units;
+    for (const Report& r : reports.components) {
+      if (r.is_unit(kind)) units.push_back(&r);
+    }
+    out += '\n';
+    out += format_unit_table(units, color);
   }
   return out;
 }
@@ -158,7 +258,15 @@ std::string format_detail(const Report& r, bool color) {
   for (const auto& m : r.status.messages()) {
     line("message", fmt::format("[{}] {}", to_string(m.level), m.text));
   }
-  line("kind", component ? fmt::format("component (id {})", r.id) : to_string(r.kind));
+  line("kind", component ? fmt::format("component (id {})", r.id) : std::string(r.kind_name()));
+  if (r.kind == ReportKind::Unit) {
+    line("state", state_of(r));
+    for (const Field& f : r.fields) {
+      line(f.name, f.type == Field::Type::Distribution ? stats_line(f.distribution) : cell_of(f));
+    }
+    for (const auto& kv : r.values) line(kv.key, kv.value);
+    return out;
+  }
   line("state", state_of(r) + (r.configured ? "" : " (not configured)"));
   if (r.configured) {
     std::string where =
@@ -192,7 +300,7 @@ std::string format_detail(const Report& r, bool color) {
                      r.window.first ? "" : format_nanos(static_cast<double>(r.window.duration_ns)),
                      r.window.cycles, r.window.overruns, r.window.missed_cycles,
                      r.window.total_losses(), r.window.exceptions, r.window.dropped));
-    line("user time", stats_line(r.user_ns));
+    line("execution time", stats_line(r.execution_ns));
     line("total time", stats_line(r.total_ns));
     line("wake-up latency", stats_line(r.latency_ns));
     line("measured period", stats_line(r.measured_period_ns));

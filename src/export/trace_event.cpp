@@ -83,7 +83,7 @@ void write_cycle(exporter::JsonWriter& w, const supervisor::CycleRecord& c,
   w.field("cycle", c.cycle);
   w.field("release_us", us(c.release_ns));
   w.field("latency_us", us(c.latency_ns()));
-  w.field("user_us", us(c.user_ns()));
+  w.field("execution_us", us(c.execution_ns()));
   w.field("overhead_us", us(c.overhead_ns));
   w.field("overrun", overrun);
   w.field("missed_before", c.missed_before);
@@ -105,13 +105,13 @@ void write_cycle(exporter::JsonWriter& w, const supervisor::CycleRecord& c,
       .end_object()
       .end_object();
   w.begin_object()
-      .field("name", "user_us")
+      .field("name", "execution_us")
       .field("ph", "C")
       .field("ts", us(c.start_ns))
       .field("pid", t.pid)
       .key("args")
       .begin_object()
-      .field("user_us", us(c.user_ns()))
+      .field("execution_us", us(c.execution_ns()))
       .end_object()
       .end_object();
 }

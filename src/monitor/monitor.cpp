@@ -98,7 +98,7 @@ struct Monitor::Impl {
   mutable std::mutex step_mutex;
   CheckList checks;
   std::unordered_map<std::uint32_t, Memory> memory;
-  const supervisor::TaskSupervisor* supervisor = nullptr;
+  const supervisor::ComponentDrainLoop* supervisor = nullptr;
   std::uint64_t supervisor_cycles = 0;
   Nanos supervisor_changed_at = 0;
   bool supervisor_seen = false;
@@ -135,9 +135,9 @@ struct Monitor::Impl {
     return thresholds;
   }
 
-  Report supervisor_report(const supervisor::TaskSupervisor& sup, const ThresholdSet& th,
+  Report supervisor_report(const supervisor::ComponentDrainLoop& sup, const ThresholdSet& th,
                            Nanos now) {
-    const supervisor::SupervisorStats st = sup.stats();
+    const supervisor::DrainStats st = sup.stats();
     const Thresholds& t = th.for_component(options.supervisor_name);
     Report r;
     r.kind = ReportKind::Supervisor;
@@ -161,7 +161,7 @@ struct Monitor::Impl {
     r.add("max_occupancy", std::to_string(st.max_occupancy));
 
     const Nanos limit = checks::starvation_limit(t, r.period_ns);
-    // Whether its thread runs is not asked (Supervisor::running() is not safe against a
+    // Whether its thread runs is not asked (DrainLoop::running() is not safe against a
     // concurrent start/stop): it runs if it cycles.
     const bool cycling = st.cycles > 0 && (limit <= 0 || r.silence_ns <= limit);
     r.state = cycling ? TaskState::Running : TaskState::Stopped;
@@ -258,7 +258,7 @@ std::unique_lock<std::mutex> Monitor::lock_checks_() const {
 
 CheckList& Monitor::checks_() noexcept { return impl_->checks; }
 
-void Monitor::set_supervisor(const supervisor::TaskSupervisor* supervisor) {
+void Monitor::set_supervisor(const supervisor::ComponentDrainLoop* supervisor) {
   std::lock_guard lock(impl_->step_mutex);
   impl_->supervisor = supervisor;
   impl_->supervisor_seen = false;

@@ -13,6 +13,13 @@ const std::string* Report::value(std::string_view key) const noexcept {
   return nullptr;
 }
 
+const Field* Report::field(std::string_view field_name) const noexcept {
+  for (const auto& f : fields) {
+    if (f.name == field_name) return &f;
+  }
+  return nullptr;
+}
+
 const Report* ReportSet::find(std::string_view name) const noexcept {
   for (const auto& r : components) {
     if (r.name == name) return &r;
@@ -47,6 +54,26 @@ std::string format_nanos(double ns) {
   return fmt::format("{}{:.0f}ns", sign, a);
 }
 
+std::string format_field(const Field& f) {
+  switch (f.type) {
+    case Field::Type::Count:
+      return std::to_string(f.count);
+    case Field::Type::Duration:
+      return format_nanos(static_cast<double>(f.duration_ns));
+    case Field::Type::Distribution: {
+      const StatsSummary& d = f.distribution;
+      if (d.count == 0) return "-";
+      return fmt::format("p50 {}, p99 {}, max {} ({} samples)",
+                         format_nanos(static_cast<double>(d.p50)),
+                         format_nanos(static_cast<double>(d.p99)),
+                         format_nanos(static_cast<double>(d.max)), d.count);
+    }
+    case Field::Type::Text:
+      return f.text;
+  }
+  return "?";
+}
+
 void fill_report(Report& r, const supervisor::ComponentSnapshot& s) {
   r.kind = ReportKind::Component;
   r.id = s.id;
@@ -66,10 +93,10 @@ void fill_report(Report& r, const supervisor::ComponentSnapshot& s) {
   r.state = s.state;
   r.counters = s.counters;
   r.samples = s.samples;
-  r.user_ns = s.user_ns;
+  r.execution_ns = s.execution_ns;
   r.total_ns = s.total_ns;
   r.latency_ns = s.latency_ns;
-  r.measured_period_ns = s.period_ns;
+  r.measured_period_ns = s.measured_period_ns;
   r.overhead_ns = s.overhead_ns;
   r.overhead_share = s.overhead_share();
   r.port_capacity = s.port_capacity;

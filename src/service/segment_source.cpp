@@ -518,8 +518,8 @@ struct SegmentSource::Impl {
     drain_all();
     forget_placements(t0);
     const Nanos t1 = now();
-    supervisor::SupervisorCycle c{
-        cycles + 1, t0, t1 - t0, static_cast<std::size_t>(messages - m0), segments.size(), 0};
+    supervisor::DrainCycle c{cycles + 1,      t0, t1 - t0, static_cast<std::size_t>(messages - m0),
+                             segments.size(), 0};
     aggregator.on_cycle(c);
     ++cycles;
     cycle_time.add(t1 - t0);
@@ -592,7 +592,7 @@ struct SegmentSource::Impl {
     Nanos beat = 0;
     const std::size_t n = all.size();
     for (std::size_t k = 0; k < n; ++k) {
-      // Staged hints, as Supervisor::prefetch_ahead: the segment's reader four ahead, its
+      // Staged hints, as DrainLoop::prefetch_ahead: the segment's reader four ahead, its
       // header's state lines and its entry three ahead, its waiting records one ahead (the
       // segments are other processes' memory, written since the last drain: every line is a
       // miss otherwise).

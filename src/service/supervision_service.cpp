@@ -16,8 +16,8 @@ supervisor::AggregatorOptions aggregator_options(const SupervisionServiceOptions
   return a;
 }
 
-supervisor::SupervisorOptions supervisor_options(const SupervisionServiceOptions& o) {
-  supervisor::SupervisorOptions s = o.supervisor;
+supervisor::DrainOptions supervisor_options(const SupervisionServiceOptions& o) {
+  supervisor::DrainOptions s = o.supervisor;
   s.period_ns = o.supervisor_period_ns;
   return s;
 }
@@ -95,7 +95,7 @@ SupervisionService::~SupervisionService() {
   }
 }
 
-supervisor::TaskSupervisor* SupervisionService::supervisor() noexcept {
+supervisor::ComponentDrainLoop* SupervisionService::supervisor() noexcept {
   auto* r = dynamic_cast<RegistrySource*>(source_.get());
   return r != nullptr ? &r->supervisor() : nullptr;
 }

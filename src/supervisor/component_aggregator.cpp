@@ -135,9 +135,9 @@ struct ComponentAggregator::Slot {
       run.last_overhead = r.overhead_ns;
       st.overhead[run.no++] = r.overhead_ns;
     }
-    const Nanos user_ns = r.end_ns - r.start_ns;
-    st.user[run.n] = user_ns;
-    st.total[run.n] = user_ns + run.last_overhead;
+    const Nanos execution_ns = r.end_ns - r.start_ns;
+    st.user[run.n] = execution_ns;
+    st.total[run.n] = execution_ns + run.last_overhead;
     st.latency[run.n] = r.start_ns - r.release_ns;
     ++run.n;
   }
@@ -861,7 +861,7 @@ std::vector<health::SupervisionReport> ComponentAggregator::health_reports() con
   return health_->reports();
 }
 
-void ComponentAggregator::on_cycle(const SupervisorCycle& c) {
+void ComponentAggregator::on_cycle(const DrainCycle& c) {
   if (auto* lc = log_consumer_.load()) lc->on_supervisor_cycle(c.time_ns + c.drain_ns);
   hint_ = 0;
   clock_reads_ = 0;  // the first port of the next cycle reads the clock
@@ -1057,10 +1057,10 @@ ComponentSnapshot copy_of(const ComponentAggregator::Slot& s) {
   out.warming_up = s.warming_up;
   out.silent = s.silent;
   out.port_high_water = s.port_high_water;
-  out.user_ns = s.user.summary();
-  out.total_ns = s.total.summary(out.user_ns, s.last_overhead);
+  out.execution_ns = s.user.summary();
+  out.total_ns = s.total.summary(out.execution_ns, s.last_overhead);
   out.latency_ns = s.latency.summary();
-  out.period_ns = s.period.summary();
+  out.measured_period_ns = s.period.summary();
   out.overhead_ns = s.overhead.summary();
   return out;
 }
@@ -1102,9 +1102,9 @@ void ComponentAggregator::visit_distributions(
     ComponentDistributions d;
     d.id = s->data.id;
     d.name = s->data.name;
-    d.user = &s->user;
+    d.execution = &s->user;
     d.latency = &s->latency;
-    d.period = &s->period;
+    d.measured_period = &s->period;
     d.overhead = &s->overhead;
     d.total_shift_ns = s->last_overhead;
     d.total = s->total.summary(StatsSummary{}, 0);

@@ -73,7 +73,7 @@ TEST_CASE("Fairness in real time: I/O thread at 1 kHz, supervisor thread at 10 H
   CanRegistry registry;
   Sniffer<16> sniffer(registry, "bus0", {.node_map = NodeMap::canopen()});
   CanAggregator aggregator(registry);
-  CanSupervisor supervisor(registry.ports(), aggregator, {.period_ns = 100 * kNanosPerMilli});
+  CanDrainLoop supervisor(registry.ports(), aggregator, {.period_ns = 100 * kNanosPerMilli});
   REQUIRE(supervisor.start().has_value());
   std::atomic<bool> stop{false};
   std::uint64_t sent = 0;
@@ -248,7 +248,7 @@ TEST_CASE("Exact percentiles keep every gap", "[can][statistics]") {
 TEST_CASE("Statistics of a sniffer survive its departure", "[can][statistics]") {
   CanRegistry registry;
   CanAggregator aggregator(registry);
-  CanSupervisor supervisor(registry.ports(), aggregator);
+  CanDrainLoop supervisor(registry.ports(), aggregator);
   std::uint32_t port = 0;
   {
     Sniffer<4> sniffer(registry, "short-lived");
@@ -274,7 +274,7 @@ TEST_CASE("Two sniffers on two buses", "[can][statistics]") {
   Sniffer<64> a(registry, "a");
   Sniffer<64> b(registry, "b");
   CanAggregator aggregator(registry);
-  CanSupervisor supervisor(registry.ports(), aggregator);
+  CanDrainLoop supervisor(registry.ports(), aggregator);
   for (int i = 0; i < 10; ++i) {
     a.on_read(frame(0x100, i, 0), i, i);
     b.on_read(frame(0x100, i, 1), i, i);

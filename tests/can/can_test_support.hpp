@@ -49,13 +49,13 @@ struct Pipeline {
   Sniffer<N> sniffer;
   CanAggregator aggregator;
   Nanos clock_ns = kUpToDate;
-  CanSupervisor supervisor;
+  CanDrainLoop supervisor;
 
   explicit Pipeline(SnifferOptions options = {}, CanAggregatorOptions agg = {})
       : sniffer(registry, "test-bus", options),
         aggregator(registry, agg),
         supervisor(registry.ports(), aggregator,
-                   supervisor::SupervisorOptions{.clock = Clock{&read_clock, &clock_ns}}) {}
+                   supervisor::DrainOptions{.clock = Clock{&read_clock, &clock_ns}}) {}
 
   /// Runs one supervisor cycle at time `t`.
   void step_at(Nanos t) {

@@ -49,7 +49,7 @@ TEST_CASE("CAN: with both cores loaded and the CAN supervisor late, no healthy n
   CanRegistry registry;
   Sniffer<1024> sniffer(registry, "can0", {.max_ids = 64, .node_map = NodeMap::canopen()});
   CanAggregator aggregator(registry);
-  CanSupervisor supervisor(registry.ports(), aggregator);
+  CanDrainLoop supervisor(registry.ports(), aggregator);
   auto config = load_can_config_string("defaults: {not_responding: {after: 100ms}}\n");
   REQUIRE(config.has_value());
   const CanMonitor monitor(*config);

@@ -76,9 +76,25 @@ can:
   const ReportSet r = (*sys)->step_monitor();
   const Report* drive = r.find("can0/drive_1");
   REQUIRE(drive != nullptr);
-  CHECK(drive->kind == ReportKind::CanNode);
+  // A CAN node says what it is, with its figures under CAN names (not a component's).
+  CHECK(drive->kind == ReportKind::Unit);
+  CHECK(drive->kind_name() == "can_node");
   CHECK(drive->status.ok());
-  CHECK(drive->counters.cycles > 20);
+  CHECK(drive->state_label == "responding");
+  CHECK(drive->counters.cycles == 0);
+  const Field* frames_rx = drive->field("frames_rx");
+  REQUIRE(frames_rx != nullptr);
+  CHECK(frames_rx->type == Field::Type::Count);
+  CHECK(frames_rx->count > 20);
+  const Field* rx_gap = drive->field("rx_gap");
+  REQUIRE(rx_gap != nullptr);
+  CHECK(rx_gap->type == Field::Type::Distribution);
+  CHECK(rx_gap->distribution.p50 > 0);
+  REQUIRE(drive->field("read_time") != nullptr);
+  REQUIRE(drive->field("silence_limit") != nullptr);
+  CHECK(drive->field("silence_limit")->duration_ns == 100 * kNanosPerMilli);
+  CHECK(drive->field("limit")->text == "configured");
+  CHECK(drive->execution_ns.count == 0);
   const Report* quiet = r.find("can0/3");
   REQUIRE(quiet != nullptr);
   CHECK(quiet->status.level() == StatusLevel::Error);
@@ -86,6 +102,12 @@ can:
   const Report* arm = r.find("can group arm");
   REQUIRE(arm != nullptr);
   CHECK(arm->status.level() == StatusLevel::Error);
+  CHECK(arm->kind_name() == "can_group");
+  CHECK(arm->state_label == "degraded");
+  REQUIRE(arm->field("nodes") != nullptr);
+  CHECK(arm->field("nodes")->count == 3);
+  CHECK(arm->field("responding")->count < 3);
+  CHECK(arm->field("frames")->count >= frames_rx->count);
   // The CAN supervisor reports itself: it drained on time (judged as of the stop).
   const Report* sup = r.find(kCanSupervisorName);
   REQUIRE(sup != nullptr);
@@ -109,11 +131,11 @@ can:
   };
   const auto* h1 = find("can0/drive_1");
   REQUIRE(h1 != nullptr);
-  CHECK(h1->kind == ReportKind::CanNode);
+  CHECK_FALSE(h1->group);
   REQUIRE(h1->rx_gap);
   CHECK_FALSE(h1->tx_gap);  // nothing was sent to it
   CHECK(h1->rx_gap->count > 20);
-  CHECK(h1->rx_gap->count < drive->counters.cycles);  // one gap fewer than frames (or more lost)
+  CHECK(h1->rx_gap->count < frames_rx->count);  // one gap fewer than frames (or more lost)
   // Gaps of about 5 ms (the activity's period): none under 1 ms, all under 1 s.
   CHECK(h1->rx_gap->cumulative[0] == 0);
   CHECK(exporter::kBucketBoundsNs[36] == kNanosPerSecond);
@@ -124,7 +146,7 @@ can:
   REQUIRE(h2 != nullptr);
   const auto* group = find("can group arm");
   REQUIRE(group != nullptr);
-  CHECK(group->kind == ReportKind::CanGroup);
+  CHECK(group->group);
   REQUIRE(group->rx_gap);
   CHECK(group->rx_gap->count == h1->rx_gap->count + h2->rx_gap->count + h3->rx_gap->count);
 }

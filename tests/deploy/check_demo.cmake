@@ -1,4 +1,4 @@
-# Runs `vigil demo --duration 10 --json OUT` and checks the final reports (JSON schema 1):
+# Runs `vigil demo --duration 10 --json OUT` and checks the final reports (JSON schema 2):
 # healthy components end OK; the ramping one WARN (near overrun) or worse; the allocating one
 # reports allocation losses; the throwing one ERROR with the exception's message; the silent CAN
 # node is reported not responding and all others respond.
@@ -10,8 +10,8 @@ if(NOT rc EQUAL 0)
 endif()
 file(READ ${OUT} json)
 string(JSON schema GET "${json}" schema)
-if(NOT schema EQUAL 1)
-  message(FATAL_ERROR "schema is ${schema}, expected 1")
+if(NOT schema EQUAL 2)
+  message(FATAL_ERROR "schema is ${schema}, expected 2")
 endif()
 string(JSON n LENGTH "${json}" components)
 math(EXPR last "${n} - 1")

@@ -102,7 +102,7 @@ for motor in ("motor_left", "motor_right"):
     warm = c["warmup"]
     if warm["cycles"] <= 0:
         failures.append(f"{motor}: no warm-up cycles")
-    stats_count = c["timing"]["user_ns"]["count"]
+    stats_count = c["timing"]["execution_ns"]["count"]
     if stats_count != c["counters"]["samples"] - warm["cycles"]:
         failures.append(f"{motor}: {stats_count} cycles in the statistics, expected "
                         f"{c['counters']['samples']} - {warm['cycles']} of warm-up")

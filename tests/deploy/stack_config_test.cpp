@@ -11,7 +11,7 @@
 #include "vigil/deploy/deployment.hpp"
 #include "vigil/monitor/monitor.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
-#include "vigil/supervisor/supervisor.hpp"
+#include "vigil/supervisor/drain_loop.hpp"
 #include "vigil/task/task.hpp"
 
 using namespace vigil;
@@ -105,11 +105,11 @@ supervision: {supervisor_stack: lots, monitor_stack: 4GiB}
 
 TEST_CASE("The supervisor's and the monitor's threads get their configured stacks",
           "[supervisor][monitor][memory]") {
-  STATIC_REQUIRE(supervisor::SupervisorOptions{}.stack_bytes == platform::kDefaultStackBytes);
+  STATIC_REQUIRE(supervisor::DrainOptions{}.stack_bytes == platform::kDefaultStackBytes);
   STATIC_REQUIRE(MonitorOptions{}.stack_bytes == platform::kDefaultStackBytes);
 
   struct StackHandler : supervisor::ComponentAggregator {
-    void on_cycle(const supervisor::SupervisorCycle& c) {
+    void on_cycle(const supervisor::DrainCycle& c) {
       supervisor::ComponentAggregator::on_cycle(c);
       bytes.store(vigil::test::current_stack_bytes());
     }
@@ -117,7 +117,7 @@ TEST_CASE("The supervisor's and the monitor's threads get their configured stack
   };
   Registry<task::Message> reg;
   StackHandler handler;
-  supervisor::Supervisor<task::Message, StackHandler> sup(
+  supervisor::DrainLoop<task::Message, StackHandler> sup(
       reg, handler, {.period_ns = kNanosPerMilli, .stack_bytes = 160 * 1024});
   REQUIRE(sup.start().has_value());
   CHECK(vigil::test::stack_serves(wait_for(handler.bytes), 160 * 1024));

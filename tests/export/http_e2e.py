@@ -221,6 +221,9 @@ class RowReader(html.parser.HTMLParser):
         self.cards = set()
         self.canvases = 0
         self.body = {}
+        self.unit_heads = {}  # unit kind -> its table's column titles
+        self._kind = None
+        self._in_th = False
 
     def handle_starttag(self, tag, attrs):
         a = dict(attrs)
@@ -232,6 +235,21 @@ class RowReader(html.parser.HTMLParser):
             self.canvases += 1
         if tag == "body":
             self.body = a
+        if tag == "table" and "data-kind" in a:
+            self._kind = a["data-kind"]
+            self.unit_heads[self._kind] = []
+        if tag == "th" and self._kind:
+            self._in_th = True
+
+    def handle_endtag(self, tag):
+        if tag == "table":
+            self._kind = None
+        if tag == "th":
+            self._in_th = False
+
+    def handle_data(self, data):
+        if self._in_th and self._kind:
+            self.unit_heads[self._kind].append(data.strip())
 
 
 def chromium_binary():
@@ -308,6 +326,15 @@ def check_chromium(args):
         fail("; ".join(problems))
     if "ERROR" not in reader.rows.values():
         fail("no component shows ERROR (the demo's encoder throws after ~4 s)")
+    # Units (the demo's CAN nodes and groups) in a table of their kind, with their fields'
+    # names as column titles.
+    unit_kinds = {c["kind"] for c in json.loads(after)["components"] if "fields" in c}
+    for kind in unit_kinds:
+        heads = reader.unit_heads.get(kind)
+        if heads is None:
+            fail(f"no table for the {kind} units")
+        if kind == "can_node" and not {"frames rx", "rx gap p50 / p99 / max"} <= set(heads):
+            fail(f"the can_node table's columns are {heads}")
     components = {n for n, c in ((c["name"], c) for c in json.loads(after)["components"])
                   if c["kind"] == "component"}
     if reader.body.get("data-charts") == "1":

@@ -121,7 +121,7 @@ TEST_CASE("The server serves every endpoint from the published snapshot", "[expo
   CHECK(r->status == 200);
   CHECK(r->get_header_value("Content-Type").starts_with("application/json"));
   Json doc = JsonParser::parse(r->body);
-  CHECK(doc["schema"].number_text() == "1");
+  CHECK(doc["schema"].number_text() == "2");
   CHECK(doc["components"].array().size() == reports.components.size());
 
   // One component by name, its slash taken as it is or percent-encoded.
@@ -413,7 +413,8 @@ TEST_CASE("The HTTP and textfile outputs publish each snapshot", "[export][http]
   s.histograms = collect_histograms(f.h.aggregator);
   s.cycle = s.reports.cycle;
   Report extra;  // what a contributor adds
-  extra.kind = ReportKind::CanGroup;
+  extra.kind = ReportKind::Unit;
+  extra.unit_kind = "can_group";
   extra.name = "can group extra";
   s.reports.components.push_back(extra);
   http_output.publish(s);
@@ -445,9 +446,11 @@ TEST_CASE("Diagnostics map reports onto a ROS 2 DiagnosticArray", "[export][diag
   Fixture f;
   ReportSet set = f.h.step();
   Report node;
-  node.kind = ReportKind::CanNode;
+  node.kind = ReportKind::Unit;
+  node.unit_kind = "can_node";
   node.name = "can0/drive_5";
   node.merge(StatusLevel::Stale, "silent");
+  node.add_field(Field::of_count("frames_rx", 12));
   set.components.push_back(node);
   const Json doc = JsonParser::parse(to_diagnostics_json(set, 1'700'000'000'250'000'000));
   CHECK(doc["header"]["stamp"]["sec"].number_text() == "1700000000");
@@ -474,6 +477,12 @@ TEST_CASE("Diagnostics map reports onto a ROS 2 DiagnosticArray", "[export][diag
       saw_node = true;
       CHECK(s["level"].number_text() == "3");
       CHECK(s["hardware_id"].str() == "can0:drive_5");
+      // Its fields by their names, after its kind.
+      const auto& values = s["values"].array();
+      REQUIRE(values.size() >= 3);
+      CHECK(values[0]["value"].str() == "can_node");
+      CHECK(values[2]["key"].str() == "frames_rx");
+      CHECK(values[2]["value"].str() == "12");
     }
     if (s["name"].str() == "vigil: motor") CHECK(s["message"].str() == "OK");
   }
@@ -486,7 +495,8 @@ TEST_CASE("Diagnostics map reports onto a ROS 2 DiagnosticArray", "[export][diag
   comp.cpu = -1;
   CHECK(hardware_id(comp) == "tid 4242 cpu any");
   Report group;
-  group.kind = ReportKind::CanGroup;
+  group.kind = ReportKind::Unit;
+  group.unit_kind = "can_group";
   group.name = "can group left_arm";
   CHECK(hardware_id(group) == "can:left_arm");
   // Negative wall times keep nanosec in [0, 1e9).

@@ -42,13 +42,13 @@ void require_stats(const Json& s) {
 
 }  // namespace
 
-TEST_CASE("The JSON report follows schema 1", "[export][json_report]") {
+TEST_CASE("The JSON report follows schema 2", "[export][json_report]") {
   const ReportSet set = sample_reports();
   const std::string text = to_json(set);
   CHECK(text.find('\n') == std::string::npos);  // compact: one line
   const Json doc = JsonParser::parse(text);     // throws if not valid JSON
 
-  CHECK(doc["schema"].number_text() == "1");
+  CHECK(doc["schema"].number_text() == "2");
   CHECK(doc["generator"].str().rfind("vigil ", 0) == 0);
   CHECK(doc["cycle"].is_integer());
   CHECK(doc["time_ns"].is_integer());
@@ -89,7 +89,8 @@ TEST_CASE("The JSON report follows schema 1", "[export][json_report]") {
       CHECK(window[k].is_integer());
     }
     const Json& timing = c["timing"];
-    for (const char* k : {"user_ns", "total_ns", "latency_ns", "period_ns", "overhead_ns"}) {
+    for (const char* k :
+         {"execution_ns", "total_ns", "latency_ns", "measured_period_ns", "overhead_ns"}) {
       INFO(k);
       require_stats(timing[k]);
     }
@@ -123,8 +124,8 @@ TEST_CASE("The JSON report carries each component's data", "[export][json_report
   CHECK(h["kind"].str() == "component");
   CHECK(h["period_ns"].number_text() == "1000000");
   CHECK(h["counters"]["cycles"].number_text() == "10");
-  CHECK(h["timing"]["user_ns"]["mean"].number() == 100000.0);
-  CHECK(h["timing"]["user_ns"]["count"].number_text() == "10");
+  CHECK(h["timing"]["execution_ns"]["mean"].number() == 100000.0);
+  CHECK(h["timing"]["execution_ns"]["count"].number_text() == "10");
   CHECK(h["exception"].is_null());
 
   const Json& t = *by_name["thr\"ower"];
@@ -144,4 +145,37 @@ TEST_CASE("The JSON report carries each component's data", "[export][json_report
 
   CHECK((*by_name["vigil.supervisor"])["kind"].str() == "supervisor");
   CHECK((*by_name["vigil.monitor"])["kind"].str() == "monitor");
+}
+
+TEST_CASE("A unit is written with its kind and its fields under their names",
+          "[export][json_report]") {
+  ReportSet set;
+  Report node;
+  node.kind = ReportKind::Unit;
+  node.unit_kind = "can_node";
+  node.name = "can0/drive_5";
+  node.state_label = "not responding";
+  node.merge(StatusLevel::Error, "silent for 250ms");
+  node.add_field(Field::of_count("frames_rx", 120));
+  node.add_field(Field::of_duration("silence", 250 * kNanosPerMilli));
+  node.add_field(Field::of_distribution("rx_gap", StatsSummary{.count = 3, .p50 = 1'000'000}));
+  node.add_field(Field::of_text("limit", "learned"));
+  set.components.push_back(node);
+  const Json doc = JsonParser::parse(to_json(set));
+  const Json& u = doc["components"].array().at(0);
+  CHECK(u["kind"].str() == "can_node");
+  CHECK(u["state"].str() == "not responding");
+  CHECK(u["status"].str() == "ERROR");
+  CHECK(u["messages"].array().at(0).str() == "silent for 250ms");
+  const Json& f = u["fields"];
+  CHECK(f["frames_rx"].number_text() == "120");
+  CHECK(f["silence_ns"].number_text() == "250000000");
+  require_stats(f["rx_gap_ns"]);
+  CHECK(f["rx_gap_ns"]["p50"].number_text() == "1000000");
+  CHECK(f["limit"].str() == "learned");
+  // None of a component's members: a unit is not a component.
+  for (const char* k : {"counters", "timing", "window", "period_ns", "activity"}) {
+    INFO(k);
+    CHECK_FALSE(u.has(k));
+  }
 }

@@ -46,25 +46,27 @@ MetricsSnapshot rich_snapshot() {
     }
   }
   Report node;
-  node.kind = ReportKind::CanNode;
+  node.kind = ReportKind::Unit;
+  node.unit_kind = "can_node";
   node.name = "can0/drive_5";
   node.state_label = "not responding";
-  node.silence_ns = 250 * kNanosPerMilli;
-  node.user_ns = StatsSummary{.count = 10,
-                              .mean = 1e6,
-                              .p50 = 900'000,
-                              .p90 = 1'000'000,
-                              .p99 = 1'100'000,
-                              .p999 = 1'200'000};
-  node.add("frames_rx", "120");
-  node.add("frames_tx", "118");
+  node.add_field(Field::of_count("frames_rx", 120));
+  node.add_field(Field::of_count("frames_tx", 118));
+  node.add_field(Field::of_distribution("rx_gap", StatsSummary{.count = 10,
+                                                               .mean = 1e6,
+                                                               .p50 = 900'000,
+                                                               .p90 = 1'000'000,
+                                                               .p99 = 1'100'000,
+                                                               .p999 = 1'200'000}));
+  node.add_field(Field::of_duration("silence", 250 * kNanosPerMilli));
   node.merge(StatusLevel::Error, "not responding for 250ms");
   s.reports.components.push_back(node);
   Report group;
-  group.kind = ReportKind::CanGroup;
+  group.kind = ReportKind::Unit;
+  group.unit_kind = "can_group";
   group.name = "can group left_arm";
   group.state_label = "degraded";
-  group.counters.cycles = 238;
+  group.add_field(Field::of_count("frames", 238));
   s.reports.components.push_back(group);
   // Their gap buckets: the node's gaps exact (samples), the group's from a histogram.
   const std::vector<Nanos> rx = {900'000, 1'000'000, 1'000'000, 1'100'000, 4'000'000};
@@ -72,11 +74,11 @@ MetricsSnapshot rich_snapshot() {
   supervisor::RunningStats merged;
   for (Nanos v : rx) merged.add(v);
   s.can_histograms.push_back(CanHistograms{.name = "can group left_arm",
-                                           .kind = ReportKind::CanGroup,
+                                           .group = true,
                                            .rx_gap = reduce_to_buckets(merged),
                                            .tx_gap = std::nullopt});
   s.can_histograms.push_back(CanHistograms{.name = "can0/drive_5",
-                                           .kind = ReportKind::CanNode,
+                                           .group = false,
                                            .rx_gap = reduce_samples_to_buckets(rx),
                                            .tx_gap = reduce_samples_to_buckets(tx)});
   return s;
@@ -345,4 +347,42 @@ TEST_CASE("Samples reduce to exact buckets", "[export][prometheus][buckets]") {
   CHECK(b.cumulative[kBucketBounds - 1] == 6);  // le 10 s: the last one only in +Inf
   CHECK(b.sum_ns == Approx(17'000'004'501.0));
   CHECK(reduce_samples_to_buckets({}).count == 0);
+}
+
+TEST_CASE("CAN units are served from their fields, under CAN names", "[export][prometheus][can]") {
+  const MetricsSnapshot snap = rich_snapshot();
+  const Exposition e = parse_exposition(render_metrics(snap, ExpositionFormat::Prometheus), false);
+  const auto* silence = e.find("vigil_can_silence_seconds");
+  REQUIRE(silence != nullptr);
+  REQUIRE(silence->samples.size() == 1);
+  CHECK(silence->samples[0].label("component") == "can0/drive_5");
+  CHECK(silence->samples[0].value == Approx(0.25));
+  const auto* frames = e.find("vigil_can_group_frames_total");
+  REQUIRE(frames != nullptr);
+  REQUIRE(frames->samples.size() == 1);
+  CHECK(frames->samples[0].value == 238);
+  // Reports by kind: the monitor's kinds, then each unit kind the contributors named.
+  const auto* kinds = e.find("vigil_reports");
+  REQUIRE(kinds != nullptr);
+  std::map<std::string, double> by_kind;
+  for (const auto& smp : kinds->samples) by_kind[smp.label("kind")] = smp.value;
+  CHECK(by_kind.at("can_node") == 1);
+  CHECK(by_kind.at("can_group") == 1);
+  CHECK(by_kind.at("monitor") == 1);
+  CHECK(by_kind.count("unit") == 0);
+  // A unit's state is its words; the components' state series are not repeated for it.
+  std::size_t node_states = 0;
+  for (const auto& smp : e.find("vigil_component_state")->samples) {
+    if (smp.label("component") != "can0/drive_5") continue;
+    ++node_states;
+    CHECK(smp.label("state") == "not responding");
+    CHECK(smp.label("kind") == "can_node");
+  }
+  CHECK(node_states == 1);
+  // No component family shows the node.
+  for (const char* family : {"vigil_component_cycles_total", "vigil_component_execution_seconds"}) {
+    const auto* f = e.find(family);
+    if (f == nullptr) continue;
+    for (const auto& smp : f->samples) CHECK(smp.label("component") != "can0/drive_5");
+  }
 }

@@ -80,29 +80,29 @@ TEST_CASE("The summary shows the max beside the p99, so one long cycle explains 
   stall.activity.step();
   const ReportSet set = h.step();
   const Report& r = *set.find("gripper");
-  REQUIRE(r.user_ns.count == 1000);
+  REQUIRE(r.execution_ns.count == 1000);
   // A percentile is its bucket's upper bound (within 2^-5 above), the max exact.
-  CHECK(r.user_ns.p99 >= 100 * kNanosPerMicro);
-  CHECK(r.user_ns.p99 < 100 * kNanosPerMicro * 33 / 32);
-  CHECK(r.user_ns.max == 50 * kNanosPerMilli);
-  CHECK(r.user_ns.mean > static_cast<double>(r.user_ns.p99));
+  CHECK(r.execution_ns.p99 >= 100 * kNanosPerMicro);
+  CHECK(r.execution_ns.p99 < 100 * kNanosPerMicro * 33 / 32);
+  CHECK(r.execution_ns.max == 50 * kNanosPerMilli);
+  CHECK(r.execution_ns.mean > static_cast<double>(r.execution_ns.p99));
   const std::string line = format_summary_line(r, false);
   INFO(line);
-  CHECK(line.find(" " + format_nanos(r.user_ns.mean) + "/100us/50.0ms ") != std::string::npos);
+  CHECK(line.find(" " + format_nanos(r.execution_ns.mean) + "/100us/50.0ms ") != std::string::npos);
   CHECK(r.latency_ns.max == 2 * kNanosPerMilli);
   CHECK(line.find(" 0ns/2.00ms ") != std::string::npos);
   // The header names the columns, and they line up with the line's.
   const std::string header = format_summary_header();
-  CHECK(header.find("USER MEAN/P99/MAX") != std::string::npos);
+  CHECK(header.find("EXEC MEAN/P99/MAX") != std::string::npos);
   CHECK(header.find("LAT P99/MAX") != std::string::npos);
-  CHECK(line.find(format_nanos(r.user_ns.mean) + "/") == header.find("USER"));
+  CHECK(line.find(format_nanos(r.execution_ns.mean) + "/") == header.find("EXEC"));
 
   // A component with no sample yet shows a dash in both columns.
   test::Harness idle_h;
   test::Probe idle("idle", idle_h.registry, idle_h.clock);
   const ReportSet none = idle_h.step();
   const std::string dash = format_summary_line(*none.find("idle"), false);
-  CHECK(dash.substr(header.find("USER"), 2) == "- ");
+  CHECK(dash.substr(header.find("EXEC"), 2) == "- ");
   const std::size_t latency_end = header.find("LAT P99/MAX") + std::string("LAT P99/MAX").size();
   CHECK(dash.substr(latency_end - 2, 2) == " -");  // right-aligned, as the header
 }
@@ -135,7 +135,7 @@ TEST_CASE("The detail view lists a component's data as key: value lines", "[expo
   for (const char* key :
        {"  message: [WARN] near overrun", "  kind: component", "  state: Running",
         "  activity: arm_activity, OTHER, any cpu", "  period: 10.0ms", "  cycles: 5 (5 samples)",
-        "  overruns: 0", "  window: since start", "  user time: mean 9.50ms", "  total time:",
+        "  overruns: 0", "  window: since start", "  execution time: mean 9.50ms", "  total time:",
         "  wake-up latency:", "  measured period:", "  overhead: -", "  rt losses: 0",
         "  exceptions: 0", "  dropped: 0", "  silence: 0ns", "  load_ewma: 95% of period"}) {
     INFO(key);
@@ -170,5 +170,44 @@ TEST_CASE("The supervisor and monitor detail views show their cycles and cycle t
   CHECK(d.find("  kind: supervisor\n") != std::string::npos);
   CHECK(d.find("  cycle time: mean") != std::string::npos);
   CHECK(d.find("  ports: ") != std::string::npos);
-  CHECK(d.find("user time") == std::string::npos);
+  CHECK(d.find("execution time") == std::string::npos);
+}
+
+TEST_CASE("Units are shown in a table of their kind, with a column per field", "[export][text]") {
+  ReportSet set = reports();
+  for (const char* name : {"can0/drive_1", "can0/drive_5"}) {
+    Report node;
+    node.kind = ReportKind::Unit;
+    node.unit_kind = "can_node";
+    node.name = name;
+    node.state_label = "responding";
+    node.add_field(Field::of_count("frames_rx", 1200));
+    node.add_field(Field::of_distribution(
+        "rx_gap", StatsSummary{.count = 9, .max = 3'000'000, .p50 = 1'000'000, .p99 = 2'000'000}));
+    set.components.push_back(node);
+  }
+  set.components.back().state_label = "not responding";
+  set.components.back().merge(StatusLevel::Error, "silent");
+  set.components.back().fields.pop_back();  // no gap measured: its cell is "-"
+  const std::string s = format_summary(set, false);
+  // The components' table first, then the units' own, under their kind.
+  const auto units = s.find("\nSTATUS  can_node");
+  REQUIRE(units != std::string::npos);
+  CHECK(s.find("arm") < units);
+  CHECK(s.find("FRAMES RX", units) != std::string::npos);
+  CHECK(s.find("RX GAP P50/P99/MAX", units) != std::string::npos);
+  CHECK(s.find("CYCLES", units) == std::string::npos);
+  const auto five = s.find("can0/drive_5");
+  REQUIRE(five != std::string::npos);
+  const std::string row = s.substr(five, s.find('\n', five) - five);
+  CHECK(row.find("not responding") != std::string::npos);
+  CHECK(row.find("1200") != std::string::npos);
+  CHECK(row.find(" -  silent") != std::string::npos);
+  const std::string one = s.substr(s.find("can0/drive_1"));
+  CHECK(one.find("1.00ms/2.00ms/3.00ms") < one.find('\n'));
+  // The detail view: its kind and each field by name.
+  const std::string d = format_detail(set.components.back(), false);
+  CHECK(d.find("  kind: can_node\n") != std::string::npos);
+  CHECK(d.find("  frames_rx: 1200\n") != std::string::npos);
+  CHECK(d.find("  cycles") == std::string::npos);
 }

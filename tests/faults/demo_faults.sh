@@ -35,7 +35,7 @@ check_json() {
 import json, sys
 with open(sys.argv[1]) as f:
     d = json.load(f)
-assert d["schema"] == 1, d["schema"]
+assert d["schema"] == 2, d["schema"]
 by = {c["name"]: c for c in d["components"]}
 exec(sys.argv[2])
 PY

@@ -67,7 +67,7 @@ TEST_CASE("Monitor thread stalled 1.5 s: counters exact, nothing dropped, the st
           "[faults][monitor]") {
   Registry<task::Message> registry;
   supervisor::ComponentAggregator aggregator;
-  supervisor::TaskSupervisor supervisor(registry, aggregator, {.period_ns = 5 * kMs});
+  supervisor::ComponentDrainLoop supervisor(registry, aggregator, {.period_ns = 5 * kMs});
   Monitor monitor(aggregator, {.period_ns = 20 * kMs});
   monitor.set_supervisor(&supervisor);
   ThresholdSet t;

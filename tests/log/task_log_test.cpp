@@ -51,7 +51,7 @@ TEST_CASE("A Task logs from on_update(), and lines carry its cycle and the cycle
   auto sink = std::make_shared<Collect>();
   service.add_sink(sink);
   agg.set_log_consumer(&service);
-  supervisor::TaskSupervisor sup(reg, agg);
+  supervisor::ComponentDrainLoop sup(reg, agg);
   test::FakeClock clock;
   Joint joint(reg, clock);
   ManualActivity act(joint, {.name = "m", .period_ns = kNanosPerMilli, .clock = clock.clock()});
@@ -85,7 +85,7 @@ TEST_CASE("Code instrumented with an UpdateGuard logs from the guarded scope", "
   supervisor::ComponentAggregator agg;
   log::LogService service;
   agg.set_log_consumer(&service);
-  supervisor::TaskSupervisor sup(reg, agg);
+  supervisor::ComponentDrainLoop sup(reg, agg);
   Instrumentation drive("log_legacy_drive", {}, reg);
   drive.init({.activity = "drive"});
   for (int i = 0; i < 3; ++i) {
@@ -105,7 +105,7 @@ TEST_CASE("Code instrumented with an UpdateGuard logs from the guarded scope", "
 TEST_CASE("Without a log consumer the aggregator ignores records", "[log][task]") {
   Registry<task::Message> reg;
   supervisor::ComponentAggregator agg;
-  supervisor::TaskSupervisor sup(reg, agg);
+  supervisor::ComponentDrainLoop sup(reg, agg);
   Instrumentation c("log_no_consumer", {}, reg);
   c.init();
   {

@@ -53,7 +53,7 @@ TEST_CASE("1,000,000 log calls allocate nothing on the logging thread", "[log][a
   auto tail = std::make_shared<log::TailSink>(4);
   service.add_sink(tail);
   agg.set_log_consumer(&service);
-  supervisor::TaskSupervisor sup(reg, agg, {.period_ns = kNanosPerMilli});
+  supervisor::ComponentDrainLoop sup(reg, agg, {.period_ns = kNanosPerMilli});
   REQUIRE(sup.start().has_value());
   std::uint64_t allocations = ~std::uint64_t{0};
   std::uint64_t pushed = 0, dropped = 0;

@@ -90,8 +90,8 @@ struct Harness {
   // tests see the monitor's view alone (both have their own tests, tests/supervisor).
   supervisor::ComponentAggregator aggregator{supervisor::AggregatorOptions{
       .clock = clock.clock(), .warmup_ns = 0, .watchdog = {.enabled = false}}};
-  supervisor::TaskSupervisor supervisor{registry, aggregator,
-                                        supervisor::SupervisorOptions{.clock = clock.clock()}};
+  supervisor::ComponentDrainLoop supervisor{registry, aggregator,
+                                            supervisor::DrainOptions{.clock = clock.clock()}};
   Monitor monitor;
 };
 

@@ -131,7 +131,7 @@ TEST_CASE("The service supervises, then prints the summary and writes the JSON f
   CHECK(text.find("STATUS") != std::string::npos);  // the summary's header, printed once
   CHECK(text.find("STATUS") == text.rfind("STATUS"));
   const std::string doc = read_file(json);
-  CHECK(doc.find("\"schema\": 1") != std::string::npos);
+  CHECK(doc.find("\"schema\": 2") != std::string::npos);
   CHECK(doc.find("\"name\": \"probe\"") != std::string::npos);
   std::filesystem::remove(json);
 }
@@ -230,8 +230,8 @@ TEST_CASE("The HTTP snapshot's buckets are of the same monitor cycle as its repo
   const auto* buckets = snap->histograms_of(*rep);
   REQUIRE(buckets != nullptr);
   CHECK(buckets->cycle == stepped.cycle);
-  CHECK(rep->user_ns.count == 5);
-  CHECK(buckets->execution.count == rep->user_ns.count);
+  CHECK(rep->execution_ns.count == 5);
+  CHECK(buckets->execution.count == rep->execution_ns.count);
   REQUIRE(act.stop());
   service.stop();
 }

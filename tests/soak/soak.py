@@ -54,7 +54,7 @@ def parse_view(lines):
         if not m:
             continue
         status, name, rest = m.group(1), m.group(2).strip(), m.group(3)
-        # Columns after the name: STATE CYCLES USER LAT OVERRUNS LOSSES MESSAGES; the message is
+        # Columns after the name: STATE CYCLES EXEC LAT OVERRUNS LOSSES MESSAGES; the message is
         # what follows the LOSSES column (two integers, then two spaces).
         msg = re.split(r"\s+\d+\s+\d+(?:\s{2}|$)", rest, maxsplit=1)
         message = msg[1].strip() if len(msg) > 1 else ""

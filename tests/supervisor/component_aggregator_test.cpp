@@ -39,18 +39,18 @@ TEST_CASE("The aggregator computes latency, period, user time and demangles exce
   fc.set(act.next_release() + 40);
   act.step();
   ComponentAggregator agg({.warmup_ns = 0});  // every cycle in the statistics
-  TaskSupervisor sup(reg, agg);
+  ComponentDrainLoop sup(reg, agg);
   sup.step();
   const auto s = agg.find("p");
   REQUIRE(s.has_value());
   CHECK(s->latency_ns.min == 40);
   CHECK(s->latency_ns.max == 40);
-  CHECK(s->user_ns.count == 101);
-  CHECK(s->user_ns.max == 250);
-  CHECK(s->user_ns.mean == Approx(250.0 * 100 / 101));  // the throwing cycle did no work
-  CHECK(s->period_ns.count == 100);
-  CHECK(s->period_ns.min == 1000);
-  CHECK(s->period_ns.max == 1000);
+  CHECK(s->execution_ns.count == 101);
+  CHECK(s->execution_ns.max == 250);
+  CHECK(s->execution_ns.mean == Approx(250.0 * 100 / 101));  // the throwing cycle did no work
+  CHECK(s->measured_period_ns.count == 100);
+  CHECK(s->measured_period_ns.min == 1000);
+  CHECK(s->measured_period_ns.max == 1000);
   CHECK(s->overhead_ns.count == 0);  // the fake clock does not move inside supervision
   CHECK(s->state == TaskState::Exception);
   CHECK(s->last_exception_type == "std::out_of_range");
@@ -63,7 +63,7 @@ TEST_CASE("Records of components that left are kept for a while, then forgotten"
   Registry<task::Message> reg;
   vigil::test::FakeClock fc;
   ComponentAggregator agg({.retain_left_ns = 5 * kNanosPerSecond, .clock = fc.clock()});
-  TaskSupervisor sup(reg, agg);
+  ComponentDrainLoop sup(reg, agg);
   {
     Instrumentation c("short-lived", {}, reg);
     c.init();
@@ -83,7 +83,7 @@ TEST_CASE("find_id() copies one record by id, alive or recently left", "[supervi
   Registry<task::Message> reg;
   vigil::test::FakeClock fc;
   ComponentAggregator agg({.retain_left_ns = 5 * kNanosPerSecond, .clock = fc.clock()});
-  TaskSupervisor sup(reg, agg);
+  ComponentDrainLoop sup(reg, agg);
   Instrumentation a("a", {}, reg);
   std::uint32_t gone_id = 0;
   {
@@ -136,7 +136,7 @@ TEST_CASE("Flight rings come from huge-page regions as their option says, and go
     Registry<task::Message> reg;
     vigil::test::FakeClock fc;
     ComponentAggregator agg;
-    TaskSupervisor sup;
+    ComponentDrainLoop sup;
     std::vector<std::unique_ptr<Instrumentation>> comps;
   };
   System huge(RingPages::Huge);
@@ -186,7 +186,7 @@ TEST_CASE("Stress: many components push while the supervisor drains and readers 
   const RingStores stores = GENERATE(RingStores::Auto, RingStores::Streaming);
   Registry<task::Message> reg;
   ComponentAggregator agg({.recorder = {.stores = stores}});
-  TaskSupervisor sup(reg, agg, {.period_ns = 200 * kNanosPerMicro});
+  ComponentDrainLoop sup(reg, agg, {.period_ns = 200 * kNanosPerMicro});
   REQUIRE(sup.start().has_value());
   std::atomic<bool> done{false};
   std::atomic<int> snapshots{0};
@@ -230,7 +230,7 @@ TEST_CASE("The aggregator keeps the latest real-time loss report, counts come fr
           "[supervisor][aggregator]") {
   Registry<task::Message> reg;
   ComponentAggregator agg;
-  TaskSupervisor sup(reg, agg);
+  ComponentDrainLoop sup(reg, agg);
   auto m = reg.join<16>("lossy");
   task::CycleSample s;
   s.counters.cycles = 7;
@@ -258,7 +258,7 @@ TEST_CASE("The aggregator's percentiles keep the documented bound against exact 
   Registry<task::Message> reg;
   auto member = reg.join<1024>("known");
   ComponentAggregator agg({.warmup_ns = 0});
-  TaskSupervisor sup(reg, agg);
+  ComponentDrainLoop sup(reg, agg);
   sup.step();
   std::vector<Nanos> user;
   RunningStats reference;
@@ -286,8 +286,8 @@ TEST_CASE("The aggregator's percentiles keep the documented bound against exact 
   }
   const auto snap = agg.find("known");
   REQUIRE(snap.has_value());
-  REQUIRE(snap->user_ns.count == user.size());
-  CHECK(snap->user_ns == reference.summary());
+  REQUIRE(snap->execution_ns.count == user.size());
+  CHECK(snap->execution_ns == reference.summary());
   std::sort(user.begin(), user.end());
   const auto exact = [&](double q) {
     const auto rank = std::clamp<std::size_t>(
@@ -295,15 +295,15 @@ TEST_CASE("The aggregator's percentiles keep the documented bound against exact 
     return user[rank - 1];
   };
   for (const auto& [q, got] :
-       {std::pair{0.5, snap->user_ns.p50}, std::pair{0.9, snap->user_ns.p90},
-        std::pair{0.99, snap->user_ns.p99}, std::pair{0.999, snap->user_ns.p999}}) {
+       {std::pair{0.5, snap->execution_ns.p50}, std::pair{0.9, snap->execution_ns.p90},
+        std::pair{0.99, snap->execution_ns.p99}, std::pair{0.999, snap->execution_ns.p999}}) {
     INFO("q = " << q << ", exact = " << exact(q) << ", reported = " << got);
     CHECK(got >= exact(q));
     CHECK(got - exact(q) <= exact(q) / 32);
   }
   // The histograms behind them stay small: the seen octaves only.
   agg.visit_distributions([](const ComponentDistributions& d) {
-    CHECK(d.user->histogram().heap_bytes() < sizeof(RunningStats::Histogram) / 2);
+    CHECK(d.execution->histogram().heap_bytes() < sizeof(RunningStats::Histogram) / 2);
     CHECK(d.latency->histogram().heap_bytes() == 256);  // a constant 1 us: one chunk
   });
 }
@@ -311,9 +311,9 @@ TEST_CASE("The aggregator's percentiles keep the documented bound against exact 
 namespace {
 // What two aggregators fed the same stream must agree on: the statistics, bit for bit.
 void check_same_statistics(const ComponentSnapshot& got, const ComponentSnapshot& want) {
-  CHECK(got.user_ns == want.user_ns);
+  CHECK(got.execution_ns == want.execution_ns);
   CHECK(got.latency_ns == want.latency_ns);
-  CHECK(got.period_ns == want.period_ns);
+  CHECK(got.measured_period_ns == want.measured_period_ns);
   CHECK(got.overhead_ns == want.overhead_ns);
   CHECK(got.total_ns == want.total_ns);
   CHECK(got.samples == want.samples);
@@ -328,7 +328,7 @@ struct OneByOne {
   void on_leave(const Entry& e) { agg.on_leave(e); }
   void begin(const Entry& e) { agg.begin(e); }
   void end(const Entry& e, const PortDrain& d) { agg.end(e, d); }
-  void on_cycle(const SupervisorCycle& c) { agg.on_cycle(c); }
+  void on_cycle(const DrainCycle& c) { agg.on_cycle(c); }
   template <class M>
   void on(const Entry& e, const M& m) {
     agg.on(e, m);
@@ -355,9 +355,9 @@ TEST_CASE("A batch of messages does what each message handed over in turn does",
   Registry<task::Message> reg_one;
   ComponentAggregator batch_agg(batch_options);
   ComponentAggregator one_agg(options);
-  TaskSupervisor batch(reg_batch, batch_agg);
+  ComponentDrainLoop batch(reg_batch, batch_agg);
   OneByOne one_handler(one_agg);
-  Supervisor<task::Message, OneByOne> one(reg_one, one_handler);
+  DrainLoop<task::Message, OneByOne> one(reg_one, one_handler);
   auto member_batch = reg_batch.join<256>("c");
   auto member_one = reg_one.join<256>("c");
   std::uniform_int_distribution<Nanos> latency(-500, 80'000);
@@ -448,7 +448,7 @@ TEST_CASE("The statistics are the same whether cycles are taken at once or in bu
           member(reg.join<256>("c")) {}
     Registry<task::Message> reg;
     ComponentAggregator agg;
-    TaskSupervisor sup;
+    ComponentDrainLoop sup;
     bus::Membership<task::Message, 256> member;
   };
   Side at_once(0);
@@ -478,7 +478,7 @@ TEST_CASE("The statistics are the same whether cycles are taken at once or in bu
   }
   const auto a = at_once.agg.find("c");
   REQUIRE(a.has_value());
-  CHECK(a->user_ns.count > 5'000);
+  CHECK(a->execution_ns.count > 5'000);
   for (Side* side : {&small_ring, &default_ring}) {
     const auto b = side->agg.find("c");
     REQUIRE(b.has_value());
@@ -527,7 +527,7 @@ TEST_CASE("The statistics' catch-up gives the same results with either instructi
     Set set;
     Registry<task::Message> reg;
     ComponentAggregator agg;
-    TaskSupervisor sup;
+    ComponentDrainLoop sup;
     bus::Membership<task::Message, 256> member;
   };
   Side base(Set::Base);
@@ -567,7 +567,7 @@ TEST_CASE("The statistics' catch-up gives the same results with either instructi
   b = bits.agg.find("c");
   REQUIRE(a.has_value());
   REQUIRE(b.has_value());
-  CHECK(a->user_ns.count > 2'000);
+  CHECK(a->execution_ns.count > 2'000);
   check_same_statistics(*b, *a);
 }
 
@@ -587,8 +587,8 @@ TEST_CASE("Rings stream when the drains sweep far more than the last-level cache
   Registry<task::Message> reg;
   ComponentAggregator automatic;
   ComponentAggregator streaming({.recorder = {.stores = RingStores::Streaming}});
-  TaskSupervisor a(reg, automatic);
-  TaskSupervisor b(reg, streaming);
+  ComponentDrainLoop a(reg, automatic);
+  ComponentDrainLoop b(reg, streaming);
   auto member = reg.join<16>("c");
   a.step();
   b.step();

@@ -50,7 +50,7 @@ struct Rig {
   vigil::test::FakeClock fc;
   Registry<task::Message> reg;
   ComponentAggregator agg;
-  TaskSupervisor sup;
+  ComponentDrainLoop sup;
   vigil::test::Probe probe;
   ManualActivity act;
 };
@@ -304,8 +304,8 @@ TEST_CASE("Warm-up keeps start-up overruns out of the statistics but in the coun
   CHECK(s->warmup_counters.overruns == 5);  // and known to be the warm-up's
   CHECK(s->warmup_cycles > 5);
   CHECK(s->warmup_cycles < 100);
-  CHECK(s->user_ns.count == s->samples - s->warmup_cycles);
-  CHECK(s->user_ns.max == 100 * kNanosPerMicro);  // the 1.5 ms cycles are not in it
+  CHECK(s->execution_ns.count == s->samples - s->warmup_cycles);
+  CHECK(s->execution_ns.max == 100 * kNanosPerMicro);  // the 1.5 ms cycles are not in it
   CHECK_FALSE(s->warming_up);
   CHECK(of_kind(r.agg.events().since(0), EventKind::Overrun).empty());
   // After the warm-up, an overrun is an event (Warn, not latched).
@@ -345,7 +345,7 @@ TEST_CASE("The flight recorder keeps the last N cycles and freezes them on an ER
   REQUIRE(rec->cycles.size() == 8);
   for (std::size_t i = 0; i < rec->cycles.size(); ++i) {
     CHECK(rec->cycles[i].cycle == 14 + i);
-    CHECK(rec->cycles[i].user_ns() >= 0);
+    CHECK(rec->cycles[i].execution_ns() >= 0);
   }
   CHECK(rec->cycles.back().state == TaskState::Exception);
   CHECK(rec->has_info);

@@ -61,14 +61,14 @@ TEST_CASE("A flight ring slot keeps longer times to the microsecond, flagged",
   CHECK((u.flags & CycleRecord::kClipped) == 0);
   CHECK(u.release_ns == r.release_ns);
   CHECK(u.latency_ns() == 3'000'000);
-  CHECK(u.user_ns() == 5'000'000'000LL);
+  CHECK(u.execution_ns() == 5'000'000'000LL);
   CHECK(u.cycle == 5);
 
   const CycleRecord late = record(6, 0, -3'000'000'000LL, 100);  // negative, beyond 2.1 s
   const CycleRecord l = PackedCycle(late).unpack();
   CHECK((l.flags & CycleRecord::kCoarse) != 0);
   CHECK(l.latency_ns() == -3'000'000'000LL);
-  CHECK(l.user_ns() == 0);  // 100 ns in microseconds
+  CHECK(l.execution_ns() == 0);  // 100 ns in microseconds
 }
 
 TEST_CASE("A flight ring slot saturates what it cannot hold and says so",
@@ -78,7 +78,7 @@ TEST_CASE("A flight ring slot saturates what it cannot hold and says so",
   CycleRecord u = PackedCycle(r).unpack();
   CHECK(u.missed_before == 0xFFFF);
   CHECK((u.flags & CycleRecord::kClipped) != 0);
-  CHECK(u.user_ns() == 100);  // the rest stays exact
+  CHECK(u.execution_ns() == 100);  // the rest stays exact
 
   r = record(1, 0, 100, 100);
   r.overhead_ns = Nanos{5} * kNanosPerSecond;
@@ -90,14 +90,14 @@ TEST_CASE("A flight ring slot saturates what it cannot hold and says so",
   u = PackedCycle(r).unpack();
   CHECK((u.flags & (CycleRecord::kClipped | CycleRecord::kCoarse)) ==
         (CycleRecord::kClipped | CycleRecord::kCoarse));
-  CHECK(u.user_ns() == Nanos{0x7FFF'FFFF} * 1000);
+  CHECK(u.execution_ns() == Nanos{0x7FFF'FFFF} * 1000);
 
   // Flags a caller passes in are recomputed, not trusted.
   r = record(1, 0, 100, 100);
   r.flags = CycleRecord::kClipped | CycleRecord::kCoarse;
   u = PackedCycle(r).unpack();
   CHECK(u.flags == 0);
-  CHECK(u.user_ns() == 100);
+  CHECK(u.execution_ns() == 100);
 }
 
 TEST_CASE("A flight ring keeps the newest cycles, oldest first", "[supervisor][recorder]") {
@@ -266,7 +266,7 @@ TEST_CASE("Cycles pushed in runs from their exact parts read back as the same cy
       if (calls == want) return false;  // ends the run, writing nothing
       const CycleRecord& r = pushed[at + calls++];
       ::new (slot) PackedCycle(PackedCycle::Exact{}, r.cycle, r.release_ns, r.latency_ns(),
-                               r.user_ns(), r.overhead_ns, r.missed_before, r.flags, r.state);
+                               r.execution_ns(), r.overhead_ns, r.missed_before, r.flags, r.state);
       return true;
     });
     REQUIRE(n == want);

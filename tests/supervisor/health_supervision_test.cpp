@@ -83,7 +83,7 @@ TEST_CASE("Checkpoints and cycles drained from ports feed health supervision (fa
                          .final = {{"b", "end"}},
                          .transitions = {{{"b", "begin"}, {"b", "end"}}}});
   REQUIRE(agg.supervise_health(cfg).has_value());
-  TaskSupervisor sup(reg, agg, {.clock = fc.clock()});
+  ComponentDrainLoop sup(reg, agg, {.clock = fc.clock()});
   Stage a("a", reg);
   Stage b("b", reg);
   a.report_end = false;
@@ -159,7 +159,7 @@ TEST_CASE("An entity that never starts is EXPIRED after its grace period, as an 
                        .expected_indications = 10,
                        .startup_grace_ns = 500 * kMs});
   REQUIRE(agg.supervise_health(cfg).has_value());
-  TaskSupervisor sup(reg, agg, {.clock = fc.clock()});
+  ComponentDrainLoop sup(reg, agg, {.clock = fc.clock()});
   sup.step();
   fc.advance(499 * kMs);
   sup.step();
@@ -185,7 +185,7 @@ TEST_CASE("A program deactivates an entity that need not run", "[supervisor][hea
                        .reference_cycle_ns = 10 * kMs,
                        .startup_grace_ns = 500 * kMs});
   REQUIRE(agg.supervise_health(cfg).has_value());
-  TaskSupervisor sup(reg, agg, {.clock = fc.clock()});
+  ComponentDrainLoop sup(reg, agg, {.clock = fc.clock()});
   sup.step();
   REQUIRE(agg.health() != nullptr);
   CHECK(agg.health()->deactivate("docking"));
@@ -202,7 +202,7 @@ TEST_CASE("Misused checkpoint ids are counted and raised once per drain", "[supe
   ComponentAggregator agg({.clock = fc.clock()});
   health::HealthConfig cfg;  // no supervision: misuses are reported anyway
   REQUIRE(agg.supervise_health(cfg).has_value());
-  TaskSupervisor sup(reg, agg, {.clock = fc.clock()});
+  ComponentDrainLoop sup(reg, agg, {.clock = fc.clock()});
   Instrumentation in("sloppy", {}, reg);
   in.init({}, fc.clock());
   for (int i = 0; i < 3; ++i) {
@@ -240,7 +240,7 @@ TEST_CASE("The drain thread wakes at a missed deadline, long before its next per
                           .max_ns = 20 * kMs});
   REQUIRE(agg.supervise_health(cfg).has_value());
   // A drain period of 2 s: without the deadline's wake-up nothing would be found for seconds.
-  TaskSupervisor sup(reg, agg, {.period_ns = 2 * kNanosPerSecond});
+  ComponentDrainLoop sup(reg, agg, {.period_ns = 2 * kNanosPerSecond});
   Stage s("stage", reg);
   PeriodicActivity act(s, {.name = "stage", .period_ns = kMs});
   REQUIRE(s.configure());

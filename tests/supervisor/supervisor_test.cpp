@@ -1,4 +1,4 @@
-#include "vigil/supervisor/supervisor.hpp"
+#include "vigil/supervisor/drain_loop.hpp"
 
 #include <atomic>
 #include <catch2/catch.hpp>
@@ -24,7 +24,7 @@ TEST_CASE("A component started before the supervisor exists is supervised from t
   REQUIRE(act.start());
   for (int i = 0; i < 10; ++i) act.step();
   ComponentAggregator agg;
-  TaskSupervisor sup(reg, agg);
+  ComponentDrainLoop sup(reg, agg);
   CHECK(sup.step() == 14);  // configure and start: TaskInfo + StateChange each; 10 samples
   const auto s = agg.find("early");
   REQUIRE(s.has_value());
@@ -53,7 +53,7 @@ TEST_CASE("Components join and leave while everything runs", "[supervisor][pipel
   // loaded machine a 1 ms component may run only a few cycles in 30 ms.
   Registry<task::Message> reg;
   ComponentAggregator agg;
-  TaskSupervisor sup(reg, agg, {.period_ns = kNanosPerMilli});
+  ComponentDrainLoop sup(reg, agg, {.period_ns = kNanosPerMilli});
   REQUIRE(sup.start().has_value());
   auto a = std::make_unique<Probe>("a", SupervisionOptions{}, reg);
   PeriodicActivity aa(*a, {.name = "a", .period_ns = kNanosPerMilli});
@@ -122,7 +122,7 @@ TEST_CASE("Counters stay exact when the port drops samples (capacity 8, supervis
   }
   // The supervisor was "paused": nothing drained during the run. Now resume.
   ComponentAggregator agg;
-  TaskSupervisor sup(reg, agg);
+  ComponentDrainLoop sup(reg, agg);
   sup.step();
   // One more cycle after resuming carries the final cumulative counters.
   fc.set(act.next_release());

@@ -31,7 +31,7 @@ void million_cycles_allocate_nothing() {
   REQUIRE(platform::allocation_counting_available());
   Registry<task::Message> reg;
   ComponentAggregator agg;
-  TaskSupervisor sup(reg, agg, {.period_ns = kNanosPerMilli});
+  ComponentDrainLoop sup(reg, agg, {.period_ns = kNanosPerMilli});
   REQUIRE(sup.start().has_value());
   std::uint64_t allocations = ~std::uint64_t{0};
   std::uint64_t loss_count = ~std::uint64_t{0};
@@ -104,7 +104,7 @@ TEST_CASE("Checkpoint reports allocate nothing on the component's thread, superv
        .final = {{"cp", "write"}},
        .transitions = {{{"cp", "read"}, {"cp", "compute"}}, {{"cp", "compute"}, {"cp", "write"}}}});
   REQUIRE(agg.supervise_health(cfg).has_value());
-  TaskSupervisor sup(reg, agg, {.period_ns = kNanosPerMilli});
+  ComponentDrainLoop sup(reg, agg, {.period_ns = kNanosPerMilli});
   REQUIRE(sup.start().has_value());
   std::uint64_t allocations = ~std::uint64_t{0};
   std::uint32_t misuses = 0;
@@ -186,7 +186,7 @@ TEST_CASE("Counters stay exact under loss: overruns, exceptions and RT losses",
     release += 2000;
   }
   ComponentAggregator agg;
-  TaskSupervisor loop(reg, agg);
+  ComponentDrainLoop loop(reg, agg);
   loop.step();
   fc.set(release);
   sup.run([] {}, release);  // one more cycle carries the final totals

@@ -46,7 +46,7 @@ TEST_CASE("Instrumentation produces the same samples as Task<Derived>", "[task][
     CHECK(a[i].release_ns == b[i].release_ns);
     CHECK(a[i].start_ns == b[i].start_ns);
     CHECK(a[i].end_ns == b[i].end_ns);
-    CHECK(a[i].user_ns() == 300);
+    CHECK(a[i].execution_ns() == 300);
     CHECK(a[i].overrun == b[i].overrun);
 
     CHECK(a[i].counters.overruns == b[i].counters.overruns);

@@ -20,7 +20,7 @@ TEST_CASE("CycleSample user time is end minus start", "[task][messages]") {
   CycleSample s;
   s.start_ns = 100;
   s.end_ns = 350;
-  CHECK(s.user_ns() == 250);
+  CHECK(s.execution_ns() == 250);
 }
 
 TEST_CASE("Detectors combine as a bit mask", "[task][messages]") {

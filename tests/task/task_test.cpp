@@ -51,7 +51,7 @@ TEST_CASE("Every cycle sends a sample with exact cumulative counters", "[task][t
     CHECK(samples[i].cycle() == i + 1);
     CHECK(samples[i].cycle() == i + 1);
     CHECK(samples[i].start_ns - samples[i].release_ns == 10);  // wake-up latency
-    CHECK(samples[i].user_ns() == 0);                          // the fake clock stood still
+    CHECK(samples[i].execution_ns() == 0);                     // the fake clock stood still
     CHECK_FALSE(samples[i].overrun);
     CHECK(samples[i].state == TaskState::Running);
   }

@@ -58,6 +58,11 @@
 
 namespace vigil::can {
 
+/// The kinds of the units CAN supervision reports (`Report::unit_kind`): one per node
+/// ("can0/drive_5") and one per group ("can group left_arm").
+inline constexpr std::string_view kNodeUnit = "can_node";
+inline constexpr std::string_view kGroupUnit = "can_group";
+
 /// How a node's liveness stands.
 enum class Liveness : std::uint8_t {
   NoNode,         ///< the frames that belong to no node (never judged)

@@ -49,8 +49,8 @@
 #include "vigil/can/node_map.hpp"
 #include "vigil/can/sniffer.hpp"
 #include "vigil/platform/clock.hpp"
+#include "vigil/supervisor/drain_loop.hpp"
 #include "vigil/supervisor/running_stats.hpp"
-#include "vigil/supervisor/supervisor.hpp"
 
 namespace vigil::can {
 
@@ -215,13 +215,13 @@ struct CanAggregatorOptions {
 };
 
 /**
- * The handler of `Supervisor<CanMessage, CanAggregator>` (alias `CanSupervisor`).
+ * The handler of `DrainLoop<CanMessage, CanAggregator>` (alias `CanDrainLoop`).
  *
  * @code
  * vigil::can::CanRegistry can;
  * vigil::can::Sniffer<> sniffer(can, "bus0");
  * vigil::can::CanAggregator stats(can);
- * vigil::can::CanSupervisor supervisor(can.ports(), stats, {.period_ns = 100 *
+ * vigil::can::CanDrainLoop supervisor(can.ports(), stats, {.period_ns = 100 *
  * vigil::kNanosPerMilli}); supervisor.start();                     // or supervisor.step() from
  * your own loop vigil::can::CanSnapshot s = stats.snapshot(groups);
  * @endcode
@@ -238,7 +238,7 @@ class CanAggregator {
   CanAggregator(const CanAggregator&) = delete;
   CanAggregator& operator=(const CanAggregator&) = delete;
 
-  // --- SupervisorHandler (supervisor thread only; called by CanSupervisor::step) ---
+  // --- SupervisorHandler (supervisor thread only; called by CanDrainLoop::step) ---
   /// A sniffer's port appeared: starts its record (its state is looked up in the registry).
   void on_join(const Entry& e);
   /// A sniffer left and was drained: reads its tables one last time, releases its state.
@@ -250,7 +250,7 @@ class CanAggregator {
   /// Ends the batch: reads the sniffer's tables (exact counts), frees replaced filters.
   void end(const Entry& e, const supervisor::PortDrain& d);
   /// Counts supervisor cycles.
-  void on_cycle(const supervisor::SupervisorCycle& c);
+  void on_cycle(const supervisor::DrainCycle& c);
 
   // --- readers (any thread) ---
   /// A consistent copy of every statistic, with categories for "all" and for `groups`.
@@ -277,7 +277,7 @@ class CanAggregator {
 static_assert(supervisor::SupervisorHandler<CanAggregator, CanMessage>);
 
 /// The CAN supervisor: drains the sniffers' ports into a `CanAggregator`.
-using CanSupervisor = supervisor::Supervisor<CanMessage, CanAggregator>;
+using CanDrainLoop = supervisor::DrainLoop<CanMessage, CanAggregator>;
 
 /// Exact nearest-rank percentiles of `samples` (sorted in place): count, min, max, mean, p50,
 /// p90, p99, p99.9, with the same rank rule as `RunningStats` (smallest sample with at least

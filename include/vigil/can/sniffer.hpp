@@ -67,7 +67,7 @@ namespace vigil::can {
 
 /**
  * Where sniffers meet the CAN supervisor: the registry of their ports (`ports()`, drained by
- * `Supervisor<CanMessage, CanAggregator>`) and, beside it, each sniffer's shared state (tables,
+ * `DrainLoop<CanMessage, CanAggregator>`) and, beside it, each sniffer's shared state (tables,
  * counters) by port id. A sniffer's state stays here after the sniffer is destroyed, until the
  * CAN aggregator has read it one last time and calls `release`. Thread-safe; not RT-safe.
  */
@@ -77,7 +77,7 @@ class CanRegistry {
   CanRegistry(const CanRegistry&) = delete;
   CanRegistry& operator=(const CanRegistry&) = delete;
 
-  /// The ports, for `Supervisor<CanMessage, CanAggregator>`.
+  /// The ports, for `DrainLoop<CanMessage, CanAggregator>`.
   [[nodiscard]] Registry<CanMessage>& ports() noexcept { return ports_; }
 
   /// Records the state of the sniffer whose port has registry id `port_id` (called by Sniffer).

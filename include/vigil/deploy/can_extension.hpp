@@ -71,7 +71,7 @@ class CanExtension : public Extension {
   can::CanConfig config_;
   can::CanRegistry registry_;
   std::unique_ptr<can::CanAggregator> statistics_;
-  std::unique_ptr<can::CanSupervisor> supervisor_;
+  std::unique_ptr<can::CanDrainLoop> supervisor_;
   // Held while the supervisor's thread starts or stops and while a report steps it by hand (the
   // monitor's thread, when the supervisor's own thread does not run): never two steps at once.
   std::mutex step_mutex_;

@@ -83,7 +83,7 @@ class System {
   [[nodiscard]] supervisor::ComponentAggregator& aggregator() noexcept {
     return service_->aggregator();
   }
-  [[nodiscard]] supervisor::TaskSupervisor& supervisor() noexcept {
+  [[nodiscard]] supervisor::ComponentDrainLoop& supervisor() noexcept {
     return *service_->supervisor();
   }
   [[nodiscard]] Monitor& monitor() noexcept { return service_->monitor(); }

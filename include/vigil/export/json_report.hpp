@@ -10,7 +10,7 @@
 ///                  "messages": ["near overrun: ..."], "state": "Running", "period_ns": 1000000,
 ///                  "counters": {"cycles": 1000, "overruns": 0, "missed_cycles": 0,
 ///                               "rt_losses": 0, "exceptions": 0, "dropped": 0, ...},
-///                  "timing": {"user_ns": {...}, "total_ns": {...}, ...}, ...}]}
+///                  "timing": {"execution_ns": {...}, "total_ns": {...}, ...}, ...}]}
 /// ```
 ///
 /// Within a schema version fields are only ever added; a field is never removed, renamed or
@@ -24,7 +24,7 @@
 namespace vigil::exporter {
 
 /// The version written in the "schema" field.
-inline constexpr int kJsonSchemaVersion = 1;
+inline constexpr int kJsonSchemaVersion = 2;
 
 /// Options of the JSON export.
 struct JsonOptions {

@@ -28,10 +28,10 @@ struct ComponentHistograms {
   /// The monitor cycle whose reports these buckets go with (`ReportSet::cycle`; 0: not set).
   std::uint64_t cycle = 0;
   std::string name;
-  BucketCounts execution;  ///< on_update() alone (`Report::user_ns`)
-  BucketCounts total;      ///< user + supervision overhead (`Report::total_ns`)
-  BucketCounts latency;    ///< wake-up latency (`Report::latency_ns`)
-  BucketCounts period;     ///< measured start-to-start period (`Report::measured_period_ns`)
+  BucketCounts execution;        ///< on_update() alone (`Report::execution_ns`)
+  BucketCounts total;            ///< execution + supervision overhead (`Report::total_ns`)
+  BucketCounts latency;          ///< wake-up latency (`Report::latency_ns`)
+  BucketCounts measured_period;  ///< measured start-to-start period (`Report::measured_period_ns`)
 };
 
 /// The buckets of every component of `aggregator`, by id. Takes each record's lock for the
@@ -42,9 +42,9 @@ struct ComponentHistograms {
 /// The gap distributions of one CAN node or group report as Prometheus buckets (served as
 /// `vigil_can_gap_seconds` and `vigil_can_group_gap_seconds`).
 struct CanHistograms {
-  /// The report's name: "can0/drive_5" (kind CanNode), "can group left_arm" (kind CanGroup).
+  /// The report's name: "can0/drive_5" (a node), "can group left_arm" (a group).
   std::string name;
-  ReportKind kind = ReportKind::CanNode;
+  bool group = false;  ///< a group's (else a node's)
   /// Time between consecutive frames received from the node (a group: from each member);
   /// none when no gap was measured in that direction.
   std::optional<BucketCounts> rx_gap;

@@ -28,8 +28,8 @@ namespace vigil::exporter {
 /// The record as trace-event JSON (the "JSON Object Format"): one process per component
 /// ("vigil: <name>"), one thread (its activity), an `X` (complete) event per cycle with `ts` and
 /// `dur` in microseconds (fractional: nanosecond precision) and the cycle's numbers in `args`,
-/// counter tracks "latency_us" and "user_us", an instant (`i`) marker on the faulting cycle (or
-/// at the deadline that passed), markers where cycles are missing, and the event in
+/// counter tracks "latency_us" and "execution_us", an instant (`i`) marker on the faulting cycle
+/// (or at the deadline that passed), markers where cycles are missing, and the event in
 /// `otherData`. Timestamps are the monotonic clock in microseconds.
 [[nodiscard]] std::string trace_event_json(const supervisor::FlightRecord& record);
 

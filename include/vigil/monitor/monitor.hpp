@@ -74,7 +74,7 @@ class Monitor {
   /// Also reports `supervisor` (which must outlive the monitor, or be detached with nullptr):
   /// its cycles, drain time, messages and ports, Stale when it stopped cycling and Warn when its
   /// drain time nears its period.
-  void set_supervisor(const supervisor::TaskSupervisor* supervisor);
+  void set_supervisor(const supervisor::ComponentDrainLoop* supervisor);
 
   // --- checks ---
 

@@ -10,6 +10,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "vigil/monitor/status.hpp"
@@ -21,16 +22,17 @@
 
 namespace vigil::monitor {
 
-/// What a report describes.
+/// What a report describes. The monitor makes the first three; everything a contributor adds (a
+/// CAN node, a CAN group, a process...) is a `Unit`, whose kind the contributor names
+/// (`Report::unit_kind`) and whose figures are its own `Field`s, under its own names.
 enum class ReportKind : std::uint8_t {
   Component,   ///< a supervised component
-  Supervisor,  ///< the supervisor itself ("vigil.supervisor")
+  Supervisor,  ///< the supervisor thread itself ("vigil.supervisor")
   Monitor,     ///< the monitor itself ("vigil.monitor")
-  CanNode,     ///< a CAN node, from a CAN monitor ("can0/drive_5")
-  CanGroup,    ///< a group of CAN nodes ("can0/left_arm"), the worst of its nodes
+  Unit,        ///< a contributor's unit: `Report::unit_kind` says which
 };
 
-/// "component", "supervisor", "monitor", "can_node", "can_group".
+/// "component", "supervisor", "monitor", "unit".
 [[nodiscard]] constexpr const char* to_string(ReportKind k) noexcept {
   switch (k) {
     case ReportKind::Component:
@@ -39,10 +41,70 @@ enum class ReportKind : std::uint8_t {
       return "supervisor";
     case ReportKind::Monitor:
       return "monitor";
-    case ReportKind::CanNode:
-      return "can_node";
-    case ReportKind::CanGroup:
-      return "can_group";
+    case ReportKind::Unit:
+      return "unit";
+  }
+  return "?";
+}
+
+/// One figure of a unit, under the name its contributor gives it ("frames_rx", "rx_gap"). Outputs
+/// show a unit's fields by these names: a column each in the text summary, a member of the
+/// report's "fields" object in JSON. Names are snake_case; a duration's name carries no unit
+/// suffix (its type says it is nanoseconds).
+struct Field {
+  enum class Type : std::uint8_t {
+    Count,         ///< `count`: a number of things (frames, nodes)
+    Duration,      ///< `duration_ns`: one duration
+    Distribution,  ///< `distribution`: statistics of durations (ns)
+    Text,          ///< `text`: words ("learned")
+  };
+  std::string name;
+  Type type = Type::Count;
+  std::uint64_t count = 0;
+  Nanos duration_ns = 0;
+  StatsSummary distribution;
+  std::string text;
+
+  [[nodiscard]] static Field of_count(std::string field_name, std::uint64_t v) {
+    Field f;
+    f.name = std::move(field_name);
+    f.count = v;
+    return f;
+  }
+  [[nodiscard]] static Field of_duration(std::string field_name, Nanos ns) {
+    Field f;
+    f.name = std::move(field_name);
+    f.type = Type::Duration;
+    f.duration_ns = ns;
+    return f;
+  }
+  [[nodiscard]] static Field of_distribution(std::string field_name, const StatsSummary& s) {
+    Field f;
+    f.name = std::move(field_name);
+    f.type = Type::Distribution;
+    f.distribution = s;
+    return f;
+  }
+  [[nodiscard]] static Field of_text(std::string field_name, std::string words) {
+    Field f;
+    f.name = std::move(field_name);
+    f.type = Type::Text;
+    f.text = std::move(words);
+    return f;
+  }
+};
+
+/// "count", "duration", "distribution", "text".
+[[nodiscard]] constexpr const char* to_string(Field::Type t) noexcept {
+  switch (t) {
+    case Field::Type::Count:
+      return "count";
+    case Field::Type::Duration:
+      return "duration";
+    case Field::Type::Distribution:
+      return "distribution";
+    case Field::Type::Text:
+      return "text";
   }
   return "?";
 }
@@ -97,20 +159,22 @@ struct Report {
   /// Alive components the monitor saw on the same thread (same tid), this one included; 0 when
   /// the tid is unknown.
   unsigned tasks_on_thread = 0;
-  Nanos period_ns = 0;  ///< configured period; 0 for non-periodic
+  Nanos period_ns =
+      0;  ///< the configured period; 0 for non-periodic (measured: `measured_period_ns`)
 
   // --- state and counters ---
   TaskState state = TaskState::PreOperational;
-  /// For reports that are not components (CAN nodes, groups): the state in words
-  /// ("responding", "silent", "never seen"), shown and exported instead of `state`.
+  /// For reports whose state is not a lifecycle state (units, a component whose process ended):
+  /// the state in words ("responding", "never seen", "process ended"), shown and exported
+  /// instead of `state`.
   std::string state_label;
   task::Counters counters;    ///< cumulative, exact
   std::uint64_t samples = 0;  ///< cycle samples received (fewer than cycles when some dropped)
   Window window;              ///< counter deltas over the recent window
 
   // --- timing statistics (ns) ---
-  StatsSummary user_ns;             ///< on_update() alone
-  StatsSummary total_ns;            ///< user + supervision overhead
+  StatsSummary execution_ns;        ///< on_update() alone
+  StatsSummary total_ns;            ///< execution + supervision overhead
   StatsSummary latency_ns;          ///< wake-up latency: start - scheduled release
   StatsSummary measured_period_ns;  ///< start-to-start of consecutive cycles
   StatsSummary overhead_ns;         ///< supervision's own time per cycle (sampled)
@@ -136,6 +200,12 @@ struct Report {
   /// The thread's OS counters (platform::read_thread_stats), when the thread is known and alive.
   std::optional<platform::ThreadStats> thread;
 
+  // --- a unit's own figures (kind Unit) ---
+  /// What the unit is, as its contributor names it ("can_node", "can_group"); empty for the
+  /// monitor's own kinds.
+  std::string unit_kind;
+  std::vector<Field> fields;  ///< its figures, in the order its contributor added them
+
   // --- verdict ---
   Status status;
   std::vector<KeyValue> values;  ///< added by checks, in order
@@ -150,6 +220,18 @@ struct Report {
   }
   /// The value of `key` added by a check, if any (the first one).
   [[nodiscard]] const std::string* value(std::string_view key) const noexcept;
+  /// Adds a unit's field. Contributors call it.
+  void add_field(Field f) { fields.push_back(std::move(f)); }
+  /// The field named `field_name`, if any (the first one).
+  [[nodiscard]] const Field* field(std::string_view field_name) const noexcept;
+  /// What the report describes in one word: `unit_kind` for a unit, else `to_string(kind)`.
+  [[nodiscard]] std::string_view kind_name() const noexcept {
+    return kind == ReportKind::Unit ? std::string_view(unit_kind) : to_string(kind);
+  }
+  /// A unit of kind `unit`.
+  [[nodiscard]] bool is_unit(std::string_view unit) const noexcept {
+    return kind == ReportKind::Unit && unit_kind == unit;
+  }
 };
 
 /// The reports of one monitor cycle.
@@ -168,6 +250,10 @@ struct ReportSet {
 /// Negative values get a '-'. Not RT-safe (allocates).
 [[nodiscard]] std::string format_nanos(double ns);
 
+/// A unit's field for people: "12", "1.50ms", "p50 1.00ms, p99 1.20ms, max 2.00ms (812
+/// samples)", or its words. Not RT-safe (allocates).
+[[nodiscard]] std::string format_field(const Field& f);
+
 /// Fills the identity, counters and statistics of `r` from `s` (not the status, window, silence,
 /// tasks_on_thread or thread fields, which the monitor computes).
 void fill_report(Report& r, const supervisor::ComponentSnapshot& s);
@@ -176,6 +262,8 @@ void fill_report(Report& r, const supervisor::ComponentSnapshot& s);
 
 // The names a program writes, also in vigil (docs/design/modules.md).
 namespace vigil {
+using monitor::Field;
+using monitor::format_field;
 using monitor::format_nanos;
 using monitor::KeyValue;
 using monitor::Report;

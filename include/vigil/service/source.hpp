@@ -29,20 +29,20 @@ class Source {
   [[nodiscard]] virtual bool running() const = 0;
 };
 
-/// The components of this process: a `TaskSupervisor` draining every port of a registry.
+/// The components of this process: a `ComponentDrainLoop` draining every port of a registry.
 class RegistrySource final : public Source {
  public:
   RegistrySource(ComponentRegistry& registry, supervisor::ComponentAggregator& aggregator,
-                 supervisor::SupervisorOptions options)
+                 supervisor::DrainOptions options)
       : supervisor_(registry, aggregator, std::move(options)) {}
   expected<void, Error> start() override { return supervisor_.start(); }
   void stop() override { supervisor_.stop(); }
   std::size_t step() override { return supervisor_.step(); }
   [[nodiscard]] bool running() const override { return supervisor_.running(); }
-  [[nodiscard]] supervisor::TaskSupervisor& supervisor() noexcept { return supervisor_; }
+  [[nodiscard]] supervisor::ComponentDrainLoop& supervisor() noexcept { return supervisor_; }
 
  private:
-  supervisor::TaskSupervisor supervisor_;
+  supervisor::ComponentDrainLoop supervisor_;
 };
 
 }  // namespace vigil::service

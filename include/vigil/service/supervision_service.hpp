@@ -119,7 +119,7 @@ struct SupervisionServiceOptions {
   supervisor::AggregatorOptions aggregator{};
   /// The supervisor's options apart from its period (`supervisor_period_ns`): batch, thread
   /// name, stack size, its own clock.
-  supervisor::SupervisorOptions supervisor{};
+  supervisor::DrainOptions supervisor{};
   /// The clock that stamps arrivals and times the monitor's windows.
   Clock clock = Clock::system();
 };
@@ -183,7 +183,7 @@ class SupervisionService {
   /// The source (a RegistrySource, or a SegmentSource with `segments`).
   [[nodiscard]] Source& source() noexcept { return *source_; }
   /// The in-process supervisor (the registry source's), or null with `segments`.
-  [[nodiscard]] supervisor::TaskSupervisor* supervisor() noexcept;
+  [[nodiscard]] supervisor::ComponentDrainLoop* supervisor() noexcept;
   /// The segment source with `segments` (its processes, its statistics), or null.
   [[nodiscard]] SegmentSource* segments() noexcept;
   /// The monitor: add checks, set or watch thresholds here.

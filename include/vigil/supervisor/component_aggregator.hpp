@@ -1,8 +1,9 @@
 #pragma once
 /// @file
 /// `ComponentAggregator`: the supervisor handler for component messages. It keeps one record per
-/// component (identity, state, cumulative counters, statistics of user time, total time, wake-up
-/// latency, period and supervision overhead) and hands consistent snapshots to readers.
+/// component (identity, state, cumulative counters, statistics of execution time, total time,
+/// wake-up latency, measured period and supervision overhead) and hands consistent snapshots to
+/// readers.
 ///
 /// Design: the supervisor thread is the only writer. Each record has its own mutex, held by the
 /// supervisor while it applies one port's batch and by a reader while it copies one record, so a
@@ -34,10 +35,10 @@
 #include "vigil/health/report.hpp"
 #include "vigil/log/consumer.hpp"
 #include "vigil/platform/clock.hpp"
+#include "vigil/supervisor/drain_loop.hpp"
 #include "vigil/supervisor/events.hpp"
 #include "vigil/supervisor/flight_recorder.hpp"
 #include "vigil/supervisor/running_stats.hpp"
-#include "vigil/supervisor/supervisor.hpp"
 #include "vigil/task/default_registry.hpp"
 #include "vigil/task/messages.hpp"
 
@@ -72,14 +73,14 @@ struct ComponentSnapshot {
   bool has_sample = false;
   task::CycleSample last;  ///< latest cycle sample received
   std::uint64_t samples = 0;
-  task::Counters counters;  ///< cumulative, exact even when samples were dropped
-  StatsSummary user_ns;     ///< on_update() alone
-  /// user + the latest measured supervision overhead: count, min, max, mean and EWMA exact;
-  /// percentiles are user_ns's plus that overhead (capped at max).
+  task::Counters counters;    ///< cumulative, exact even when samples were dropped
+  StatsSummary execution_ns;  ///< on_update() alone
+  /// execution + the latest measured supervision overhead: count, min, max, mean and EWMA exact;
+  /// percentiles are execution_ns's plus that overhead (capped at max).
   StatsSummary total_ns;
-  StatsSummary latency_ns;   ///< wake-up latency: start - scheduled release
-  StatsSummary period_ns;    ///< start-to-start of consecutive cycles
-  StatsSummary overhead_ns;  ///< supervision's own time per cycle (sampled)
+  StatsSummary latency_ns;          ///< wake-up latency: start - scheduled release
+  StatsSummary measured_period_ns;  ///< start-to-start of consecutive cycles
+  StatsSummary overhead_ns;         ///< supervision's own time per cycle (sampled)
   bool has_exception = false;
   task::ExceptionReport last_exception;
   std::string last_exception_type;  ///< demangled
@@ -123,11 +124,11 @@ struct ComponentSnapshot {
 struct ComponentDistributions {
   std::uint32_t id = 0;
   std::string_view name;
-  const CompactRunningStats* user = nullptr;      ///< on_update() alone
-  const CompactRunningStats* latency = nullptr;   ///< wake-up latency
-  const CompactRunningStats* period = nullptr;    ///< start-to-start of consecutive cycles
+  const CompactRunningStats* execution = nullptr;        ///< on_update() alone
+  const CompactRunningStats* latency = nullptr;          ///< wake-up latency
+  const CompactRunningStats* measured_period = nullptr;  ///< start-to-start of consecutive cycles
   const CompactRunningStats* overhead = nullptr;  ///< supervision's own time per cycle (sampled)
-  /// Total time has no histogram of its own: it is user time plus this (the latest measured
+  /// Total time has no histogram of its own: it is execution time plus this (the latest measured
   /// overhead), as for `ComponentSnapshot::total_ns`' percentiles.
   Nanos total_shift_ns = 0;
   StatsSummary total;  ///< total time's exact count, min, max, mean, EWMA
@@ -204,7 +205,7 @@ class ComponentAggregator {
   /// cycle samples handled without a variant dispatch (the supervisor calls this when present).
   void on_batch(const Entry& e, const task::Message* messages, std::size_t n);
   void end(const Entry& e, const PortDrain& d);
-  void on_cycle(const SupervisorCycle& c);
+  void on_cycle(const DrainCycle& c);
   /// When the supervisor must drain and judge next for health supervision (the earliest alive
   /// reference cycle end, deadline max or grace end, on this aggregator's clock); INT64_MAX
   /// when nothing waits, or when the clock is not the system's (a test steps it by hand).
@@ -339,6 +340,6 @@ static_assert(SupervisorHandler<ComponentAggregator, task::Message>);
 /// The supervisor of tasks: one non-RT thread (or step()) that drains the port of every
 /// component of a registry into a ComponentAggregator. Each component's own side is its
 /// Task<Derived> or Instrumentation. (Was `ComponentSupervisorLoop`.)
-using TaskSupervisor = Supervisor<task::Message, ComponentAggregator>;
+using ComponentDrainLoop = DrainLoop<task::Message, ComponentAggregator>;
 
 }  // namespace vigil::supervisor

@@ -61,7 +61,7 @@ struct CycleRecord {
   static constexpr std::uint8_t kClipped = 16;
 
   /// on_update()'s own time.
-  [[nodiscard]] Nanos user_ns() const noexcept { return end_ns - start_ns; }
+  [[nodiscard]] Nanos execution_ns() const noexcept { return end_ns - start_ns; }
   /// Wake-up latency: start - release.
   [[nodiscard]] Nanos latency_ns() const noexcept { return start_ns - release_ns; }
 };

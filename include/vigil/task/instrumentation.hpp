@@ -5,7 +5,7 @@
 ///
 /// It instruments one component on the component's own thread (it times cycles and pushes
 /// messages to the component's port); it does not supervise anything. The supervisor, which
-/// drains every component's port on its own thread, is `TaskSupervisor`
+/// drains every component's port on its own thread, is `ComponentDrainLoop`
 /// (vigil/supervisor/component_aggregator.hpp), and a program gets it inside a
 /// `SupervisionService`. (Before issue 13 these were `ComponentSupervisor` and
 /// `ComponentSupervisorLoop`.)
@@ -170,13 +170,12 @@ using Instrumentation = BasicInstrumentation<>;
 /// for another reason (a guard constructed inside a destructor during unwinding) would report
 /// that unwinding too; cycles are not run from destructors in practice, and checking only here
 /// keeps the guard at one std::uncaught_exceptions() call per cycle.
-template <class Supervisor>
+template <class Instr>
 class [[nodiscard]] UpdateGuard {
  public:
   // Inline, with what they call: the cycle then makes no call of its own beyond the clock reads
   // and the one std::uncaught_exceptions().
-  [[gnu::always_inline]] explicit UpdateGuard(Supervisor& s, Nanos release_ns = 0) noexcept
-      : s_(s) {
+  [[gnu::always_inline]] explicit UpdateGuard(Instr& s, Nanos release_ns = 0) noexcept : s_(s) {
     s_.pre_update(release_ns);
   }
   [[gnu::always_inline]] ~UpdateGuard() {
@@ -189,7 +188,7 @@ class [[nodiscard]] UpdateGuard {
   UpdateGuard& operator=(const UpdateGuard&) = delete;
 
  private:
-  Supervisor& s_;
+  Instr& s_;
 };
 
 }  // namespace vigil::task

@@ -105,7 +105,7 @@ struct CycleSample {
 
   /// The 1-based number of this cycle (`counters.cycles`).
   [[nodiscard]] std::uint64_t cycle() const noexcept { return counters.cycles; }
-  [[nodiscard]] Nanos user_ns() const noexcept { return end_ns - start_ns; }
+  [[nodiscard]] Nanos execution_ns() const noexcept { return end_ns - start_ns; }
 };
 
 /// Real-time losses detected in one cycle, by cause (sent only when there were some).

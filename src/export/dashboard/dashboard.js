@@ -12,6 +12,7 @@
   let lastCycle = -1;
   let boundsLabels = null;
   const rows = new Map();   // name -> <tr>
+  const unitTables = new Map();  // unit kind -> {table, head, tbody}
   const cards = new Map();  // name -> {card, badge, hist, line}
 
   document.getElementById('version').textContent = body.dataset.version || '';
@@ -38,41 +39,119 @@
     return td;
   }
 
+  // A unit's field in a cell: durations (keys ending in _ns) in time units, a distribution as
+  // p50 / p99 / max, counts and words as they are.
+  function fieldText(key, v) {
+    const ns = key.endsWith('_ns');
+    if (v !== null && typeof v === 'object') {
+      return v.count ? fmtNs(v.p50) + ' / ' + fmtNs(v.p99) + ' / ' + fmtNs(v.max) : '-';
+    }
+    if (typeof v === 'number') return ns ? fmtNs(v) : String(v);
+    return v === null || v === undefined ? '-' : String(v);
+  }
+  // A field's column title: "rx_gap_ns" with a distribution -> "rx gap p50 / p99 / max".
+  function fieldTitle(key, v) {
+    const name = key.replace(/_ns$/, '').replace(/_/g, ' ');
+    return v !== null && typeof v === 'object' ? name + ' p50 / p99 / max' : name;
+  }
+
+  // The table of one kind of unit (CAN nodes, CAN groups...), made on first sight, below the
+  // components' table: name, status, state, a column per field, the messages.
+  function unitTable(kind) {
+    let t = unitTables.get(kind);
+    if (t) return t;
+    const table = document.createElement('table');
+    table.className = 'units';
+    table.dataset.kind = kind;
+    const head = document.createElement('tr');
+    table.appendChild(document.createElement('thead')).appendChild(head);
+    const tbody = table.appendChild(document.createElement('tbody'));
+    document.getElementById('units').appendChild(table);
+    t = {table, head, tbody, keys: []};
+    unitTables.set(kind, t);
+    return t;
+  }
+  function setHead(t, kind, fieldsSeen) {
+    const titles = [kind, 'status', 'state'];
+    for (const [key, v] of fieldsSeen) titles.push(fieldTitle(key, v));
+    titles.push('message');
+    titles.forEach((title, i) => {
+      const th = cell(t.head, i, title);
+      if (th.tagName !== 'TD') return;
+      const h = document.createElement('th');  // the first render made a td: make it a header
+      h.textContent = title;
+      t.head.replaceChild(h, th);
+    });
+  }
+
+  function badgeCell(tr, i, status) {
+    const st = cell(tr, i, '');
+    let badge = st.firstChild;
+    if (!badge) {
+      badge = document.createElement('span');
+      badge.className = 'badge';
+      st.appendChild(badge);
+    }
+    badge.dataset.status = status;
+    badge.textContent = status;
+  }
+  function rowOf(name, tbody) {
+    let tr = rows.get(name);
+    if (!tr) {
+      tr = document.createElement('tr');
+      tr.dataset.component = name;
+      rows.set(name, tr);
+    }
+    tbody.appendChild(tr);  // keeps the server's order
+    return tr;
+  }
+
   function renderTable(doc) {
     const tbody = document.querySelector('#status tbody');
     const seen = new Set();
+    const units = new Map();  // kind -> reports, in the server's order
     for (const c of doc.components) {
       seen.add(c.name);
-      let tr = rows.get(c.name);
-      if (!tr) {
-        tr = document.createElement('tr');
-        tr.dataset.component = c.name;
-        rows.set(c.name, tr);
+      if (c.fields) {  // a unit: shown in its kind's table
+        if (!units.has(c.kind)) units.set(c.kind, []);
+        units.get(c.kind).push(c);
+        continue;
       }
-      tbody.appendChild(tr);  // keeps the server's order
+      const tr = rowOf(c.name, tbody);
       tr.dataset.status = c.status;
       tr.dataset.kind = c.kind;
       cell(tr, 0, c.name);
       cell(tr, 1, c.kind);
-      const st = cell(tr, 2, '');
-      let badge = st.firstChild;
-      if (!badge) {
-        badge = document.createElement('span');
-        badge.className = 'badge';
-        st.appendChild(badge);
-      }
-      badge.dataset.status = c.status;
-      badge.textContent = c.status;
+      badgeCell(tr, 2, c.status);
       cell(tr, 3, c.state);
       cell(tr, 4, String(c.counters.cycles), 'num');
       const isComp = c.kind === 'component';
       // The max beside the p99, as in the text summary: one long cycle shows.
       const p99Max = (d) => (isComp && d.count ? fmtNs(d.p99) + ' / ' + fmtNs(d.max) : '-');
-      cell(tr, 5, p99Max(c.timing.user_ns), 'num');
+      cell(tr, 5, p99Max(c.timing.execution_ns), 'num');
       cell(tr, 6, p99Max(c.timing.latency_ns), 'num');
       cell(tr, 7, isComp ? c.window.overruns + ' / ' + c.counters.overruns : '-', 'num');
       cell(tr, 8, isComp ? String(c.counters.rt_losses) : '-', 'num');
       cell(tr, 9, c.messages.join('; '), 'msg');
+    }
+    for (const [kind, list] of units) {
+      const t = unitTable(kind);
+      const fieldsSeen = new Map();  // key -> a value (for its title), in order of first sight
+      for (const u of list) {
+        for (const [key, v] of Object.entries(u.fields)) if (!fieldsSeen.has(key)) fieldsSeen.set(key, v);
+      }
+      setHead(t, kind, fieldsSeen);
+      for (const u of list) {
+        const tr = rowOf(u.name, t.tbody);
+        tr.dataset.status = u.status;
+        tr.dataset.kind = u.kind;
+        cell(tr, 0, u.name);
+        badgeCell(tr, 1, u.status);
+        cell(tr, 2, u.state);
+        let i = 3;
+        for (const key of fieldsSeen.keys()) cell(tr, i++, fieldText(key, u.fields[key]), 'num');
+        cell(tr, i, u.messages.join('; '), 'msg');
+      }
     }
     for (const [name, tr] of rows) {
       if (!seen.has(name)) {

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// `Supervisor<Variant, Handler>`: drains every registered port each cycle and visits each
+/// `DrainLoop<Variant, Handler>`: drains every registered port each cycle and visits each
 /// message into a handler. Generic: the component supervisor and the CAN supervisor are the same
 /// class with different variants and handlers.
 ///
@@ -44,7 +44,7 @@ struct PortDrain {
 };
 
 /// The supervisor's measurement of itself, after each cycle.
-struct SupervisorCycle {
+struct DrainCycle {
   std::uint64_t cycle = 0;
   Nanos time_ns = 0;         ///< when the cycle began (supervisor clock)
   Nanos drain_ns = 0;        ///< time spent in this cycle
@@ -74,8 +74,7 @@ struct handles_all<H, E, std::variant<T...>>
 /// the earlier of its next period and that time (monotonic clock) for one more cycle.
 template <class H, class Variant>
 concept SupervisorHandler = detail::handles_all<H, bus::RegistryEntry<Variant>, Variant>::value &&
-    requires(H& h, const bus::RegistryEntry<Variant>& e, const PortDrain& d,
-             const SupervisorCycle& c) {
+    requires(H& h, const bus::RegistryEntry<Variant>& e, const PortDrain& d, const DrainCycle& c) {
   h.on_join(e);
   h.on_leave(e);
   h.begin(e);
@@ -84,7 +83,7 @@ concept SupervisorHandler = detail::handles_all<H, bus::RegistryEntry<Variant>, 
 };
 
 /// The supervisor's own statistics, readable from any thread.
-struct SupervisorStats {
+struct DrainStats {
   std::uint64_t cycles = 0;
   std::uint64_t messages = 0;
   std::size_t ports = 0;
@@ -94,7 +93,7 @@ struct SupervisorStats {
 };
 
 /// Options of a supervisor.
-struct SupervisorOptions {
+struct DrainOptions {
   /// Period of the supervisor's own thread. 10 ms: at 1 kHz a component queues 10 messages.
   Nanos period_ns = 10 * kNanosPerMilli;
   /// Messages popped from a port at a time.
@@ -108,17 +107,17 @@ struct SupervisorOptions {
 
 template <class Variant, class Handler>
 requires SupervisorHandler<Handler, Variant>
-class Supervisor {
+class DrainLoop {
  public:
   using Entry = bus::RegistryEntry<Variant>;
 
-  Supervisor(Registry<Variant>& registry, Handler& handler, SupervisorOptions options = {})
+  DrainLoop(Registry<Variant>& registry, Handler& handler, DrainOptions options = {})
       : registry_(registry), handler_(handler), options_(std::move(options)) {
     buffer_.resize(std::max<std::size_t>(options_.batch, 1));
   }
-  Supervisor(const Supervisor&) = delete;
-  Supervisor& operator=(const Supervisor&) = delete;
-  ~Supervisor() {
+  DrainLoop(const DrainLoop&) = delete;
+  DrainLoop& operator=(const DrainLoop&) = delete;
+  ~DrainLoop() {
     // The final drain may allocate (a component that joined at the last moment); out of
     // memory there loses that drain's messages rather than terminating the process.
     try {
@@ -193,7 +192,7 @@ class Supervisor {
       return t.finished;
     });
     const Nanos t1 = options_.clock.now();
-    SupervisorCycle c{cycle_ + 1, t0, t1 - t0, total, tracked_.size(), max_occ};
+    DrainCycle c{cycle_ + 1, t0, t1 - t0, total, tracked_.size(), max_occ};
     ++cycle_;
     {
       std::lock_guard lock(stats_mutex_);
@@ -230,15 +229,15 @@ class Supervisor {
   [[nodiscard]] bool running() const noexcept { return thread_.joinable(); }
 
   /// A copy of the supervisor's statistics. Any thread; takes a short lock.
-  [[nodiscard]] SupervisorStats stats() const {
+  [[nodiscard]] DrainStats stats() const {
     std::lock_guard lock(stats_mutex_);
-    SupervisorStats s = stats_;
+    DrainStats s = stats_;
     s.drain_ns = drain_.summary();
     s.messages_per_cycle = per_cycle_.summary();
     return s;
   }
 
-  [[nodiscard]] const SupervisorOptions& options() const noexcept { return options_; }
+  [[nodiscard]] const DrainOptions& options() const noexcept { return options_; }
 
  private:
   struct Tracked {
@@ -305,7 +304,7 @@ class Supervisor {
 
   Registry<Variant>& registry_;
   Handler& handler_;
-  SupervisorOptions options_;
+  DrainOptions options_;
   std::vector<Tracked> tracked_;
   std::vector<std::shared_ptr<Entry>> scratch_;
   std::vector<Variant> buffer_;
@@ -314,7 +313,7 @@ class Supervisor {
   std::atomic<bool> quit_{false};
   platform::Thread thread_;
   mutable std::mutex stats_mutex_;
-  SupervisorStats stats_;
+  DrainStats stats_;
   RunningStats drain_;
   RunningStats per_cycle_;
 };
