@@ -15,7 +15,7 @@ root="${1:-$(cd "$(dirname "$0")/.." && pwd)}"
 # The graph: what each module may include (already closed under "below": every module listed is
 # below the one on the left). A module missing from this table is an error, so that a new module
 # gets its place here.
-#   platform <- bus <- log <- task <- exec <- supervisor <- monitor <- export/service <- deploy
+#   platform <- bus <- log <- health <- task <- exec <- supervisor <- monitor <- export/service <- deploy
 #   config (beside, on platform) is used by monitor, can, deploy; can sits beside monitor and is
 #   used by export and deploy; alloc_guard is the platform's opt-in malloc interposer.
 declare -A allowed=(
@@ -23,15 +23,16 @@ declare -A allowed=(
   [alloc_guard]="platform"
   [bus]="platform"
   [log]="platform bus"
-  [task]="platform bus log"
-  [exec]="platform bus log task"
-  [supervisor]="platform bus log task exec"
+  [health]="platform bus"
+  [task]="platform bus log health"
+  [exec]="platform bus log health task"
+  [supervisor]="platform bus log health task exec"
   [config]="platform"
-  [monitor]="platform bus log task exec supervisor config"
-  [can]="platform bus log task exec supervisor monitor config"
-  [export]="platform bus log task exec supervisor monitor config can"
-  [service]="platform bus log task exec supervisor monitor config can export"
-  [deploy]="platform bus log task exec supervisor monitor config can export service"
+  [monitor]="platform bus log health task exec supervisor config"
+  [can]="platform bus log health task exec supervisor monitor config"
+  [export]="platform bus log health task exec supervisor monitor config can"
+  [service]="platform bus log health task exec supervisor monitor config can export"
+  [deploy]="platform bus log health task exec supervisor monitor config can export service"
 )
 # Known violations, to be removed (module:included-module).
 known=()

@@ -730,7 +730,9 @@ struct SegmentSource::Impl {
         next += options.period_ns;
         if (next < t) next = t;
       }
-      sleep_until_next(next, fds, ready);
+      // Health supervision's deadlines (a deadline's max, an alive reference cycle's end) are
+      // judged when they pass, not at the next period (include/vigil/health/engine.hpp).
+      sleep_until_next(std::min(next, aggregator.next_deadline()), fds, ready);
     }
   }
 

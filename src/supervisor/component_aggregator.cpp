@@ -19,6 +19,7 @@
 #endif
 
 #include "vigil/assert.hpp"
+#include "vigil/supervisor/health_supervision.hpp"
 #include "vigil/task/shm_messages.hpp"
 
 namespace vigil::supervisor {
@@ -468,9 +469,12 @@ void ComponentAggregator::on_join(const Entry& e) {
   slots_.insert(slots_.begin() + at, std::move(slot));
   hint_ = 0;
   choose_ring_stores();
+  lock.unlock();
+  if (health_) health_->join(e.id, e.name);
 }
 
 void ComponentAggregator::on_leave(const Entry& e) {
+  if (health_) health_->leave(e.id);
   if (Slot* s = slot_for(e)) {
     std::lock_guard lock(s->mutex);
     s->data.alive = false;
@@ -530,8 +534,9 @@ void ComponentAggregator::on(const Entry& /*e*/, const task::TaskInfo& m) {
   current_->deadline_ns = current_->data.deadline_ns;
 }
 
-void ComponentAggregator::on(const Entry& /*e*/, const task::CycleSample& m) {
+void ComponentAggregator::on(const Entry& e, const task::CycleSample& m) {
   if (current_ == nullptr) return;
+  if (health_ && health_->watches_cycles(e.id)) health_->cycle(e.id, m);
   // Counters only grow: merging keeps the larger of each, so a late totals-only sample or an
   // exception report counted before its sample never moves one back.
   current_->counters.merge(m.counters);
@@ -608,6 +613,12 @@ void ComponentAggregator::on_batch(const Entry& e, const task::Message* messages
   // catch-up would read the slots straight back, from memory instead of the cache.
   const bool stream = stream_rings_ && drained_ + n < kCatchUpDrain;
   drained_ += n;
+  // Alive supervision of this component's cycles: each sample is an indication.
+  if (health_ && health_->watches_cycles(e.id)) {
+    for (std::size_t i = 0; i < n; ++i) {
+      if (const auto* m = std::get_if<task::CycleSample>(&messages[i])) health_->cycle(e.id, *m);
+    }
+  }
   for (std::size_t i = 0; i < n;) {
     const std::size_t k = stream ? take_run<true>(s, messages + i, n - i, drain_time_)
                                  : take_run<false>(s, messages + i, n - i, drain_time_);
@@ -768,7 +779,8 @@ void ComponentAggregator::on(const Entry& /*e*/, const task::ExceptionReport& m)
   }
 }
 
-void ComponentAggregator::on(const Entry& /*e*/, const task::StateChange& m) {
+void ComponentAggregator::on(const Entry& e, const task::StateChange& m) {
+  if (health_) health_->state(e.id, m);
   if (current_ == nullptr) return;
   Slot& s = *current_;
   auto& d = s.data;
@@ -802,10 +814,58 @@ void ComponentAggregator::on(const Entry& e, const log::LogRecord& m) {
   if (auto* c = log_consumer_.load()) c->on_record(e.id, e.name, m);
 }
 
+void ComponentAggregator::on(const Entry& e, const health::CheckpointReport& m) {
+  if (health_) health_->checkpoint(e.id, m);
+}
+
+std::size_t ComponentAggregator::raise_health(Nanos now) {
+  health_events_.clear();
+  health_->advance(now, health_events_);
+  for (Event& ev : health_events_) {
+    // On the component's record (latched when Error, a flight record frozen); an entity that
+    // never joined has none: straight to the hub.
+    const auto it = std::lower_bound(ids_.begin(), ids_.end(), ev.component_id);
+    if (ev.component_id != 0 && it != ids_.end() && *it == ev.component_id) {
+      Slot& s = *slots_[static_cast<std::size_t>(it - ids_.begin())];
+      std::lock_guard lock(s.mutex);
+      raise(s, std::move(ev));
+    } else {
+      events_.publish(std::move(ev));
+    }
+  }
+  return health_events_.size();
+}
+
+Nanos ComponentAggregator::next_deadline() const {
+  if (!health_ || options_.clock.fn != &Clock::system_now) return INT64_MAX;
+  return health_->next_deadline();
+}
+
+expected<void, Error> ComponentAggregator::supervise_health(health::HealthConfig config) {
+  if (auto ok = health::validate(config); !ok) return unexpected<Error>(ok.error());
+  auto h = std::make_unique<HealthSupervision>(std::move(config), options_.clock);
+  // Components already known: bound now, as if they joined (their state arrives again only
+  // when it changes: one in Running is activated by its first report).
+  {
+    std::shared_lock lock(list_mutex_);
+    for (const auto& slot : slots_) {
+      if (slot->data.alive) h->join(slot->data.id, slot->data.name);
+    }
+  }
+  health_ = std::move(h);
+  return {};
+}
+
+std::vector<health::SupervisionReport> ComponentAggregator::health_reports() const {
+  if (!health_) return {};
+  return health_->reports();
+}
+
 void ComponentAggregator::on_cycle(const DrainCycle& c) {
   if (auto* lc = log_consumer_.load()) lc->on_supervisor_cycle(c.time_ns + c.drain_ns);
   hint_ = 0;
   clock_reads_ = 0;  // the first port of the next cycle reads the clock
+  if (health_) (void)raise_health(options_.clock.now());
   if (options_.watchdog.enabled || options_.auto_clear_ns > 0) {
     const Nanos now = options_.clock.now();
     for (const auto& slot : slots_) watch(*slot, now);

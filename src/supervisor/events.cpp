@@ -43,6 +43,14 @@ const char* to_string(EventKind k) noexcept {
       return "not_responding";
     case EventKind::Responding:
       return "responding";
+    case EventKind::AliveSupervision:
+      return "alive_supervision";
+    case EventKind::DeadlineSupervision:
+      return "deadline_supervision";
+    case EventKind::LogicalSupervision:
+      return "logical_supervision";
+    case EventKind::CheckpointMisuse:
+      return "checkpoint_misuse";
   }
   return "?";
 }

@@ -91,6 +91,17 @@ struct Checker {
     if (!time_ok(m.time_ns)) return fail("StateChange: time out of range");
     return true;
   }
+  bool operator()(health::CheckpointReport& m) {
+    terminate(m.name);
+    if (!time_ok(m.time_ns)) return fail("CheckpointReport: time out of range");
+    if (m.index != health::kMisuseIndex && m.index >= health::kMaxCheckpoints) {
+      return fail("CheckpointReport: index out of range");
+    }
+    if (m.index != health::kMisuseIndex && m.name.empty()) {
+      return fail("CheckpointReport: a checkpoint without a name");
+    }
+    return true;
+  }
   // A message type added later is accepted as it is until a check is written for it.
   template <class M>
   bool operator()(M& /*m*/) {

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "shm_support.hpp"
@@ -17,6 +18,8 @@
 #include "vigil/bus/shm_port.hpp"
 #include "vigil/exec/manual_activity.hpp"
 #include "vigil/platform/process_watch.hpp"
+#include "vigil/supervisor/health_supervision.hpp"
+#include "vigil/task/instrumentation.hpp"
 #include "vigil/task/shm_messages.hpp"
 #include "vigil/task/task.hpp"
 
@@ -407,4 +410,56 @@ TEST_CASE("A segment's start ticks, however large, give a start time no later th
   CHECK(huge + kNanosPerMilli >= self);
   CHECK(huge <= now + kNanosPerSecond);
   CHECK(std::llabs(platform::start_time_unix_ns(std::uint64_t{1} << 62) - huge) < kNanosPerSecond);
+}
+
+TEST_CASE("Checkpoints through shared memory: a cross-component deadline judged by the daemon",
+          "[shm][port][health]") {
+  Placed p;
+  auto d = p.daemon();
+  health::HealthConfig cfg;
+  cfg.deadline.push_back({.name = "chain",
+                          .start = {"cam", "frame"},
+                          .end = {"act", "sent"},
+                          .max_ns = 5 * kNanosPerMilli});
+  REQUIRE(d->aggregator().supervise_health(cfg).has_value());
+  Instrumentation cam("cam", {}, p.registry);
+  Instrumentation act("act", {}, p.registry);
+  const CheckpointId frame = cam.declare_checkpoint("frame");
+  const CheckpointId sent = act.declare_checkpoint("sent");
+  cam.init();
+  act.init();
+  const auto settle = [&] {
+    d->step();
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    d->step();
+  };
+  settle();
+  {
+    UpdateGuard g(cam);
+    cam.checkpoint(frame);
+  }
+  {
+    UpdateGuard g(act);
+    act.checkpoint(sent);
+  }
+  settle();
+  auto r = d->aggregator().health_reports();
+  REQUIRE(r.size() == 1);
+  CHECK(r[0].evaluations == 1);
+  CHECK(r[0].status == health::SupervisionStatus::Ok);
+  {
+    UpdateGuard g(cam);
+    cam.checkpoint(frame);  // never followed by act's "sent"
+  }
+  d->step();
+  std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  d->step();
+  std::vector<Event> missed;
+  for (const auto& e : d->take_events()) {
+    if (e.kind == EventKind::DeadlineSupervision) missed.push_back(e);
+  }
+  REQUIRE(missed.size() == 1);
+  CHECK(missed[0].component == "act");
+  CHECK(missed[0].detail.find("deadline_missed") != std::string::npos);
+  CHECK(d->aggregator().health_reports()[0].status == health::SupervisionStatus::Expired);
 }

@@ -78,6 +78,16 @@ task::ExceptionReport exception() {
   return e;
 }
 
+health::CheckpointReport checkpoint(std::uint64_t count) {
+  auto r = zeroed<health::CheckpointReport>();
+  r.time_ns = kNanosPerSecond + static_cast<Nanos>(count);
+  r.cycle = count;
+  r.count = count;
+  r.index = 0;
+  r.name = "frame_received";
+  return r;
+}
+
 // A segment of supervisor "fuzz" (the fuzz target's placeholder for its own daemon) written by
 // the real producer: the component's identity, its start, samples (the ring holds 4; the rest
 // are dropped into the mailboxes), an exception.
@@ -161,6 +171,7 @@ int main(int argc, char** argv) {
   append_message(m, 0, task_info());
   append_message(m, 4, state_change(TaskState::PreOperational, TaskState::Running));
   for (std::uint64_t i = 1; i <= 5; ++i) append_message(m, 1, sample(i, i == 4));
+  append_message(m, 6, checkpoint(1));
   append_message(m, 3, exception());
   write(dir, "messages_run.bin", 1, m);
   std::vector<std::byte> sticky;

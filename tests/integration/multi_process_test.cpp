@@ -27,6 +27,8 @@
 #include "vigil/exec/manual_activity.hpp"
 #include "vigil/exec/periodic_activity.hpp"
 #include "vigil/platform/process_watch.hpp"
+#include "vigil/supervisor/health_supervision.hpp"
+#include "vigil/task/instrumentation.hpp"
 #include "vigil/task/shm_messages.hpp"
 #include "vigil/task/task.hpp"
 
@@ -435,4 +437,66 @@ TEST_CASE("A bad shared_memory name in a deployment is an error at its line",
   REQUIRE_FALSE(spec.has_value());
   CHECK_THAT(config::to_string(spec.error()),
              Catch::Contains("bad.yaml:3:") && Catch::Contains("not a supervisor name"));
+}
+
+namespace {
+// Child body: one Instrumentation named `component` in shared memory under `sup`, with one
+// checkpoint; each "go" from the parent is one cycle reporting it.
+void report_on_go(const ChildLink& link, const std::string& sup, const std::string& component,
+                  const std::string& checkpoint) {
+  Registry<task::Message> reg;
+  bus::ShmOptions o;
+  o.name = sup;
+  if (!place_in_shared_memory(reg, o)) ::_exit(90);
+  Instrumentation in(component, {}, reg);
+  const CheckpointId id = in.declare_checkpoint(checkpoint);
+  in.init();
+  link.ready();
+  for (;;) {
+    link.wait_go();
+    UpdateGuard guard(in);
+    in.checkpoint(id);
+  }
+}
+}  // namespace
+
+TEST_CASE("A deadline across two processes: met, then missed and found by the daemon",
+          "[integration][multi_process][health]") {
+  const std::string name = test::unique_supervisor_name();
+  test::ShmCleanup cleanup(name);
+  auto cam = spawn([&](const ChildLink& l) { report_on_go(l, name, "cam", "frame"); });
+  auto act = spawn([&](const ChildLink& l) { report_on_go(l, name, "act", "sent"); });
+  REQUIRE(cam->wait_ready());
+  REQUIRE(act->wait_ready());
+  Daemon d(name, /*thread=*/false);
+  health::HealthConfig cfg;
+  cfg.deadline.push_back({.name = "frame_to_command",
+                          .start = {"cam", "frame"},
+                          .end = {"act", "sent"},
+                          .max_ns = 300 * kNanosPerMilli});
+  REQUIRE(d.sup->aggregator().supervise_health(cfg).has_value());
+  d.wait_joined(2);
+  const auto evaluations = [&] { return d.sup->aggregator().health_reports().at(0).evaluations; };
+  cam->go();
+  std::this_thread::sleep_for(2ms);
+  act->go();
+  const auto end = std::chrono::steady_clock::now() + 10s;
+  while (evaluations() < 1 && std::chrono::steady_clock::now() < end) {
+    d.sup->step();
+    std::this_thread::sleep_for(2ms);
+  }
+  auto r = d.sup->aggregator().health_reports().at(0);
+  CHECK(r.evaluations == 1);
+  CHECK(r.status == health::SupervisionStatus::Ok);
+  CHECK(r.last_duration_ns >= 2 * kNanosPerMilli);
+  CHECK(r.entities == std::vector<std::string>{"cam", "act"});
+  cam->go();  // act never answers
+  const auto e = d.wait_event(EventKind::DeadlineSupervision);
+  REQUIRE(e.has_value());
+  INFO(e->detail);
+  CHECK(e->component == "act");
+  CHECK(e->severity == EventSeverity::Error);
+  CHECK(e->detail.find("deadline_missed: no act.sent within 300.000 ms of cam.frame") !=
+        std::string::npos);
+  CHECK(e->detected_ns > e->fault_ns);
 }

@@ -11,6 +11,7 @@
 #include "vigil/platform/rt_loss.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 #include "vigil/task/instrumentation.hpp"
+#include "vigil/task/task.hpp"
 
 using namespace vigil;
 using namespace vigil::supervisor;
@@ -65,6 +66,69 @@ TEST_CASE("1,000,000 supervised cycles allocate nothing on the component's threa
           "[supervisor][alloc]") {
   SECTION("ManualActivity") { million_cycles_allocate_nothing<Erased>(); }
   SECTION("TypedManualActivity") { million_cycles_allocate_nothing<Typed>(); }
+}
+
+namespace {
+// Three checkpoints per cycle, one of them reported twice with the cycle's own time, one id it
+// did not declare every 100th cycle (a misuse).
+class Checkpointed : public vigil::Task<Checkpointed> {
+ public:
+  Checkpointed(std::string name, Registry<task::Message>& reg)
+      : Task(std::move(name), {.detectors = Detectors::Allocation}, reg) {}
+  CheckpointId read, compute, write;
+  std::uint64_t n = 0;
+  bool on_configure() {
+    read = declare_checkpoint("read");
+    compute = declare_checkpoint("compute");
+    write = declare_checkpoint("write");
+    return true;
+  }
+  void on_update() {
+    checkpoint(read);
+    checkpoint(compute, cycle().start_ns);
+    checkpoint(write);
+    if (++n % 100 == 0) checkpoint(CheckpointId{});
+  }
+};
+}  // namespace
+
+TEST_CASE("Checkpoint reports allocate nothing on the component's thread, supervised or not",
+          "[supervisor][alloc][health]") {
+  REQUIRE(platform::allocation_counting_available());
+  Registry<task::Message> reg;
+  ComponentAggregator agg;
+  health::HealthConfig cfg;
+  cfg.logical.push_back(
+      {.name = "order",
+       .initial = {{"cp", "read"}},
+       .final = {{"cp", "write"}},
+       .transitions = {{{"cp", "read"}, {"cp", "compute"}}, {{"cp", "compute"}, {"cp", "write"}}}});
+  REQUIRE(agg.supervise_health(cfg).has_value());
+  ComponentDrainLoop sup(reg, agg, {.period_ns = kNanosPerMilli});
+  REQUIRE(sup.start().has_value());
+  std::uint64_t allocations = ~std::uint64_t{0};
+  std::uint32_t misuses = 0;
+  bool configured = false;
+  std::thread component([&] {
+    Checkpointed c("cp", reg);
+    TypedManualActivity<Checkpointed> act(c, {.name = "m", .period_ns = kNanosPerMilli});
+    configured = c.configure();  // declarations allocate: before the measured cycles
+    act.start();
+    act.step();
+    const auto before = platform::thread_allocations();
+    for (int i = 0; i < 100'000; ++i) act.step();
+    allocations = platform::thread_allocations() - before;
+    misuses = c.checkpoint_misuses();
+    act.stop();
+  });
+  component.join();
+  sup.stop();
+  REQUIRE(configured);
+  CHECK(allocations == 0);
+  CHECK(misuses == 1'000);
+  const auto s = agg.find("cp");
+  REQUIRE(s.has_value());
+  CHECK(s->counters.losses[static_cast<int>(platform::LossCause::Allocation)] == 0);
 }
 
 TEST_CASE("A periodic thread's cycles allocate nothing", "[supervisor][alloc]") {

@@ -29,6 +29,10 @@
 #include <vector>
 
 #include "vigil/bus/registry.hpp"
+#include "vigil/error.hpp"
+#include "vigil/expected.hpp"
+#include "vigil/health/config.hpp"
+#include "vigil/health/report.hpp"
 #include "vigil/log/consumer.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/supervisor/drain_loop.hpp"
@@ -39,6 +43,8 @@
 #include "vigil/task/messages.hpp"
 
 namespace vigil::supervisor {
+
+class HealthSupervision;
 
 /// A component's latched fault: the first Error event since the latch was last cleared raised
 /// it; later Error events only count and move `last_*`. It stays until cleared
@@ -191,6 +197,7 @@ class ComponentAggregator {
   void on(const Entry& e, const task::ExceptionReport& m);
   void on(const Entry& e, const task::StateChange& m);
   void on(const Entry& e, const log::LogRecord& m);  // forwarded to the log consumer, if any
+  void on(const Entry& e, const health::CheckpointReport& m);  // to health supervision, if any
   /// Any other message type (one added to `Message` later): ignored until a handler cares.
   template <class M>
   void on(const Entry& /*e*/, const M& /*m*/) {}
@@ -199,6 +206,25 @@ class ComponentAggregator {
   void on_batch(const Entry& e, const task::Message* messages, std::size_t n);
   void end(const Entry& e, const PortDrain& d);
   void on_cycle(const DrainCycle& c);
+  /// When the supervisor must drain and judge next for health supervision (the earliest alive
+  /// reference cycle end, deadline max or grace end, on this aggregator's clock); INT64_MAX
+  /// when nothing waits, or when the clock is not the system's (a test steps it by hand).
+  /// The supervisor's thread sleeps until the earlier of this and its next period.
+  [[nodiscard]] Nanos next_deadline() const;
+
+  // --- health supervision (vigil/health) ---
+  /// Supervises `config`'s alive, deadline and logical supervisions from now on: checkpoint
+  /// reports and cycles drained from then feed them, failures are raised as events
+  /// (AliveSupervision, DeadlineSupervision, LogicalSupervision; Error when EXPIRED, latched on
+  /// the component), and the drain thread wakes at their deadlines. Call it before the
+  /// supervisor starts (or between step() calls); again, it replaces the previous one. Fails,
+  /// with `health::validate()`'s message, for a bad configuration. Not RT-safe.
+  expected<void, Error> supervise_health(health::HealthConfig config);
+  /// The health supervision, or null when none was asked for (`supervise_health`): its
+  /// reports, entity deactivation for modes, checkpoint statistics. Thread-safe.
+  [[nodiscard]] HealthSupervision* health() const noexcept { return health_.get(); }
+  /// A copy of every health supervision's report (empty when none). Any thread.
+  [[nodiscard]] std::vector<health::SupervisionReport> health_reports() const;
 
   // --- readers (any thread) ---
   /// A consistent copy of every component's record, ordered by id.
@@ -296,7 +322,10 @@ class ComponentAggregator {
   std::uint32_t clock_reads_ = 0;             // ports since the clock was read
   std::size_t drained_ = 0;                   // messages of the current port's drain so far
   std::atomic<log::RecordConsumer*> log_consumer_{nullptr};
-  mutable std::mutex frozen_mutex_;  // frozen_: taken before the hub's lock, never after
+  std::unique_ptr<HealthSupervision> health_;  // supervise_health(); set while not draining
+  std::vector<Event> health_events_;           // advance()'s output, reused
+  std::size_t raise_health(Nanos now);         // advance() health, raise what it found
+  mutable std::mutex frozen_mutex_;            // frozen_: taken before the hub's lock, never after
   std::deque<std::shared_ptr<const FlightRecord>> frozen_;
   std::size_t frozen_total_ = 0;
   std::size_t cache_bytes_ = 0;      // last-level cache (RingStores::Auto)

@@ -69,7 +69,9 @@ struct handles_all<H, E, std::variant<T...>>
 /// A handler: told about joins and leaves, visited with every message (one `on(entry, m)` per
 /// alternative of the variant, or a template catch-all), told about cycles. A handler may also
 /// have `on_batch(entry, const Variant* messages, std::size_t n)`: the supervisor then hands it
-/// each popped batch instead of visiting message by message (it must do what `on` would).
+/// each popped batch instead of visiting message by message (it must do what `on` would). A
+/// handler may also have `Nanos next_deadline() const`: the supervisor's thread then wakes at
+/// the earlier of its next period and that time (monotonic clock) for one more cycle.
 template <class H, class Variant>
 concept SupervisorHandler = detail::handles_all<H, bus::RegistryEntry<Variant>, Variant>::value &&
     requires(H& h, const bus::RegistryEntry<Variant>& e, const PortDrain& d, const DrainCycle& c) {
@@ -281,10 +283,22 @@ class DrainLoop {
     Nanos next = platform::now_ns();
     while (!quit_.load(std::memory_order_acquire)) {
       step();
-      next += options_.period_ns;
       const Nanos now = platform::now_ns();
-      if (next < now) next = now;  // never try to catch up: polling later is enough
-      platform::sleep_until(next);
+      // A regular cycle schedules the next one; an early one (a handler's deadline) leaves the
+      // regular schedule where it was.
+      if (now >= next) {
+        next += options_.period_ns;
+        if (next < now) next = now;  // never try to catch up: polling later is enough
+      }
+      Nanos wake = next;
+      // A handler with deadlines of its own (health supervision) is drained and judged when
+      // the earliest one passes, not at the next period.
+      if constexpr (requires(const Handler& h) {
+                      { h.next_deadline() } -> std::convertible_to<Nanos>;
+                    }) {
+        wake = std::min(wake, static_cast<Nanos>(handler_.next_deadline()));
+      }
+      platform::sleep_until(wake);
     }
   }
 

@@ -49,6 +49,12 @@ enum class EventKind : std::uint8_t {
   // What the units of a contributor report (CAN nodes):
   NotResponding,  ///< a unit (a CAN node) sent nothing within its silence limit
   Responding,     ///< a unit that was not responding sends again
+  // Health supervision (vigil/health; `HealthSupervision`): `detail` names the supervision first.
+  // Warn while the supervision is FAILED (within its tolerance), Error when it becomes EXPIRED.
+  AliveSupervision,     ///< too few or too many indications in a reference cycle, or never started
+  DeadlineSupervision,  ///< an end too early, missed (found when max passed), or a second start
+  LogicalSupervision,   ///< a checkpoint the graph does not allow after the previous one
+  CheckpointMisuse,     ///< a component reported a checkpoint id it did not declare (Warn)
 };
 /// Lower-case name of a kind ("exception", "overrun_limit", ...), as written in JSON.
 [[nodiscard]] const char* to_string(EventKind k) noexcept;

@@ -128,6 +128,27 @@ class BasicInstrumentation {
     return ok;
   }
 
+  /// Declares checkpoint `name` and returns its id (the same name again: the same id). Before
+  /// init() (std::logic_error once it runs). Not RT-safe; throws std::invalid_argument for an
+  /// empty name or one longer than 63 bytes.
+  health::CheckpointId declare_checkpoint(std::string_view name) {
+    return recorder_.declare_checkpoint(name);
+  }
+  /// Reports that the component passed checkpoint `id` now (one clock read, one push). RT-safe;
+  /// the component's thread only (inside or outside an UpdateGuard's scope). An id this
+  /// component did not declare is a counted, reported misuse.
+  [[gnu::always_inline]] void checkpoint(health::CheckpointId id) noexcept {
+    recorder_.checkpoint(id);
+  }
+  /// The same, at `time_ns` (a time the component already has): no clock read.
+  [[gnu::always_inline]] void checkpoint(health::CheckpointId id, Nanos time_ns) noexcept {
+    recorder_.checkpoint(id, time_ns);
+  }
+  /// Reports of ids this component did not declare, so far. The component's thread.
+  [[nodiscard]] std::uint32_t checkpoint_misuses() const noexcept {
+    return recorder_.checkpoint_misuses();
+  }
+
   [[nodiscard]] TaskState state() const noexcept { return state_; }
   [[nodiscard]] std::uint64_t cycles() const noexcept { return recorder_.cycles(); }
   [[nodiscard]] Port<Message, N>* port() const noexcept { return recorder_.port(); }

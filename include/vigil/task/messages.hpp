@@ -18,6 +18,7 @@
 #include <variant>
 
 #include "vigil/bus/fixed_string.hpp"
+#include "vigil/health/checkpoint.hpp"
 #include "vigil/log/record.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/platform/rt_loss.hpp"
@@ -133,9 +134,10 @@ struct StateChange {
   FixedString<96> reason;  ///< why it was refused, or why it failed
 };
 
-/// Everything a component's port carries.
-using Message =
-    std::variant<TaskInfo, CycleSample, RealTimeLoss, ExceptionReport, StateChange, log::LogRecord>;
+/// Everything a component's port carries. `health::CheckpointReport` is one checkpoint passed
+/// (vigil/health/checkpoint.hpp).
+using Message = std::variant<TaskInfo, CycleSample, RealTimeLoss, ExceptionReport, StateChange,
+                             log::LogRecord, health::CheckpointReport>;
 
 namespace detail {
 template <class... T>

@@ -8,12 +8,14 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "vigil/bus/port.hpp"
 #include "vigil/bus/registry.hpp"
+#include "vigil/health/checkpoint.hpp"
 #include "vigil/log/source.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/platform/rt_loss.hpp"
@@ -222,6 +224,58 @@ class CycleRecorder {
     }
   }
 
+  /// Declares checkpoint `name` and returns its id; the same name again returns the same id.
+  /// Not RT-safe (allocates one report, 128 bytes); call it before the component runs (its
+  /// configuration, or before Instrumentation::init), from the thread that configures it.
+  /// Throws std::invalid_argument for an empty name or one longer than kMaxCheckpointName bytes,
+  /// std::length_error beyond kMaxCheckpoints, std::logic_error while the component runs (a
+  /// report may be reading the list).
+  health::CheckpointId declare_checkpoint(std::string_view name) {
+    if (name.empty() || name.size() > health::kMaxCheckpointName) {
+      throw std::invalid_argument("checkpoint name '" + std::string(name) + "' of " + name_ +
+                                  " must be 1 to 63 bytes");
+    }
+    for (std::uint16_t i = 0; i < checkpoint_count_; ++i) {
+      if (report(i).name.view() == name) return health::detail::make_checkpoint_id(owner_, i);
+    }
+    if (state_ == TaskState::Running) {
+      throw std::logic_error(name_ + ": checkpoint '" + std::string(name) +
+                             "' declared while running; declare checkpoints when configuring");
+    }
+    if (checkpoint_count_ == health::kMaxCheckpoints) {
+      throw std::length_error(name_ + ": more than 256 checkpoints");
+    }
+    checkpoints_.emplace_back(std::in_place_type<health::CheckpointReport>);
+    health::CheckpointReport& r = report(checkpoint_count_);
+    r.index = checkpoint_count_;
+    r.name.assign(name);
+    return health::detail::make_checkpoint_id(owner_, checkpoint_count_++);
+  }
+
+  /// Reports checkpoint `id`, passed now (the component's clock: one read). RT-safe:
+  /// wait-free, no allocation, lock, system call or exception. The component's thread only.
+  /// An id this component did not declare is counted and reported as a misuse.
+  [[gnu::always_inline]] void checkpoint(health::CheckpointId id) noexcept {
+    if (id.owner() != owner_ || id.index() >= checkpoint_count_) [[unlikely]] {
+      misuse();
+      return;
+    }
+    push_checkpoint(id.index(), now());
+  }
+  /// Reports checkpoint `id`, passed at `time_ns` (a time the caller has: its cycle's start,
+  /// a frame's time stamp); no clock read. RT-safe, as checkpoint(id).
+  [[gnu::always_inline]] void checkpoint(health::CheckpointId id, Nanos time_ns) noexcept {
+    if (id.owner() != owner_ || id.index() >= checkpoint_count_) [[unlikely]] {
+      misuse();
+      return;
+    }
+    push_checkpoint(id.index(), time_ns);
+  }
+  /// Misuses so far (reports of an id this component did not declare). Component's thread.
+  [[nodiscard]] std::uint32_t checkpoint_misuses() const noexcept { return misuses_; }
+  /// Checkpoints declared so far.
+  [[nodiscard]] std::uint16_t checkpoints() const noexcept { return checkpoint_count_; }
+
   /// Cycles run so far. Any thread (relaxed atomic).
   [[nodiscard]] std::uint64_t cycles() const noexcept {
     return published_cycles_.load(std::memory_order_relaxed);
@@ -235,6 +289,41 @@ class CycleRecorder {
   static constexpr std::uint8_t kChange = 2;
   static constexpr std::uint8_t kException = 4;
   static constexpr std::uint8_t kTotals = 8;
+
+  [[nodiscard]] health::CheckpointReport& report(std::uint16_t i) noexcept {
+    auto* r = std::get_if<health::CheckpointReport>(&checkpoints_[i]);
+    if (r == nullptr) __builtin_unreachable();
+    return *r;
+  }
+
+  // The report was built when the checkpoint was declared: four stores and the push (its only
+  // copy).
+  [[gnu::always_inline]] void push_checkpoint(std::uint16_t i, Nanos time_ns) noexcept {
+    health::CheckpointReport& r = report(i);
+    r.time_ns = time_ns;
+    r.cycle = counters().cycles + 1;
+    ++r.count;
+    r.misuses = misuses_;
+    (void)membership_.port()->try_push(checkpoints_[i]);
+  }
+
+  [[gnu::noinline]] void misuse() noexcept {
+    ++misuses_;
+    health::CheckpointReport& r = *std::get_if<health::CheckpointReport>(&misuse_);
+    r.time_ns = now();
+    r.cycle = counters().cycles + 1;
+    r.count = misuses_;
+    r.misuses = misuses_;
+    (void)membership_.port()->try_push(misuse_);
+  }
+
+  // A tag per recorder, so that an id declared by another component is told apart.
+  static std::uint32_t next_owner() noexcept {
+    static std::atomic<std::uint32_t> next{1};
+    std::uint32_t o = next.fetch_add(1, std::memory_order_relaxed);
+    if (o == 0) o = next.fetch_add(1, std::memory_order_relaxed);  // 0 is "no owner"
+    return o;
+  }
 
   [[nodiscard]] [[gnu::always_inline]] Nanos now() const noexcept {
     if ((mode_ & (kTscClock | kReplacedClock)) == 0) [[likely]]
@@ -421,6 +510,13 @@ class CycleRecorder {
   Message sample_{std::in_place_type<CycleSample>};
   ExceptionReport exception_;
   StateChange change_;
+  // Checkpoints: one report per declaration, built in place (the list grows only while the
+  // component does not run), and the report of a misuse.
+  std::vector<Message> checkpoints_;
+  Message misuse_{std::in_place_type<health::CheckpointReport>};
+  std::uint32_t owner_ = next_owner();
+  std::uint32_t misuses_ = 0;
+  std::uint16_t checkpoint_count_ = 0;
 };
 
 }  // namespace detail

@@ -98,6 +98,29 @@ class Task : public TaskCore {
   /// Cycles run so far. Any thread.
   [[nodiscard]] std::uint64_t cycles() const noexcept { return recorder_.cycles(); }
 
+  /// Declares checkpoint `name` of this component (AUTOSAR PHM: a checkpoint of the supervised
+  /// entity) and returns its id; the same name again returns the same id. Call it from the
+  /// constructor or on_configure(), never while the component runs (std::logic_error). Not
+  /// RT-safe (allocates a report). Throws std::invalid_argument for an empty name or one longer
+  /// than 63 bytes (from on_configure(): the configuration fails with that reason).
+  health::CheckpointId declare_checkpoint(std::string_view name) {
+    return recorder_.declare_checkpoint(name);
+  }
+  /// Reports that the cycle passed checkpoint `id` now: one clock read and one push. RT-safe
+  /// (wait-free; no allocation, lock, system call or exception); from on_update() (the
+  /// component's thread). An id this component did not declare is a counted, reported misuse.
+  [[gnu::always_inline]] void checkpoint(health::CheckpointId id) noexcept {
+    recorder_.checkpoint(id);
+  }
+  /// The same, at `time_ns` (e.g. `cycle().start_ns`, a frame's time stamp): no clock read.
+  [[gnu::always_inline]] void checkpoint(health::CheckpointId id, Nanos time_ns) noexcept {
+    recorder_.checkpoint(id, time_ns);
+  }
+  /// Reports of ids this component did not declare, so far. The component's thread.
+  [[nodiscard]] std::uint32_t checkpoint_misuses() const noexcept {
+    return recorder_.checkpoint_misuses();
+  }
+
   /// TaskCore::update_running() without its virtual call, for an activity that knows the task's
   /// type (TypedManualActivity): the cycle is then inlined into the caller. The same behaviour.
   [[gnu::always_inline]] bool update_running(CycleContext& context) noexcept {
