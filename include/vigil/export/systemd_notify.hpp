@@ -107,13 +107,13 @@ struct SystemdNotifyOptions {
  * systemd's notify protocol as an output (see the file comment for what it sends and when).
  *
  * The keep-alive is driven by the monitor's cycles, not by a timer of its own: a cycle that
- * reaches publish() sends `WATCHDOG=1` when half of the interval has passed since the last one
- * and the supervisor made progress since then (its report, of kind `ReportKind::Supervisor`,
- * counts more cycles and its silence, when known, is shorter than half the interval). A stalled
- * monitor (or an output that blocks it) calls publish() no more and a stalled supervisor stops
- * counting, so either one stops the keep-alive and systemd restarts the service after
- * `WatchdogSec=`. The monitor's period must therefore be shorter than half of it (checked at
- * start: a warning otherwise).
+ * reaches publish() sends `WATCHDOG=1` when half of the interval (less a tenth of it, against
+ * the monitor's jitter) has passed since the last one and the supervisor made progress since then
+ * (its report, of kind `ReportKind::Supervisor`, counts more cycles and its silence, when known, is
+ * shorter than half the interval). A stalled monitor (or an output that blocks it) calls publish()
+ * no more and a stalled supervisor stops counting, so either one stops the keep-alive and systemd
+ * restarts the service after `WatchdogSec=`. The monitor's period must therefore be shorter than
+ * half of it (checked at start: a warning otherwise).
  *
  * **Example**:
  * ```cpp
