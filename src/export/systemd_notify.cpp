@@ -229,7 +229,7 @@ void SystemdNotifyOutput::say(const std::string& line) const {
 
 expected<void, Error> SystemdNotifyOutput::start(OutputContext& /*context*/) {
   for (const std::string& w : settings_.warnings) say(w);
-  ready_ = false;
+  ready_.store(false, std::memory_order_relaxed);
   status_.clear();
   last_keepalive_ns_.reset();
   supervisor_cycles_.reset();
@@ -325,14 +325,14 @@ void SystemdNotifyOutput::publish(const Snapshot& snapshot) {
   if (!settings_.notify()) return;
   const Nanos now = options_.clock.now();
   std::string message;
-  if (!ready_) message += "READY=1\n";
+  if (!ready()) message += "READY=1\n";
   std::string status = systemd_status_line(snapshot.reports);
   if (status != status_) message += "STATUS=" + status + "\n";
   const bool keep_alive = keep_alive_due(snapshot, now);
   if (keep_alive) message += "WATCHDOG=1\n";
   // What was not sent is sent again with the next cycle (READY, STATUS) or when due (WATCHDOG).
   if (message.empty() || !notify(message)) return;
-  ready_ = true;
+  ready_.store(true, std::memory_order_relaxed);
   status_ = std::move(status);
   if (keep_alive) {
     last_keepalive_ns_ = now;

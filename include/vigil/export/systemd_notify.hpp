@@ -148,8 +148,8 @@ class SystemdNotifyOutput final : public Output {
 
   /// The settings read from the environment (address, watchdog interval, warnings).
   [[nodiscard]] const SystemdSettings& settings() const noexcept { return settings_; }
-  /// Whether READY=1 was sent (since the latest start()).
-  [[nodiscard]] bool ready() const noexcept { return ready_; }
+  /// Whether READY=1 was sent (since the latest start()). Any thread.
+  [[nodiscard]] bool ready() const noexcept { return ready_.load(std::memory_order_relaxed); }
   /// Keep-alives sent so far; any thread.
   [[nodiscard]] std::uint64_t keepalives() const noexcept {
     return keepalives_.load(std::memory_order_relaxed);
@@ -167,12 +167,13 @@ class SystemdNotifyOutput final : public Output {
   int fd_ = -1;
   bool send_failed_ = false;
   // Monitor thread's state (publish), reset by start().
-  bool ready_ = false;
+  // Written by the monitor's thread, read by any; relaxed: a flag that orders no other data.
+  std::atomic<bool> ready_{false};
   std::string status_;
   std::optional<Nanos> last_keepalive_ns_;
   std::optional<std::uint64_t> supervisor_cycles_;  // at the latest keep-alive
-  bool withheld_ = false;  // the latest due keep-alive was withheld (said once)
-  std::atomic<std::uint64_t> keepalives_{0};
+  bool withheld_ = false;                     // the latest due keep-alive was withheld (said once)
+  std::atomic<std::uint64_t> keepalives_{0};  // relaxed as ready_: a count for readers
 };
 
 }  // namespace vigil::exporter
