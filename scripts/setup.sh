@@ -27,6 +27,9 @@ packages=(
   libspdlog-dev
   # instruction counts of the per-cycle path (scripts/callgrind-cycle.sh, docs/performance.md)
   valgrind
+  # vigil as a package of a ROS 2 workspace (tests/colcon/colcon_build.sh, docs/guide/colcon.md):
+  # colcon, its CMake builds, package.xml, and its `list` verb
+  colcon python3-colcon-cmake python3-colcon-ros python3-colcon-package-information
 )
 
 missing=()

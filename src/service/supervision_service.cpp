@@ -76,6 +76,14 @@ SupervisionService::SupervisionService(SupervisionServiceOptions options)
   if (!options_.prom_textfile.empty()) {
     add_output<exporter::TextfileOutput>(options_.prom_textfile);
   }
+  if (options_.systemd_notify) {
+    exporter::SystemdEnvironment env =
+        options_.systemd_environment.value_or(exporter::SystemdEnvironment::from_process());
+    if (env.notify_socket) {
+      systemd_ = &add_output<exporter::SystemdNotifyOutput>(exporter::SystemdNotifyOptions{
+          .environment = std::move(env), .monitor_period_ns = options_.monitor_period_ns});
+    }
+  }
   // The buckets are read at the start of each monitor cycle, just before the monitor copies the
   // aggregator's snapshots: the outputs get the reports and the buckets of the same cycle.
   histogram_hook_ = monitor_.add_cycle_hook([this] {

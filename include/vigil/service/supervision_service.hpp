@@ -54,6 +54,7 @@
 #include "vigil/export/http_server.hpp"
 #include "vigil/export/output.hpp"
 #include "vigil/export/outputs.hpp"
+#include "vigil/export/systemd_notify.hpp"
 #include "vigil/export/text_report.hpp"
 #include "vigil/monitor/monitor.hpp"
 #include "vigil/monitor/report.hpp"
@@ -111,6 +112,14 @@ struct SupervisionServiceOptions {
   std::optional<exporter::HttpOptions> http{};
   /// Rewrite this node-exporter textfile (`.prom`) after every monitor cycle; empty: none.
   std::filesystem::path prom_textfile{};
+  /// Speak systemd's notify protocol (READY, STATUS, the watchdog's keep-alive, STOPPING;
+  /// docs/guide/systemd.md) when the environment has `NOTIFY_SOCKET`, as under a `Type=notify`
+  /// unit: the constructor then adds an `exporter::SystemdNotifyOutput`. Bad variables are
+  /// warnings on stderr; supervision goes on. false: never.
+  bool systemd_notify = true;
+  /// The environment systemd's variables are read from; none (the default): the process's, read
+  /// by the constructor. A program or a test names them here without changing the process's.
+  std::optional<exporter::SystemdEnvironment> systemd_environment{};
   /// The monitor's options apart from its period (checks, thread stats, names, stack). Its clock
   /// must be `clock` (the service sets both).
   MonitorOptions monitor{};
@@ -191,6 +200,9 @@ class SupervisionService {
   [[nodiscard]] const SupervisionServiceOptions& options() const noexcept { return options_; }
   /// The HTTP server while the service runs with `http` set; null otherwise.
   [[nodiscard]] exporter::HttpServer* http() noexcept;
+  /// The systemd notify output when `systemd_notify` found `NOTIFY_SOCKET` (e.g. to
+  /// `trigger_watchdog()`); null otherwise.
+  [[nodiscard]] exporter::SystemdNotifyOutput* systemd() noexcept { return systemd_; }
 
  private:
   void on_cycle(const ReportSet& monitor_reports);
@@ -206,7 +218,8 @@ class SupervisionService {
   std::vector<std::unique_ptr<exporter::Output>> outputs_;
   std::vector<std::unique_ptr<Contributor>> owned_contributors_;
   std::vector<Contributor*> contributors_;
-  exporter::HttpOutput* http_ = nullptr;  // among outputs_, when options_.http
+  exporter::HttpOutput* http_ = nullptr;              // among outputs_, when options_.http
+  exporter::SystemdNotifyOutput* systemd_ = nullptr;  // among outputs_, under systemd
   // Cycle state, on the monitor's thread (or step()'s or stop()'s caller): the buckets read at
   // the start of the cycle, the last event handed out, whether outputs get the cycle.
   std::vector<exporter::ComponentHistograms> cycle_histograms_;
