@@ -112,6 +112,8 @@ def main():
         with open(json_path) as f:
             final = json.load(f)
         for c in final["components"]:
+            if "fields" in c:
+                continue  # a unit (a CAN node or group): no port of its own
             dropped = c["counters"]["dropped"]
             port = c.get("port", {})
             if dropped:
