@@ -137,6 +137,7 @@ struct SegmentSource::Impl {
   bool scanned = false;
   bool dir_changed = false;  // the drain thread saw our segments' names change while it slept
   Nanos next_scan = 0;
+  Nanos next_state_check = 0;
   std::uint32_t next_id = 1;
   std::vector<task::Message> buffer;
   std::vector<std::uint64_t> seqs;
@@ -160,9 +161,10 @@ struct SegmentSource::Impl {
   void event(EventKind k, std::int32_t pid, std::string component, std::string message) {
     Event e;
     e.kind = k;
-    e.severity = k == EventKind::ProcessExited     ? EventSeverity::Error
-                 : k == EventKind::SegmentRejected ? EventSeverity::Warn
-                                                   : EventSeverity::Info;
+    e.severity = k == EventKind::ProcessExited ? EventSeverity::Error
+                 : k == EventKind::SegmentRejected || k == EventKind::ProcessStopped
+                     ? EventSeverity::Warn
+                     : EventSeverity::Info;
     e.component = component.empty() ? fmt::format("pid {}", pid) : std::move(component);
     e.pid = pid;
     e.detected_ns = now();
@@ -514,6 +516,7 @@ struct SegmentSource::Impl {
     const Nanos t0 = now();
     const std::uint64_t m0 = messages;
     detect_deaths();
+    check_run_states(t0);
     discover(t0);
     drain_all();
     forget_placements(t0);
@@ -549,6 +552,37 @@ struct SegmentSource::Impl {
         for (std::size_t i = 0; i < fds.size(); ++i) {
           if (flags[i]) process_died(*owners[i]);
         }
+      }
+    }
+  }
+
+  // (1b) Stops and continues: each live process's state in /proc, every `state_check_ns`.
+  void check_run_states(Nanos t0) {
+    if (options.state_check_ns <= 0 || t0 < next_state_check) return;
+    next_state_check = t0 + options.state_check_ns;
+    for (auto& [key, p] : processes) {
+      if (!p->info.alive) continue;
+      const platform::RunState now_state =
+          platform::process_run_state({p->info.pid, p->info.start_ticks});
+      // A zombie or a gone process is a death: detect_deaths reports it, with how it ended.
+      if (now_state == platform::RunState::Zombie || now_state == platform::RunState::Gone) {
+        continue;
+      }
+      const platform::RunState was = p->info.run_state;
+      if (now_state == was) continue;
+      const Nanos since = p->info.run_state_since;
+      p->info.run_state = now_state;
+      p->info.run_state_since = t0;
+      if (now_state == platform::RunState::Running) {
+        event(EventKind::ProcessContinued, p->info.pid, p->info.name,
+              fmt::format("{} runs again after {} {}", p->info.name,
+                          format_nanos(static_cast<double>(t0 - since)), platform::to_string(was)));
+      } else {
+        event(EventKind::ProcessStopped, p->info.pid, p->info.name,
+              fmt::format("{} {} ({})", p->info.name, platform::to_string(now_state),
+                          now_state == platform::RunState::Traced
+                              ? "stopped by a tracer"
+                              : "stopped by a signal: SIGSTOP, SIGTSTP, SIGTTIN or SIGTTOU"));
       }
     }
   }
@@ -641,6 +675,24 @@ struct SegmentSource::Impl {
 
   // --- reports -------------------------------------------------------------------------------
 
+  // A component of a stopped process: the stop is its cause (its silence, its deadline events).
+  void name_a_stop(Report& r, std::int32_t pid, Nanos t) const {
+    for (const auto& [key, p] : processes) {
+      if (p->info.pid != pid || !p->info.alive) continue;
+      if (p->info.run_state == platform::RunState::Stopped ||
+          p->info.run_state == platform::RunState::Traced) {
+        r.merge(StatusLevel::Warn,
+                fmt::format(
+                    "its process {} (pid {}) is {}{}", p->info.name, pid,
+                    platform::to_string(p->info.run_state),
+                    p->info.run_state_since > 0 && t > p->info.run_state_since
+                        ? " for " + format_nanos(static_cast<double>(t - p->info.run_state_since))
+                        : std::string()));
+      }
+      return;
+    }
+  }
+
   static void add_placement(Report& r, const Placement& pl) {
     r.add("process", pl.process);
     r.add("pid", std::to_string(pl.pid));
@@ -694,7 +746,10 @@ struct SegmentSource::Impl {
       const auto it = placements.find(r.id);
       if (it != placements.end() && it->second.dead) continue;  // its dead report replaces it
       Report c = r;
-      if (it != placements.end()) add_placement(c, it->second);
+      if (it != placements.end()) {
+        add_placement(c, it->second);
+        name_a_stop(c, it->second.pid, base.time_ns);
+      }
       out.components.push_back(std::move(c));
     }
     for (const auto& [key, p] : processes) {
@@ -873,11 +928,17 @@ SegmentSourceStats SegmentSource::stats() const {
 
 const SegmentSourceOptions& SegmentSource::options() const noexcept { return impl_->options; }
 
-std::string format_processes(const std::vector<ProcessInfo>& processes) {
+std::string format_processes(const std::vector<ProcessInfo>& processes, Nanos now) {
   std::string out = fmt::format("{:<16} {:>7} {:<19} {:>3} {:<40} {}\n", "PROCESS", "PID",
                                 "STARTED", "RUN", "STATE", "COMMAND");
   for (const auto& p : processes) {
-    std::string state = p.alive ? fmt::format("running, {} component{}", p.components.size(),
+    const std::string how =
+        p.run_state != platform::RunState::Running && now > p.run_state_since &&
+                p.run_state_since > 0
+            ? fmt::format("{} {}", platform::to_string(p.run_state),
+                          format_nanos(static_cast<double>(now - p.run_state_since)))
+            : std::string(platform::to_string(p.run_state));
+    std::string state = p.alive ? fmt::format("{}, {} component{}", how, p.components.size(),
                                               p.components.size() == 1 ? "" : "s")
                                 : p.exit + (p.exit_source.empty() || p.exit_source == "unknown"
                                                 ? std::string()
@@ -891,7 +952,7 @@ std::string format_processes(const std::vector<ProcessInfo>& processes) {
 
 void SegmentSource::append(std::string& out) const {
   out += '\n';
-  out += format_processes(processes());
+  out += format_processes(processes(), impl_->now());
 }
 
 }  // namespace vigil::service

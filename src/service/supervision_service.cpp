@@ -4,6 +4,7 @@
 #include <exception>
 
 #include "vigil/export/metrics_snapshot.hpp"
+#include "vigil/service/health_units.hpp"
 
 namespace vigil::service {
 
@@ -62,6 +63,8 @@ SupervisionService::SupervisionService(SupervisionServiceOptions options)
       latest_(std::make_shared<const exporter::Snapshot>()) {
   if (auto* s = supervisor(); s != nullptr) monitor_.set_supervisor(s);
   if (auto* s = segments(); s != nullptr) add_contributor(*s);
+  // Health supervisions as units (none until `aggregator().supervise_health()` is called).
+  add_contributor(std::make_unique<HealthUnits>(aggregator_));
   if (options_.summary_file != nullptr) {
     add_output<exporter::TextOutput>(
         exporter::TextOutputOptions{.file = options_.summary_file,

@@ -39,6 +39,10 @@ const char* to_string(EventKind k) noexcept {
       return "process_exited";
     case EventKind::SegmentRejected:
       return "segment_rejected";
+    case EventKind::ProcessStopped:
+      return "process_stopped";
+    case EventKind::ProcessContinued:
+      return "process_continued";
     case EventKind::NotResponding:
       return "not_responding";
     case EventKind::Responding:

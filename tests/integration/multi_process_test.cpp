@@ -256,6 +256,55 @@ TEST_CASE("A process killed with SIGKILL: ERROR with pid and signal, others stay
   CHECK_FALSE(procs.back().alive);
 }
 
+TEST_CASE("A stopped process is named stopped, its stop and its continue are events",
+          "[integration][multi_process]") {
+  const std::string name = test::unique_supervisor_name();
+  test::ShmCleanup cleanup(name);
+  auto a = spawn([&](const ChildLink& l) { run_components(l, name, {"s.x"}); });
+  REQUIRE(a->wait_ready());
+  Daemon d(name);
+  d.wait_joined(1);
+  ::kill(a->pid, SIGSTOP);
+  const auto stopped = d.wait_event(EventKind::ProcessStopped, a->pid);
+  REQUIRE(stopped.has_value());
+  CHECK(stopped->severity == EventSeverity::Warn);
+  CHECK(stopped->detail.find("stopped") != std::string::npos);
+  auto procs = d.sup->processes();
+  REQUIRE(procs.size() == 1);
+  CHECK(procs[0].alive);
+  CHECK(procs[0].run_state == platform::RunState::Stopped);
+  CHECK(service::format_processes(procs, procs[0].run_state_since + kNanosPerSecond)
+            .find("stopped 1.00s, 1 component") != std::string::npos);
+  // Its component's report names the stop as the cause of its silence.
+  std::this_thread::sleep_for(200ms);
+  const ReportSet r = d.sup->step_monitor();
+  const Report* x = r.find("s.x");
+  REQUIRE(x != nullptr);
+  INFO(x->status.summary());
+  CHECK(x->status.summary().find("is stopped for") != std::string::npos);
+  ::kill(a->pid, SIGCONT);
+  const auto resumed = d.wait_event(EventKind::ProcessContinued, a->pid);
+  REQUIRE(resumed.has_value());
+  CHECK(resumed->severity == EventSeverity::Info);
+  CHECK(resumed->detail.find("runs again after") != std::string::npos);
+  procs = d.sup->processes();
+  CHECK(procs[0].run_state == platform::RunState::Running);
+  CHECK(d.count(EventKind::ProcessExited) == 0);
+}
+
+TEST_CASE("The run state of a state letter", "[integration][multi_process]") {
+  CHECK(platform::run_state_of('R') == platform::RunState::Running);
+  CHECK(platform::run_state_of('S') == platform::RunState::Running);
+  CHECK(platform::run_state_of('D') == platform::RunState::Running);
+  CHECK(platform::run_state_of('T') == platform::RunState::Stopped);
+  CHECK(platform::run_state_of('t') == platform::RunState::Traced);
+  CHECK(platform::run_state_of('Z') == platform::RunState::Zombie);
+  CHECK(platform::run_state_of('X') == platform::RunState::Gone);
+  CHECK(platform::process_run_state(platform::self_identity()) == platform::RunState::Running);
+  CHECK(platform::process_run_state({platform::self_identity().pid, 1}) ==
+        platform::RunState::Gone);  // another start time: another process
+}
+
 TEST_CASE("A process that exits with a code or dies of a signal is reported so",
           "[integration][multi_process]") {
   const std::string name = test::unique_supervisor_name();

@@ -50,6 +50,23 @@ struct ProcessIdentity {
 /// Whether process `id` runs: same pid and same start time, and not a zombie.
 [[nodiscard]] bool process_alive(const ProcessIdentity& id) noexcept;
 
+/// What a process is doing, from the state letter of /proc/<pid>/stat.
+enum class RunState : std::uint8_t {
+  Running,  ///< running or waiting (R, S, D, I, W, P): it is scheduled when it has work
+  Stopped,  ///< stopped by a signal (T: SIGSTOP, SIGTSTP, SIGTTIN, SIGTTOU); SIGCONT resumes it
+  Traced,   ///< stopped by a tracer (t: a debugger at a breakpoint)
+  Zombie,   ///< ended, not reaped by its parent yet (Z)
+  Gone,     ///< no such process (ended and reaped, or another process holds the pid)
+};
+/// "running", "stopped", "traced", "zombie", "gone".
+[[nodiscard]] const char* to_string(RunState s) noexcept;
+/// The run state of state letter `c` (field 3 of /proc/<pid>/stat): X and unknown letters are
+/// Gone. Pure (for tests).
+[[nodiscard]] RunState run_state_of(char c) noexcept;
+/// The run state of process `id` (Gone when the pid now names another process). One read of
+/// /proc/<pid>/stat: not for the real-time path.
+[[nodiscard]] RunState process_run_state(const ProcessIdentity& id) noexcept;
+
 /// The calling process's command line, arguments separated by spaces, at most `max` bytes.
 [[nodiscard]] std::string self_command_line(std::size_t max = 1024);
 /// The calling process's name as the kernel keeps it (comm, at most 15 characters).

@@ -35,6 +35,7 @@
 #include "vigil/export/outputs.hpp"
 #include "vigil/monitor/report.hpp"
 #include "vigil/platform/clock.hpp"
+#include "vigil/platform/process_watch.hpp"
 #include "vigil/service/contributor.hpp"
 #include "vigil/service/source.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
@@ -55,6 +56,9 @@ struct SegmentSourceOptions {
   /// sources made and destroyed often (closing an inotify instance waits for the kernel,
   /// milliseconds: the shm_segment fuzzer makes one per input).
   bool watch_directory = true;
+  /// How often each live process's run state is read from /proc (running, stopped by a signal,
+  /// stopped by a tracer): a stop and a continue are events found within this time. 0: never.
+  Nanos state_check_ns = 100 * kNanosPerMilli;
   /// Accept segments readable by this group (mode 0660); empty: owner-only segments (0600).
   std::string group{};
   /// Remove the segments of dead processes and of components that left, once drained.
@@ -78,6 +82,12 @@ struct ProcessInfo {
   /// 1 for the first process with this command line the daemon saw, 2 for the next...
   std::uint32_t incarnation = 1;
   bool alive = true;
+  /// While alive: running, stopped (by a signal: SIGSTOP, SIGTSTP...), traced (stopped by a
+  /// debugger) or zombie, as /proc said at the latest check (`state_check_ns`).
+  platform::RunState run_state = platform::RunState::Running;
+  /// Monitor clock when it entered `run_state` (as found: within `state_check_ns`); 0 when it
+  /// was so from the start.
+  Nanos run_state_since = 0;
   /// How it ended ("killed by signal 9 (SIGKILL)"), once it did.
   std::string exit;
   /// Where that came from: "pidfd" (the kernel, Linux >= 6.15), "self" (the process recorded
@@ -99,9 +109,11 @@ struct SegmentSourceStats {
   StatsSummary cycle_ns;           ///< time per cycle
 };
 
-/// The process table, one line per process: name, pid, start time, incarnation, state (running
-/// with its components, or how it ended), command line; a header line first.
-[[nodiscard]] std::string format_processes(const std::vector<ProcessInfo>& processes);
+/// The process table, one line per process: name, pid, start time, incarnation, state (running,
+/// stopped or traced with its components, or how it ended), command line; a header line first.
+/// `now`: the monitor clock, for how long a process has been stopped (0: not said).
+[[nodiscard]] std::string format_processes(const std::vector<ProcessInfo>& processes,
+                                           Nanos now = 0);
 
 class SegmentSource final : public Source, public Contributor, public exporter::TextPanel {
  public:

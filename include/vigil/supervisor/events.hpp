@@ -42,10 +42,12 @@ enum class EventKind : std::uint8_t {
   Recovered,     ///< cycles arrive again after a Deadline event
   Cleared,       ///< a latched fault was cleared (API, auto-clear, HTTP)
   // What `vigil supervise` (a SegmentSource) sees of other processes:
-  Joined,           ///< a component of another process appeared (its segment)
-  Left,             ///< a component of another process left normally (segment closed, drained)
-  ProcessExited,    ///< a supervised process ended; `detail` says how
-  SegmentRejected,  ///< a segment failed validation; `detail` names the field and why
+  Joined,            ///< a component of another process appeared (its segment)
+  Left,              ///< a component of another process left normally (segment closed, drained)
+  ProcessExited,     ///< a supervised process ended; `detail` says how
+  SegmentRejected,   ///< a segment failed validation; `detail` names the field and why
+  ProcessStopped,    ///< a supervised process was stopped (by a signal or a tracer); Warn
+  ProcessContinued,  ///< a stopped process runs again; `detail` says for how long it was stopped
   // What the units of a contributor report (CAN nodes):
   NotResponding,  ///< a unit (a CAN node) sent nothing within its silence limit
   Responding,     ///< a unit that was not responding sends again

@@ -144,6 +144,53 @@ bool process_alive(const ProcessIdentity& id) noexcept {
   }
 }
 
+const char* to_string(RunState s) noexcept {
+  switch (s) {
+    case RunState::Running:
+      return "running";
+    case RunState::Stopped:
+      return "stopped";
+    case RunState::Traced:
+      return "traced";
+    case RunState::Zombie:
+      return "zombie";
+    case RunState::Gone:
+      return "gone";
+  }
+  return "?";
+}
+
+RunState run_state_of(char c) noexcept {
+  switch (c) {
+    case 'R':
+    case 'S':
+    case 'D':
+    case 'I':
+    case 'W':
+    case 'P':
+      return RunState::Running;
+    case 'T':
+      return RunState::Stopped;
+    case 't':
+      return RunState::Traced;
+    case 'Z':
+      return RunState::Zombie;
+    default:
+      return RunState::Gone;
+  }
+}
+
+RunState process_run_state(const ProcessIdentity& id) noexcept {
+  if (id.pid <= 0) return RunState::Gone;
+  try {
+    const StatFields f = stat_of(id.pid);
+    if (!f.ok || f.start_ticks != id.start_ticks) return RunState::Gone;
+    return run_state_of(f.state);
+  } catch (...) {
+    return RunState::Gone;
+  }
+}
+
 std::string self_command_line(std::size_t max) {
   std::string s = read_small_file("/proc/self/cmdline", max + 1);
   while (!s.empty() && s.back() == '\0') s.pop_back();
