@@ -53,6 +53,7 @@ struct SuperviseOptions {
   std::string name = "vigil";
   std::string json;
   std::string http;       ///< [ADDR:]PORT: serve the reports over HTTP (docs/reference/http.md)
+  std::string health;     ///< a YAML file with a `health:` section (or the section's keys)
   double duration_s = 0;  ///< 0: until Ctrl-C
   double period_ms = 10;
   std::string group;

@@ -142,27 +142,33 @@ class LoadRamp : public Task<LoadRamp> {
 class Leaky : public Task<Leaky> {
  public:
   explicit Leaky(const ComponentContext& c)
-      : Task(c.name, c.supervision, c.registry()), every_(param<std::uint64_t>(c, "every", 1000)) {}
+      : Task(c.name, c.supervision, c.registry()),
+        every_(param<std::uint64_t>(c, "every", 1000)),
+        sample_(declare_checkpoint("sample")) {}
   void on_update() {
     if (++n_ % every_ == 0) {
       log_.push_back(std::make_unique<double>(static_cast<double>(n_)));  // the hidden allocation
       if (log_.size() > 16) log_.clear();
     }
     burn(5 * kNanosPerMicro);
+    checkpoint(sample_);  // the demo's deadline chain starts here (the encoder ends it)
   }
 
  private:
   std::uint64_t every_;
+  CheckpointId sample_;
   std::uint64_t n_ = 0;
   std::vector<std::unique_ptr<double>> log_;
 };
 
-/// Injected fault: throws after `after` (an encoder that starts returning garbage).
+/// Injected fault: throws after `after` (an encoder that starts returning garbage). A frame it
+/// decodes passes checkpoint "decoded" (the end of the demo's deadline chain).
 class Faulty : public Task<Faulty> {
  public:
   explicit Faulty(const ComponentContext& c)
       : Task(c.name, c.supervision, c.registry()),
-        after_ns_(param_duration(c, "after", 4 * kNanosPerSecond)) {}
+        after_ns_(param_duration(c, "after", 4 * kNanosPerSecond)),
+        decoded_(declare_checkpoint("decoded")) {}
   bool on_start() {
     start_ns_ = platform::now_ns();
     return true;
@@ -180,6 +186,7 @@ class Faulty : public Task<Faulty> {
       throw std::runtime_error("encoder checksum mismatch on joint 3");
     }
     burn(10 * kNanosPerMicro);
+    checkpoint(decoded_);
   }
 
  private:
@@ -188,8 +195,62 @@ class Faulty : public Task<Faulty> {
   }
 
   Nanos after_ns_;
+  CheckpointId decoded_;
   Nanos start_ns_ = 0;
   std::uint64_t frame_ = 0;
+};
+
+/// Telemetry: publishes a sample every `every`-th cycle (checkpoint "publish": 100 Hz on a 1 kHz
+/// thread by default). Injected fault: from `burst_after` on it publishes every cycle (a state
+/// machine stuck in its resend state): a component that runs too often. 0s: never.
+class Telemetry : public Task<Telemetry> {
+ public:
+  explicit Telemetry(const ComponentContext& c)
+      : Task(c.name, c.supervision, c.registry()),
+        every_(param<std::uint64_t>(c, "every", 10)),
+        burst_after_ns_(param_duration(c, "burst_after", 0)),
+        publish_(declare_checkpoint("publish")) {
+    if (every_ == 0) throw std::runtime_error("every must be at least 1");
+  }
+  bool on_start() {
+    start_ns_ = platform::now_ns();
+    return true;
+  }
+  void on_update() {
+    const bool burst = burst_after_ns_ > 0 && platform::now_ns() - start_ns_ > burst_after_ns_;
+    if (burst && !announced_) {
+      announced_ = true;
+      VIGIL_LOG_WARN("resending every cycle (state machine stuck in RESEND)");
+    }
+    if (burst || ++n_ % every_ == 0) {
+      burn(2 * kNanosPerMicro);  // serialise and hand the sample over
+      checkpoint(publish_);
+    }
+  }
+
+ private:
+  std::uint64_t every_;
+  Nanos burst_after_ns_;
+  CheckpointId publish_;
+  Nanos start_ns_ = 0;
+  std::uint64_t n_ = 0;
+  bool announced_ = false;
+};
+
+/// A driver for a device that is not there (`device`): it configures, but refuses to start. In
+/// the demo it is `optional` (the system runs without it) and health supervision expects it to
+/// run: its alive supervision reports that it never started.
+class MissingDevice : public Task<MissingDevice> {
+ public:
+  explicit MissingDevice(const ComponentContext& c)
+      : Task(c.name, c.supervision, c.registry()),
+        device_(param<std::string>(c, "device", "/dev/lidar0")) {}
+  [[nodiscard]] const std::string& device() const noexcept { return device_; }
+  bool on_start() { return false; }  // the device is not there
+  void on_update() {}
+
+ private:
+  std::string device_;
 };
 
 /// Fault injection: after `after`, on_update never returns (a driver call that hangs). The other
@@ -218,29 +279,40 @@ class Stuck : public Task<Stuck> {
 
 /// Fault injection: once, after `after`, on_update blocks for `for` (a driver call that times
 /// out), then the component runs normally again. The watchdog reports it within its deadline
-/// (max(10 periods, 30 ms) by default) and reports its recovery.
+/// (max(10 periods, 30 ms) by default) and reports its recovery. Each cycle passes three
+/// checkpoints, command -> move -> report; the cycle that timed out drops its move (command ->
+/// report), which the demo's logical supervision catches.
 class Hang : public Task<Hang> {
  public:
   explicit Hang(const ComponentContext& c)
       : Task(c.name, c.supervision, c.registry()),
         after_ns_(param_duration(c, "after", 1500 * kNanosPerMilli)),
-        for_ns_(param_duration(c, "for", 300 * kNanosPerMilli)) {}
+        for_ns_(param_duration(c, "for", 300 * kNanosPerMilli)),
+        command_(declare_checkpoint("command")),
+        move_(declare_checkpoint("move")),
+        report_(declare_checkpoint("report")) {}
   bool on_start() {
     start_ns_ = platform::now_ns();
     return true;
   }
   void on_update() {
+    checkpoint(command_);
     if (!hung_ && platform::now_ns() - start_ns_ > after_ns_) {
       hung_ = true;
-      VIGIL_LOG_WARN("driver call blocks for {} ms", for_ns_ / kNanosPerMilli);
+      VIGIL_LOG_WARN("driver call blocks for {} ms; this cycle's move is dropped",
+                     for_ns_ / kNanosPerMilli);
       std::this_thread::sleep_for(std::chrono::nanoseconds(for_ns_));  // the injected fault
+    } else {
+      burn(10 * kNanosPerMicro);
+      checkpoint(move_);
     }
-    burn(10 * kNanosPerMicro);
+    checkpoint(report_);
   }
 
  private:
   Nanos after_ns_;
   Nanos for_ns_;
+  CheckpointId command_, move_, report_;
   Nanos start_ns_ = 0;
   bool hung_ = false;
 };
@@ -331,6 +403,8 @@ void register_components() {
   f.add<Faulty>("demo.faulty", "fault: throws after a delay");
   f.add<Stuck>("demo.stuck", "fault: never returns from on_update after a delay");
   f.add<Hang>("demo.hang", "fault: blocks once in on_update for a while, then recovers");
+  f.add<Telemetry>("demo.telemetry", "telemetry publisher (fault: publishes every cycle)");
+  f.add<MissingDevice>("demo.missing_device", "driver of an absent device: refuses to start");
   f.add<CanIo>("demo.can_io", "CAN I/O with simulated CANopen drives (needs a `can:` section)");
   deploy::register_can_extension();  // also done by linking vigil::deploy_can
 }
@@ -365,6 +439,15 @@ components:
     type: demo.faulty
     activity: aux
     parameters: {after: 2500ms}
+  - name: telemetry                       # publishes at 100 Hz; every cycle from 3.2 s
+    type: demo.telemetry
+    activity: aux
+    parameters: {every: 10, burst_after: 3200ms}
+  - name: lidar                           # its device is absent: it never starts
+    type: demo.missing_device
+    activity: planning
+    optional: true                        # the system runs without it
+    parameters: {device: /dev/lidar0}
   - name: gripper
     type: demo.hang
     activity: drive
@@ -407,6 +490,19 @@ can:
   groups:
     left_arm: {node_range: [1, 4], bus: 0}
     right_arm: {node_range: [5, 8], bus: 0}
+health:                                   # checkpoints supervised (docs/guide/health-supervision.md)
+  alive:
+    - {name: telemetry_rate, checkpoint: telemetry.publish, reference_cycle: 100ms,
+       expected: 10, min_margin: 3, max_margin: 3, tolerance: 1}
+    - {name: lidar_alive, checkpoint: lidar, reference_cycle: 500ms, expected: 5,
+       min_margin: 1, max_margin: 1, startup_grace: 1s}
+  deadline:
+    - {name: sample_to_decode, start: logger.sample, end: encoder.decoded, max: 800us}
+  logical:
+    - name: gripper_sequence
+      initial: gripper.command
+      final: gripper.report
+      transitions: ["gripper.command -> gripper.move", "gripper.move -> gripper.report"]
 outputs: {}
 )";
 

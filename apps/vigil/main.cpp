@@ -89,6 +89,9 @@ int main(int argc, char** argv) {
   sup_cmd->add_option("--http", sup.http,
                       "Serve the reports, /metrics and the dashboard on [ADDR:]PORT (default "
                       "address 127.0.0.1)");
+  sup_cmd->add_option("--health", sup.health,
+                      "Supervise the alive, deadline and logical supervisions of FILE's `health:` "
+                      "section (a deployment file, or one with the section's keys)");
   sup_cmd
       ->add_option("-d,--duration", sup.duration_s,
                    "Seconds to run; 0 runs until Ctrl-C (default: 0)")

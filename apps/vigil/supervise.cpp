@@ -7,9 +7,12 @@
 #include <chrono>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <thread>
 
 #include "commands.hpp"
+#include "vigil/config/load.hpp"
+#include "vigil/deploy/health_section.hpp"
 #include "vigil/export/outputs.hpp"
 #include "vigil/export/text_report.hpp"
 #include "vigil/platform/process.hpp"
@@ -52,12 +55,48 @@ expected<service::SupervisionServiceOptions, int> options_of(const SuperviseOpti
   return opts;
 }
 
+// `--health FILE`: its `health:` section (or the whole file as one). The components come from
+// other processes, so any component name is accepted; the exit code on an error.
+expected<health::HealthConfig, int> health_of(const std::string& file) {
+  auto root = config::load_file(file);
+  if (!root) {
+    std::fprintf(stderr, "vigil supervise: --health %s\n", config::to_string(root.error()).c_str());
+    return unexpected(1);
+  }
+  const config::Node section =
+      root->is_mapping() && root->has("health") ? (*root)["health"] : *root;
+  deploy::HealthSpec spec = deploy::parse_health(section, {});
+  if (root->has_errors()) {
+    std::fprintf(stderr, "vigil supervise: --health %s:\n%s\n", file.c_str(),
+                 config::to_string(root->errors()).c_str());
+    return unexpected(1);
+  }
+  if (spec.empty()) {
+    std::fprintf(stderr, "vigil supervise: --health %s: no supervision in it\n", file.c_str());
+    return unexpected(1);
+  }
+  return std::move(spec.config);
+}
+
 }  // namespace
 
 int run_supervise(const SuperviseOptions& o) {
   auto opts = options_of(o);
   if (!opts) return opts.error();
+  std::optional<health::HealthConfig> health;
+  if (!o.health.empty()) {
+    auto h = health_of(o.health);
+    if (!h) return h.error();
+    health = std::move(*h);
+  }
   service::SupervisionService daemon(std::move(*opts));
+  if (health) {
+    if (auto r = daemon.aggregator().supervise_health(std::move(*health)); !r) {
+      std::fprintf(stderr, "vigil supervise: --health %s: %s\n", o.health.c_str(),
+                   r.error().message.c_str());
+      return 1;
+    }
+  }
   service::SegmentSource& segments = *daemon.segments();
   // What happens to processes (joined, left, exited, rejected) as lines, as it happens: under
   // the live view on a terminal, else on stdout. The live view: the summary and the process

@@ -70,7 +70,7 @@ ActivitySpec parse_activity(const config::Node& n) {
 
 ComponentSpec parse_component(const config::Node& n, const ComponentFactory& factory) {
   n.reject_unknown_keys(
-      {"name", "type", "activity", "detectors", "overhead_sample_every", "parameters"});
+      {"name", "type", "activity", "detectors", "overhead_sample_every", "optional", "parameters"});
   ComponentSpec c;
   c.node = n;
   c.name = n.required<std::string>("name", config::non_empty());
@@ -102,6 +102,7 @@ ComponentSpec parse_component(const config::Node& n, const ComponentFactory& fac
   c.supervision.detectors = d;
   // Any count: the recorder counts cycles down (0: never).
   c.supervision.overhead_sample_every = n.optional<std::uint32_t>("overhead_sample_every", 64);
+  c.optional = n.optional("optional", false);
   c.parameters = n["parameters"];
   if (c.parameters.defined() && !c.parameters.is_mapping() && !c.parameters.is_null()) {
     c.parameters.error("expected a mapping of parameters");
@@ -111,8 +112,8 @@ ComponentSpec parse_component(const config::Node& n, const ComponentFactory& fac
 
 // Top-level keys: the built-in ones, then the sections of registered extensions (kept in `d`).
 void parse_sections(const config::Node& root, DeploymentSpec& d) {
-  constexpr std::string_view kBuiltIn[] = {"name", "activities", "components", "supervision",
-                                           "outputs"};
+  constexpr std::string_view kBuiltIn[] = {"name",        "activities", "components",
+                                           "supervision", "outputs",    "health"};
   const std::vector<std::string> registered = registered_extensions();
   std::vector<std::string_view> allowed(std::begin(kBuiltIn), std::end(kBuiltIn));
   allowed.insert(allowed.end(), registered.begin(), registered.end());
@@ -297,7 +298,8 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
   DeploymentSpec d;
   d.root = root;
   if (!root.is_mapping()) {
-    root.error("a deployment is a mapping with activities, components, supervision, outputs");
+    root.error(
+        "a deployment is a mapping with activities, components, supervision, outputs, health");
     return root.finish(std::move(d));
   }
   parse_sections(root, d);
@@ -308,6 +310,12 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
     parse_supervision(s, root, d.supervision);
   }
   if (const config::Node o = root["outputs"]; o.defined()) parse_outputs(o, d.outputs);
+  if (const config::Node h = root["health"]; h.defined()) {
+    std::vector<std::string> names;
+    names.reserve(d.components.size());
+    for (const ComponentSpec& c : d.components) names.push_back(c.name);
+    d.health = parse_health(h, names);
+  }
   return root.finish(std::move(d));
 }
 

@@ -1,7 +1,9 @@
 #include "vigil/deploy/system.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
+#include <cerrno>
 #include <chrono>
 #include <exception>
 #include <future>
@@ -118,8 +120,31 @@ expected<std::unique_ptr<System>, config::ConfigErrors> System::create(
     }
     sys->slots_.push_back(std::move(slot));
   }
+  sys->supervise_health();
   if (root.has_errors()) return vigil::unexpected(root.errors());
   return sys;
+}
+
+void System::supervise_health() {
+  const HealthSpec& health = spec_.health;
+  if (health.empty()) return;
+  // Components that declare their checkpoints when built are checked now (so `vigil
+  // check-config` finds a misspelt one); the others when they have configured (start()).
+  for (Slot& s : slots_) {
+    if (!s.task) continue;
+    const std::vector<std::string> declared = s.task->declared_checkpoints();
+    if (declared.empty()) {
+      s.check_checkpoints_at_start = true;
+    } else {
+      (void)check_declared(health, s.spec->name, declared);
+    }
+  }
+  // In shared memory, the components are supervised by `vigil supervise`, which reads this
+  // section itself (`--health FILE`); this process has no checkpoint to see.
+  if (registry_.shared_memory()) return;
+  if (auto r = aggregator().supervise_health(health.config); !r) {
+    spec_.root["health"].error(r.error().message);
+  }
 }
 
 expected<void, Error> System::start() {
@@ -188,9 +213,33 @@ expected<void, Error> System::start() {
                                                  s.spec->name, to_string(state))});
     }
   }
+  // Checkpoints named in `health:` that a component declares when it configures.
+  std::vector<std::string> undeclared;
+  for (const auto& s : slots_) {
+    if (!s.check_checkpoints_at_start) continue;
+    auto missing =
+        undeclared_checkpoints(spec_.health, s.spec->name, s.task->declared_checkpoints());
+    undeclared.insert(undeclared.end(), missing.begin(), missing.end());
+  }
+  if (!undeclared.empty()) {
+    stop();
+    return vigil::unexpected(Error{EINVAL, fmt::format("{}", fmt::join(undeclared, "\n"))});
+  }
+  if (!spec_.health.empty() && registry_.shared_memory()) {
+    log_.push_back(fmt::format(
+        "health: {} supervisions for `vigil supervise --name {} --health FILE`, not this process",
+        spec_.health.config.alive.size() + spec_.health.config.deadline.size() +
+            spec_.health.config.logical.size(),
+        registry_.shared_memory()->session().options().name));
+  }
   for (auto& s : slots_) {
     if (!s.activity) continue;
     if (auto r = s.activity->start(); !r) {
+      if (s.spec->optional && r.error().code == ECANCELED) {  // it refused: run without it
+        log_.push_back(fmt::format("{} refused to start (optional: the system runs without it)",
+                                   s.spec->name));
+        continue;
+      }
       stop();
       return vigil::unexpected(Error{
           r.error().code, fmt::format("component '{}': {}", s.spec->name, r.error().message)});

@@ -13,6 +13,7 @@
 
 #include "utf8.hpp"
 #include "vigil/can/can_monitor.hpp"
+#include "vigil/health/report.hpp"
 #include "vigil/version.hpp"
 
 namespace vigil::exporter {
@@ -326,6 +327,7 @@ bool is_supervisor(const Report& r) { return r.kind == ReportKind::Supervisor; }
 bool is_monitor(const Report& r) { return r.kind == ReportKind::Monitor; }
 bool is_can_node(const Report& r) { return r.is_unit(can::kNodeUnit); }
 bool is_can_group(const Report& r) { return r.is_unit(can::kGroupUnit); }
+bool is_supervision(const Report& r) { return r.is_unit(health::kSupervisionUnit); }
 
 // A unit's count field, if it has it.
 std::optional<std::uint64_t> count_field(const Report& r, std::string_view name) {
@@ -718,6 +720,72 @@ void can_group_families(const Section& s) {
   });
 }
 
+// Health supervisions (vigil/health): one unit each, its type (alive, deadline, logical) a label.
+void supervision_families(const Section& s) {
+  Writer& w = s.w;
+  const auto type_of = [](const Report& r) {
+    const Field* f = r.field("type");
+    return f != nullptr && f->type == Field::Type::Text ? std::string_view(f->text)
+                                                        : std::string_view();
+  };
+  const auto counter = [&](std::string_view family, std::string_view field, const char* help) {
+    w.family(family, Type::Counter, help);
+    s.each(is_supervision, [&](const Report& r) {
+      if (auto n = count_field(r, field)) w.sample_u(family, r.name, {{"type", type_of(r)}}, *n);
+    });
+  };
+  counter("vigil_supervision_checkpoints_total", "checkpoints",
+          "Checkpoints (or cycles) a health supervision has seen, those a full port dropped "
+          "included when their count is known.");
+  counter("vigil_supervision_lost_total", "lost",
+          "Checkpoint reports a full port dropped, found by gaps in the checkpoints' counts.");
+  counter("vigil_supervision_evaluations_total", "evaluations",
+          "Results a health supervision judged: reference cycles (alive), start/end pairs "
+          "(deadline), transitions (logical).");
+  counter("vigil_supervision_failures_total", "failures",
+          "Failures of a health supervision (too few or too many indications, never started, "
+          "deadline too early, missed or restarted, invalid transition).");
+  counter("vigil_supervision_expirations_total", "expirations",
+          "Times a health supervision became EXPIRED (failures beyond its tolerance).");
+  w.family("vigil_supervision_failed", Type::Gauge,
+           "Failures of a health supervision not yet taken back by correct results (FAILED while "
+           "within its tolerance, EXPIRED beyond it).");
+  s.each(is_supervision, [&](const Report& r) {
+    if (auto n = count_field(r, "failed")) {
+      w.sample_u("vigil_supervision_failed", r.name, {{"type", type_of(r)}}, *n);
+    }
+  });
+  w.family("vigil_supervision_indications", Type::Gauge,
+           "Indications an alive supervision counted: in the latest full reference cycle "
+           "(window=\"last\") and in the current one so far (window=\"current\").");
+  s.each(is_supervision, [&](const Report& r) {
+    if (auto n = count_field(r, "last_cycle")) {
+      w.sample_u("vigil_supervision_indications", r.name, {{"window", "last"}}, *n);
+    }
+    if (auto n = count_field(r, "this_cycle")) {
+      w.sample_u("vigil_supervision_indications", r.name, {{"window", "current"}}, *n);
+    }
+  });
+  w.family("vigil_supervision_deadline_seconds", Type::Gauge,
+           "Time from start to end checkpoint of a deadline supervision: the latest pair "
+           "(stat=\"last\"), the shortest and the longest so far (absent before the first pair).");
+  s.each(is_supervision, [&](const Report& r) {
+    for (const char* stat : {"last", "min", "max"}) {
+      if (auto d = duration_field(r, stat)) {
+        w.sample("vigil_supervision_deadline_seconds", r.name, {{"stat", stat}}, seconds(*d));
+      }
+    }
+  });
+  w.family("vigil_supervision_detection_seconds", Type::Gauge,
+           "Time from a health supervision's latest fault (a reference cycle's end, a deadline's "
+           "max) to its detection (absent before the first failure).");
+  s.each(is_supervision, [&](const Report& r) {
+    if (auto d = duration_field(r, "detected_after")) {
+      w.sample("vigil_supervision_detection_seconds", r.name, {}, seconds(*d));
+    }
+  });
+}
+
 // Every family, section by section, in the order they are exposed.
 using SectionWriter = void (*)(const Section&);
 constexpr SectionWriter kSections[] = {
@@ -732,6 +800,7 @@ constexpr SectionWriter kSections[] = {
     monitor_families,
     can_node_families,
     can_group_families,
+    supervision_families,
 };
 
 }  // namespace

@@ -160,6 +160,58 @@ void write_fault(exporter::JsonWriter& w, const supervisor::FlightRecord& r, Tra
       .end_object();
 }
 
+// Health supervision: each checkpoint as an instant on the component's thread, and each deadline
+// supervision's start/end pairs as async slices (one track per supervision; a missed deadline
+// ends at its max and says so).
+void write_health(exporter::JsonWriter& w, const supervisor::FlightRecord& r, Track t) {
+  for (const health::CheckpointMark& m : r.checkpoints) {
+    w.begin_object()
+        .field("name", m.name)
+        .field("cat", "checkpoint")
+        .field("ph", "i")
+        .field("s", "t")
+        .field("ts", us(m.time_ns))
+        .field("pid", t.pid)
+        .field("tid", t.tid)
+        .key("args")
+        .begin_object()
+        .field("cycle", m.cycle)
+        .end_object()
+        .end_object();
+  }
+  std::uint64_t id = 1;
+  for (const health::DeadlineSpan& d : r.deadlines) {
+    const bool ok = d.failure == health::FailureKind::None;
+    const std::string name = fmt::format("deadline {}", d.supervision);
+    w.begin_object()
+        .field("name", name)
+        .field("cat", ok ? "deadline" : "deadline,fault")
+        .field("ph", "b")
+        .field("id", id)
+        .field("ts", us(d.start_ns))
+        .field("pid", t.pid)
+        .field("tid", t.tid)
+        .key("args")
+        .begin_object()
+        .field("start", d.start)
+        .field("end", d.end)
+        .field("duration_us", us(d.end_ns - d.start_ns))
+        .field("result", ok ? "ok" : health::to_string(d.failure))
+        .end_object()
+        .end_object();
+    w.begin_object()
+        .field("name", name)
+        .field("cat", ok ? "deadline" : "deadline,fault")
+        .field("ph", "e")
+        .field("id", id)
+        .field("ts", us(d.end_ns))
+        .field("pid", t.pid)
+        .field("tid", t.tid)
+        .end_object();
+    ++id;
+  }
+}
+
 // What the record is about, for the viewer's metadata panel.
 void write_other_data(exporter::JsonWriter& w, const supervisor::FlightRecord& r) {
   const Event& e = r.event;
@@ -173,6 +225,8 @@ void write_other_data(exporter::JsonWriter& w, const supervisor::FlightRecord& r
   w.field("detected_ns", e.detected_ns);
   w.field("frozen_ns", r.frozen_ns);
   w.field("cycles", static_cast<std::uint64_t>(r.cycles.size()));
+  w.field("checkpoints", static_cast<std::uint64_t>(r.checkpoints.size()));
+  w.field("deadline_spans", static_cast<std::uint64_t>(r.deadlines.size()));
   w.end_object();
 }
 
@@ -207,6 +261,7 @@ std::string trace_event_json(const supervisor::FlightRecord& r) {
     write_cycle(w, c, prev, t);
     prev = &c;
   }
+  write_health(w, r, t);
   if (!r.on_demand) write_fault(w, r, t);
   w.end_array();
   w.key("otherData");

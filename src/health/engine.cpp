@@ -80,6 +80,12 @@ struct Supervision {
   Nanos max_duration = 0;
   int start_cp = -1;  // alive: its checkpoint
   int end_cp = -1;
+  struct Span {
+    Nanos start = 0;
+    Nanos end = 0;
+    FailureKind failure = FailureKind::None;
+  };
+  std::deque<Span> spans;  // the latest pairs (HealthEngine::kKeptSpans), for traces
   // Logical.
   std::vector<int> nodes;              // node -> checkpoint handle
   std::vector<std::vector<int>> next;  // node -> allowed next nodes
@@ -351,9 +357,15 @@ struct HealthEngine::Impl {
     }
   }
 
+  static void keep_span(Supervision& s, Nanos start, Nanos end, FailureKind f) {
+    s.spans.push_back({start, end, f});
+    if (s.spans.size() > HealthEngine::kKeptSpans) s.spans.pop_front();
+  }
+
   void deadline_start(Supervision& s, Nanos t) {
     const auto& c = config.deadline[s.config];
     if (s.started) {
+      keep_span(s, s.start_time, t, FailureKind::DeadlineRestarted);
       fail(s, FailureKind::DeadlineRestarted,
            checkpoints[static_cast<std::size_t>(s.start_cp)].entity, t,
            fmt::format("{} again {} after the previous one, before {}",
@@ -376,6 +388,7 @@ struct HealthEngine::Impl {
     s.min_duration = s.evaluations == 1 ? d : std::min(s.min_duration, d);
     s.max_duration = std::max(s.max_duration, d);
     const int entity = checkpoints[static_cast<std::size_t>(s.end_cp)].entity;
+    keep_span(s, s.start_time, t, d < c.min_ns ? FailureKind::DeadlineTooEarly : FailureKind::None);
     if (d < c.min_ns) {
       fail(s, FailureKind::DeadlineTooEarly, entity, t,
            fmt::format("{} -> {} took {} (min {})", to_string(c.start), to_string(c.end), ms(d),
@@ -480,6 +493,7 @@ struct HealthEngine::Impl {
       const auto& c = config.deadline[s.config];
       s.started = false;
       ++s.evaluations;
+      keep_span(s, s.start_time, s.start_time + c.max_ns, FailureKind::DeadlineMissed);
       fail(
           s, FailureKind::DeadlineMissed, checkpoints[static_cast<std::size_t>(s.end_cp)].entity,
           s.start_time + c.max_ns,
@@ -758,6 +772,25 @@ std::vector<SupervisionReport> HealthEngine::reports() const {
   std::vector<SupervisionReport> out;
   out.reserve(impl_->sups.size());
   for (const auto& s : impl_->sups) out.push_back(impl_->report_of(s));
+  return out;
+}
+
+std::vector<DeadlineSpan> HealthEngine::deadline_spans(std::string_view entity, Nanos from) const {
+  std::vector<DeadlineSpan> out;
+  const Impl& m = *impl_;
+  for (const Supervision& s : m.sups) {
+    if (s.kind != SupervisionKind::Deadline || s.spans.empty()) continue;
+    const auto& start = m.checkpoints[static_cast<std::size_t>(s.start_cp)];
+    const auto& end = m.checkpoints[static_cast<std::size_t>(s.end_cp)];
+    if (m.entities[static_cast<std::size_t>(start.entity)].name != entity &&
+        m.entities[static_cast<std::size_t>(end.entity)].name != entity) {
+      continue;
+    }
+    for (const Supervision::Span& sp : s.spans) {
+      if (sp.end < from) continue;
+      out.push_back(DeadlineSpan{s.name, start.label, end.label, sp.start, sp.end, sp.failure});
+    }
+  }
   return out;
 }
 

@@ -965,12 +965,20 @@ void ComponentAggregator::raise(Slot& s, Event e) {
     events_.publish(std::move(e));
     return;
   }
+  add_health_trace(*record);
   // Stored under frozen_mutex_ with its sequence number before any subscriber can ask for it.
   std::lock_guard lock(frozen_mutex_);
   record->event = e;
   record->event.seq = events_.publish(std::move(e));
   frozen_.push_back(std::move(record));
   while (frozen_.size() > kKeptRecords) frozen_.pop_front();
+}
+
+void ComponentAggregator::add_health_trace(FlightRecord& r) const {
+  if (!health_) return;
+  // The checkpoints from the first recorded cycle's release on (all kept when none is).
+  const Nanos from = r.cycles.empty() ? 0 : r.cycles.front().release_ns;
+  health_->trace(r.component_id, from, r.checkpoints, r.deadlines);
 }
 
 std::size_t ComponentAggregator::clear_slot(Slot& s, const char* why) {
@@ -1033,6 +1041,7 @@ std::optional<FlightRecord> ComponentAggregator::flight_record(std::string_view 
     r.info = s->data.info;
     r.cycles = s->ring.ordered();
     r.on_demand = true;
+    add_health_trace(r);
     r.frozen_ns = options_.clock.now();
     r.event.kind = EventKind::StateChange;
     r.event.component = r.component;

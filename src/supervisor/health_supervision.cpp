@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <iterator>
 #include <utility>
 
 namespace vigil::supervisor {
@@ -70,7 +72,15 @@ void HealthSupervision::checkpoint(std::uint32_t id, const health::CheckpointRep
   if (b == nullptr) return;
   ++b->reports;
   if (m.misuses > b->misuses) b->misuses = m.misuses;
-  if (m.index == health::kMisuseIndex || b->entity < 0) return;
+  if (m.index == health::kMisuseIndex) return;
+  // Kept for traces, supervised or not.
+  if (b->recent.empty()) b->recent.resize(kKeptCheckpoints);
+  b->recent[b->next] = Binding::Mark{m.time_ns, m.cycle, m.index};
+  b->next = (b->next + 1) % kKeptCheckpoints;
+  ++b->kept;
+  if (m.index >= b->names.size()) b->names.resize(m.index + std::size_t{1});
+  if (b->names[m.index].empty()) b->names[m.index] = std::string(m.name.view());
+  if (b->entity < 0) return;
   if (m.index >= b->checkpoints.size()) b->checkpoints.resize(m.index + std::size_t{1}, -2);
   int& handle = b->checkpoints[m.index];
   if (handle == -2) handle = engine_.checkpoint(b->name, m.name.view());
@@ -153,6 +163,23 @@ bool HealthSupervision::activate(std::string_view entity) {
   if (e < 0) return false;
   engine_.activate(e, clock_.now());
   return true;
+}
+
+void HealthSupervision::trace(std::uint32_t id, Nanos from,
+                              std::vector<health::CheckpointMark>& marks,
+                              std::vector<health::DeadlineSpan>& spans) const {
+  std::lock_guard lock(mutex_);
+  const auto it = bindings_.find(id);
+  if (it == bindings_.end()) return;
+  const Binding& b = it->second;
+  const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(b.kept, kKeptCheckpoints));
+  for (std::size_t i = 0; i < n; ++i) {
+    const Binding::Mark& m = b.recent[(b.next + kKeptCheckpoints - n + i) % kKeptCheckpoints];
+    if (m.time < from) continue;
+    marks.push_back(health::CheckpointMark{b.names[m.index], m.time, m.cycle});
+  }
+  auto s = engine_.deadline_spans(b.name, from);
+  spans.insert(spans.end(), std::make_move_iterator(s.begin()), std::make_move_iterator(s.end()));
 }
 
 std::vector<CheckpointUse> HealthSupervision::checkpoint_use() const {

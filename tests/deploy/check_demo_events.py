@@ -4,7 +4,10 @@ the encoder's exception is an event within 20 ms of its fault time; the hanging 
 (gripper) is reported by the watchdog and recovers; each component that went to ERROR by an
 event has a trace that parses as trace-event JSON with its last cycles; the healthy motors'
 statistics hold no start-up overruns (the warm-up is kept out of them), and the motors read OK unless
-the host stalled the VM during the run (steal time and missed releases both say so)."""
+the host stalled the VM during the run (steal time and missed releases both say so). Issue 45: each
+kind of health supervision fails once in the demo (a deadline chain the encoder's exception breaks,
+the gripper's skipped step, telemetry that runs too often, a lidar that never starts), each failure
+is an event, and the traces show checkpoints and deadline spans."""
 import json
 import os
 import subprocess
@@ -68,6 +71,28 @@ if len(rec) != 1:
 elif dl and rec[0]["seq"] < dl[0]["seq"]:
     failures.append("the gripper recovered before it hung")
 
+# Health supervision (issue 45): one failure of each kind, each an event naming its cause.
+def health_event(comp, kind, text):
+    evs = [e for e in by(comp, kind) if text in e["detail"]]
+    if not evs:
+        failures.append(f"no {kind} event for {comp} with '{text}': {by(comp, kind)}")
+        return None
+    lat_ms = (evs[0]["detected_ns"] - evs[0]["fault_ns"]) / 1e6
+    print(f"{kind} on {comp}: detected {lat_ms:.2f} ms after its fault: {evs[0]['detail']}")
+    return evs[0], lat_ms
+
+
+chain = health_event("encoder", "deadline_supervision", "sample_to_decode")
+if chain and not (0 <= chain[1] <= 20):
+    failures.append(f"the missed chain was found {chain[1]:.2f} ms after its max (> 20 ms)")
+sequence = health_event("gripper", "logical_supervision", "gripper.report after gripper.command")
+if sequence and "allowed: gripper.move" not in sequence[0]["detail"]:
+    failures.append(f"the invalid transition does not name the allowed one: {sequence[0]}")
+health_event("telemetry", "alive_supervision", "too_many_indications")
+never = health_event("lidar", "alive_supervision", "never_started")
+if never and never[0]["severity"] != "error":
+    failures.append(f"a component that never started is not an error: {never[0]}")
+
 final = json.load(open(final_path))
 comps = {c["name"]: c for c in final["components"] if c["kind"] == "component"}
 traced = {e["component"] for e in events if e["traced"]}
@@ -96,6 +121,17 @@ for name in traced:
     if fault and last != fault:
         failures.append(f"{mine[0]}: the last cycle is {last}, the faulting one {fault}")
     print(f"{mine[0]}: {len(cycles)} cycles up to {last}")
+    # Checkpoints as instants, deadline pairs as async slices (issue 45).
+    cps = [e for e in evs if e["ph"] == "i" and e.get("cat") == "checkpoint"]
+    spans = [e for e in evs if e["ph"] == "b" and e.get("cat", "").startswith("deadline")]
+    want = {"encoder": ("decoded", "deadline sample_to_decode"), "gripper": ("move", None)}
+    if name in want:
+        cp, span = want[name]
+        if not any(e["name"] == cp for e in cps):
+            failures.append(f"{mine[0]}: no '{cp}' checkpoint among {len(cps)} instants")
+        if span and not any(e["name"] == span for e in spans):
+            failures.append(f"{mine[0]}: no '{span}' slice among {len(spans)}")
+        print(f"{mine[0]}: {len(cps)} checkpoints, {len(spans)} deadline spans")
 
 for motor in ("motor_left", "motor_right"):
     c = comps[motor]

@@ -68,6 +68,38 @@ MetricsSnapshot rich_snapshot() {
   group.state_label = "degraded";
   group.add_field(Field::of_count("frames", 238));
   s.reports.components.push_back(group);
+  // A deadline supervision that failed (the fields service::supervision_unit() gives it).
+  Report sup;
+  sup.kind = ReportKind::Unit;
+  sup.unit_kind = "supervision";
+  sup.name = "supervision sense_to_act";
+  sup.state_label = "expired";
+  sup.merge(StatusLevel::Error, "no drive.write within 2.000 ms of camera.frame");
+  sup.add_field(Field::of_text("type", "deadline"));
+  sup.add_field(Field::of_text("entities", "camera, drive"));
+  sup.add_field(Field::of_count("checkpoints", 2001));
+  sup.add_field(Field::of_count("lost", 3));
+  sup.add_field(Field::of_count("evaluations", 1000));
+  sup.add_field(Field::of_count("failures", 2));
+  sup.add_field(Field::of_count("failed", 1));
+  sup.add_field(Field::of_count("tolerance", 0));
+  sup.add_field(Field::of_count("expirations", 1));
+  sup.add_field(Field::of_duration("last", 1'500'000));
+  sup.add_field(Field::of_duration("min", 900'000));
+  sup.add_field(Field::of_duration("max", 2'500'000));
+  sup.add_field(Field::of_text("last_failure", "deadline_missed"));
+  sup.add_field(Field::of_duration("detected_after", 120'000));
+  s.reports.components.push_back(sup);
+  Report alive;
+  alive.kind = ReportKind::Unit;
+  alive.unit_kind = "supervision";
+  alive.name = "supervision drive_rate";
+  alive.state_label = "ok";
+  alive.add_field(Field::of_text("type", "alive"));
+  alive.add_field(Field::of_count("checkpoints", 500));
+  alive.add_field(Field::of_count("last_cycle", 10));
+  alive.add_field(Field::of_count("this_cycle", 4));
+  s.reports.components.push_back(alive);
   // Their gap buckets: the node's gaps exact (samples), the group's from a histogram.
   const std::vector<Nanos> rx = {900'000, 1'000'000, 1'000'000, 1'100'000, 4'000'000};
   const std::vector<Nanos> tx = {10'000'000, 10'000'000};
@@ -347,6 +379,42 @@ TEST_CASE("Samples reduce to exact buckets", "[export][prometheus][buckets]") {
   CHECK(b.cumulative[kBucketBounds - 1] == 6);  // le 10 s: the last one only in +Inf
   CHECK(b.sum_ns == Approx(17'000'004'501.0));
   CHECK(reduce_samples_to_buckets({}).count == 0);
+}
+
+TEST_CASE("Health supervisions are served from their fields", "[export][prometheus][health]") {
+  const MetricsSnapshot snap = rich_snapshot();
+  const Exposition e = parse_exposition(render_metrics(snap, ExpositionFormat::Prometheus), false);
+  const auto value = [&](const char* family, const char* component,
+                         std::pair<const char*, const char*> label = {nullptr, nullptr}) {
+    const auto* f = e.find(family);
+    REQUIRE(f != nullptr);
+    for (const auto& smp : f->samples) {
+      if (smp.label("component") != component) continue;
+      if (label.first != nullptr && smp.label(label.first) != label.second) continue;
+      return smp.value;
+    }
+    FAIL("no sample of " << family << " for " << component);
+    return 0.0;
+  };
+  const char* deadline = "supervision sense_to_act";
+  CHECK(value("vigil_supervision_checkpoints_total", deadline, {"type", "deadline"}) == 2001);
+  CHECK(value("vigil_supervision_lost_total", deadline) == 3);
+  CHECK(value("vigil_supervision_evaluations_total", deadline) == 1000);
+  CHECK(value("vigil_supervision_failures_total", deadline) == 2);
+  CHECK(value("vigil_supervision_expirations_total", deadline) == 1);
+  CHECK(value("vigil_supervision_failed", deadline) == 1);
+  CHECK(value("vigil_supervision_deadline_seconds", deadline, {"stat", "max"}) == Approx(0.0025));
+  CHECK(value("vigil_supervision_deadline_seconds", deadline, {"stat", "last"}) == Approx(0.0015));
+  CHECK(value("vigil_supervision_detection_seconds", deadline) == Approx(0.00012));
+  CHECK(value("vigil_supervision_indications", "supervision drive_rate", {"window", "last"}) == 10);
+  CHECK(value("vigil_supervision_indications", "supervision drive_rate", {"window", "current"}) ==
+        4);
+  CHECK(value("vigil_component_status", deadline, {"kind", "supervision"}) == 2);
+  CHECK(value("vigil_component_state", deadline, {"state", "expired"}) == 1);
+  // What a supervision does not have is absent, not zero.
+  for (const auto& smp : e.find("vigil_supervision_deadline_seconds")->samples) {
+    CHECK(smp.label("component") != "supervision drive_rate");
+  }
 }
 
 TEST_CASE("CAN units are served from their fields, under CAN names", "[export][prometheus][can]") {

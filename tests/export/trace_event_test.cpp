@@ -88,6 +88,42 @@ TEST_CASE("A flight record is trace-event JSON: X per cycle, markers, counters, 
   CHECK(t["displayTimeUnit"].str() == "ms");
 }
 
+TEST_CASE("A flight record shows checkpoints as instants and deadline pairs as async slices",
+          "[export][trace][health]") {
+  supervisor::FlightRecord r = sample_record();
+  r.checkpoints = {{"decoded", 1'070'000, 101}, {"decoded", 2'070'000, 102}};
+  r.deadlines = {{"sample_to_decode", "logger.sample", "encoder.decoded", 1'000'000, 1'070'000,
+                  health::FailureKind::None},
+                 {"sample_to_decode", "logger.sample", "encoder.decoded", 10'000'000, 10'500'000,
+                  health::FailureKind::DeadlineMissed}};
+  const Json t = JsonParser::parse(trace_event_json(r));
+  std::vector<Json> cps;
+  for (const Json& e : of_phase(t, "i")) {
+    if (e.has("cat") && e["cat"].str() == "checkpoint") cps.push_back(e);
+  }
+  REQUIRE(cps.size() == 2);
+  CHECK(cps[0]["name"].str() == "decoded");
+  CHECK(cps[0]["ts"].number() == Approx(1070.0));
+  CHECK(cps[1]["args"]["cycle"].number() == 102);
+  CHECK(cps[0]["tid"].number() == 4242);  // on the component's thread
+  const auto begins = of_phase(t, "b");
+  const auto ends = of_phase(t, "e");
+  REQUIRE(begins.size() == 2);
+  REQUIRE(ends.size() == 2);
+  CHECK(begins[0]["name"].str() == "deadline sample_to_decode");
+  CHECK(begins[0]["cat"].str() == "deadline");
+  CHECK(begins[0]["args"]["result"].str() == "ok");
+  CHECK(begins[0]["args"]["duration_us"].number() == Approx(70.0));
+  CHECK(begins[1]["cat"].str() == "deadline,fault");
+  CHECK(begins[1]["args"]["result"].str() == "deadline_missed");
+  CHECK(begins[1]["args"]["end"].str() == "encoder.decoded");
+  CHECK(ends[1]["ts"].number() == Approx(10500.0));
+  CHECK(begins[1]["id"].number() == ends[1]["id"].number());  // each begin meets its end
+  CHECK(begins[0]["id"].number() != begins[1]["id"].number());
+  CHECK(t["otherData"]["checkpoints"].number() == 2);
+  CHECK(t["otherData"]["deadline_spans"].number() == 2);
+}
+
 TEST_CASE("Events are one JSON object per line, escaped", "[export][events]") {
   Event e;
   e.seq = 9;

@@ -241,6 +241,40 @@ TEST_CASE("Deadline: an end within [min, max] passes, across entities", "[health
   CHECK(r.entities == std::vector<std::string>{"camera", "drive"});
 }
 
+TEST_CASE("Deadline: the latest pairs are kept as spans for traces, failures marked",
+          "[health][deadline]") {
+  Chain c;
+  c.e.report(c.frame, kT0 + 10 * kMs);
+  c.e.report(c.sent, kT0 + 13 * kMs);   // ok
+  c.e.report(c.frame, kT0 + 20 * kMs);  // missed (no end by 25 ms)
+  c.e.report(c.frame, kT0 + 40 * kMs);
+  c.e.report(c.frame, kT0 + 42 * kMs);  // restarted
+  c.e.report(c.sent, kT0 + 44 * kMs);
+  c.e.advance(kT0 + 60 * kMs);
+  const auto spans = c.e.deadline_spans("drive");
+  REQUIRE(spans.size() == 4);
+  CHECK(spans[0].supervision == "sense_to_act");
+  CHECK(spans[0].start == "camera.frame");
+  CHECK(spans[0].end == "drive.sent");
+  CHECK(spans[0].failure == FailureKind::None);
+  CHECK(spans[0].end_ns - spans[0].start_ns == 3 * kMs);
+  CHECK(spans[1].failure == FailureKind::DeadlineMissed);
+  CHECK(spans[1].end_ns == kT0 + 25 * kMs);  // ends at its max
+  CHECK(spans[2].failure == FailureKind::DeadlineRestarted);
+  CHECK(spans[2].end_ns == kT0 + 42 * kMs);  // ends at the second start
+  CHECK(spans[3].failure == FailureKind::None);
+  CHECK(c.e.deadline_spans("camera").size() == 4);  // the start's entity too
+  CHECK(c.e.deadline_spans("drive", kT0 + 30 * kMs).size() == 2);
+  CHECK(c.e.deadline_spans("elsewhere").empty());
+  // Bounded: only the latest kKeptSpans.
+  for (int i = 0; i < 100; ++i) {
+    c.e.report(c.frame, kT0 + (100 + 10 * i) * kMs);
+    c.e.report(c.sent, kT0 + (101 + 10 * i) * kMs);
+  }
+  c.e.advance(kT0 + 2000 * kMs);
+  CHECK(c.e.deadline_spans("drive").size() == HealthEngine::kKeptSpans);
+}
+
 TEST_CASE("Deadline: inputs are paired in time order whatever their arrival order",
           "[health][deadline]") {
   Chain c;

@@ -527,6 +527,14 @@ TEST_CASE("A deadline across two processes: met, then missed and found by the da
   d.wait_joined(2);
   const auto evaluations = [&] { return d.sup->aggregator().health_reports().at(0).evaluations; };
   cam->go();
+  // The start is drained (so the camera's child has time-stamped it) before the end is asked
+  // for: a loaded machine may wake the two children in any order.
+  const auto started_by = std::chrono::steady_clock::now() + 10s;
+  while (!d.sup->aggregator().health_reports().at(0).started &&
+         std::chrono::steady_clock::now() < started_by) {
+    d.sup->step();
+    std::this_thread::sleep_for(1ms);
+  }
   std::this_thread::sleep_for(2ms);
   act->go();
   const auto end = std::chrono::steady_clock::now() + 10s;

@@ -134,6 +134,22 @@ TEST_CASE("Checkpoints and cycles drained from ports feed health supervision (fa
   CHECK(deadline[0].detail.find("deadline_missed") != std::string::npos);
   CHECK(deadline[0].fault_ns < deadline[0].detected_ns);
   CHECK(deadline[0].latched);  // the first Error on b: its latch and a flight record
+  // The flight record of that event holds b's checkpoints and the chain's pairs (traces).
+  const auto record = agg.frozen_record(deadline[0].seq);
+  REQUIRE(record != nullptr);
+  REQUIRE_FALSE(record->checkpoints.empty());
+  CHECK(record->checkpoints.back().name == "end");
+  CHECK(record->checkpoints.front().time_ns >= record->cycles.front().release_ns);
+  REQUIRE(record->deadlines.size() >= 19);
+  CHECK(record->deadlines.front().supervision == "a_to_b");
+  CHECK(record->deadlines.front().failure == health::FailureKind::None);
+  CHECK(record->deadlines.back().failure == health::FailureKind::DeadlineMissed);
+  // On demand too, for a component that only starts the chain.
+  const auto of_a = agg.flight_record("a");
+  REQUIRE(of_a.has_value());
+  CHECK_FALSE(of_a->checkpoints.empty());
+  CHECK(of_a->checkpoints.front().name == "begin");
+  CHECK(of_a->deadlines.size() == record->deadlines.size());
 
   // a stops on purpose: its alive supervision is deactivated, not failed.
   REQUIRE(act_a.stop());

@@ -17,6 +17,8 @@
 ///   thresholds: {defaults: {overrun: {near_fraction: 0.9}}}   # or a file name
 ///   shared_memory: robot      # optional: supervised by `vigil supervise --name robot`
 /// outputs: {json: final.json, http: {listen: 9479}, textfile: vigil.prom}
+/// health:                         # checkpoints supervised (vigil/deploy/health_section.hpp)
+///   deadline: [{name: plan_to_act, start: planner.plan_ready, end: motor_left.applied, max: 5ms}]
 /// can: {node_map: canopen}        # a section of a registered extension
 /// (vigil/deploy/extension.hpp)
 /// ```
@@ -35,6 +37,7 @@
 #include "vigil/config/error.hpp"
 #include "vigil/config/node.hpp"
 #include "vigil/deploy/factory.hpp"
+#include "vigil/deploy/health_section.hpp"
 #include "vigil/exec/periodic_activity.hpp"
 #include "vigil/expected.hpp"
 #include "vigil/export/http_server.hpp"
@@ -56,6 +59,9 @@ struct ComponentSpec {
   std::string type;
   std::string activity;
   SupervisionOptions supervision;
+  /// `optional: true`: a refused start does not stop the system (it is said in the start log,
+  /// and the component stays configured, not running).
+  bool optional = false;
   config::Node parameters;  ///< undefined when absent
   config::Node node;        ///< the component's own entry, for errors
 };
@@ -123,6 +129,8 @@ struct DeploymentSpec {
   std::vector<ComponentSpec> components;
   SupervisionSpec supervision;
   OutputSpec outputs;
+  /// `health:`: alive, deadline and logical supervisions (vigil/deploy/health_section.hpp).
+  HealthSpec health;
   /// Sections handled by registered extensions (e.g. `can:`), in file order, unparsed.
   std::vector<ExtensionSection> extensions;
   /// The document (keeps the nodes valid; component parameters report into it).

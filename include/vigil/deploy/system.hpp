@@ -116,11 +116,16 @@ class System {
 
  private:
   explicit System(DeploymentSpec spec);
+  // `health:`: checks the checkpoints components declared when built, supervises the section.
+  void supervise_health();
 
   struct Slot {
     std::unique_ptr<TaskCore> task;
     std::unique_ptr<PeriodicActivity> activity;
     const ComponentSpec* spec = nullptr;
+    /// Its checkpoints named in `health:` are checked when it has configured (it declared
+    /// none when it was built).
+    bool check_checkpoints_at_start = false;
   };
 
   DeploymentSpec spec_;

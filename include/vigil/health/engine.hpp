@@ -108,6 +108,13 @@ class HealthEngine {
   [[nodiscard]] std::vector<SupervisionReport> reports() const;
   /// The status of supervision `name` (Deactivated for an unknown name).
   [[nodiscard]] SupervisionStatus status(std::string_view name) const;
+  /// The latest start/end pairs (at most kKeptSpans per deadline supervision) of the deadline
+  /// supervisions whose start or end is on entity `entity`, that end at or after `from`, oldest
+  /// first within each supervision.
+  [[nodiscard]] std::vector<DeadlineSpan> deadline_spans(std::string_view entity,
+                                                         Nanos from = 0) const;
+  /// Start/end pairs kept per deadline supervision for deadline_spans().
+  static constexpr std::size_t kKeptSpans = 64;
   /// The configuration (validated).
   [[nodiscard]] const HealthConfig& config() const noexcept;
 

@@ -20,11 +20,15 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "vigil/platform/clock.hpp"
 
 namespace vigil::health {
+
+/// The unit kind (monitor::Report::unit_kind) of a supervision's report in the pipeline.
+inline constexpr std::string_view kSupervisionUnit = "supervision";
 
 /// The status of one supervision.
 enum class SupervisionStatus : std::uint8_t {
@@ -71,6 +75,26 @@ struct Failure {
   [[nodiscard]] Nanos latency_ns() const noexcept {
     return detected_ns >= fault_ns && fault_ns > 0 ? detected_ns - fault_ns : 0;
   }
+};
+
+/// One checkpoint a component passed, as a trace shows it (an instant).
+struct CheckpointMark {
+  std::string name;         ///< the declared name
+  Nanos time_ns = 0;        ///< when it was passed (the component's clock)
+  std::uint64_t cycle = 0;  ///< the component's cycle it was passed in
+};
+
+/// One start/end pair of a deadline supervision, as a trace shows it (a span from its start to
+/// its end, or to its max when the end never came).
+struct DeadlineSpan {
+  std::string supervision;  ///< its name
+  std::string start;        ///< the start checkpoint ("entity.checkpoint")
+  std::string end;          ///< the end checkpoint
+  Nanos start_ns = 0;
+  /// When the end came; for a missed deadline, start + max; for a restarted one, the second
+  /// start.
+  Nanos end_ns = 0;
+  FailureKind failure = FailureKind::None;  ///< None for a pair within [min, max]
 };
 
 /// Everything known about one supervision at one moment. Plain data: copy it freely.

@@ -20,7 +20,7 @@
 namespace vigil::service {
 
 /// The unit kind of a health supervision's report (`Report::unit_kind`).
-inline constexpr std::string_view kSupervisionUnit = "supervision";
+inline constexpr std::string_view kSupervisionUnit = health::kSupervisionUnit;
 
 /// The report of one supervision: a unit of kind "supervision" named "supervision <name>";
 /// state: "ok", "failed", "expired" or "deactivated"; status: OK (ok, deactivated), WARN

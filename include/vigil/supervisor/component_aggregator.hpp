@@ -304,7 +304,9 @@ class ComponentAggregator {
   [[nodiscard]] platform::HugePageBlocks* ring_blocks_for_next() const noexcept;
   Slot* slot_for(const Entry& e);
   void take_sample(Slot& s, const task::CycleSample& m);  // all but the copy into data.last
-  void raise(Slot& s, Event e);                           // the slot is locked by the caller
+  void raise(Slot& s, Event e);
+  // Adds health supervision's checkpoints and deadline spans to a flight record.
+  void add_health_trace(FlightRecord& r) const;  // the slot is locked by the caller
   void resolve_pending(Slot& s, const task::CycleSample* sample);
   void watch(Slot& s, Nanos now);
   std::size_t clear_slot(Slot& s, const char* why);

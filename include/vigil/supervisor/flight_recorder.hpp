@@ -31,6 +31,7 @@
 #endif
 
 #include "vigil/assert.hpp"
+#include "vigil/health/report.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/platform/memory.hpp"
 #include "vigil/supervisor/events.hpp"
@@ -381,6 +382,11 @@ struct FlightRecord {
   bool has_info = false;
   task::TaskInfo info;              ///< activity, period, thread id, policy (when has_info)
   std::vector<CycleRecord> cycles;  ///< oldest first
+  /// The component's checkpoints over the recorded cycles (health supervision; empty when none
+  /// is supervised), oldest first.
+  std::vector<health::CheckpointMark> checkpoints;
+  /// The latest start/end pairs of the deadline supervisions that start or end on it.
+  std::vector<health::DeadlineSpan> deadlines;
   /// Why it was frozen: the event (kind, cycle, fault time, detail); for a record taken on
   /// demand, kind is StateChange with detail "on demand" and no fault time.
   Event event;

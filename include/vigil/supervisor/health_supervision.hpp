@@ -74,6 +74,13 @@ class HealthSupervision {
   bool deactivate(std::string_view entity);
   /// Entity `name` must run again (its supervisions restart now). False for an unknown entity.
   bool activate(std::string_view entity);
+  /// What a flight record of component `id` shows besides its cycles: its latest checkpoints
+  /// (at most kKeptCheckpoints) passed at or after `from`, oldest first, and the latest
+  /// start/end pairs of the deadline supervisions that start or end on it.
+  void trace(std::uint32_t id, Nanos from, std::vector<health::CheckpointMark>& marks,
+             std::vector<health::DeadlineSpan>& spans) const;
+  /// Checkpoint reports kept per component for trace().
+  static constexpr std::size_t kKeptCheckpoints = 512;
   /// Checkpoint statistics per component that reported one.
   [[nodiscard]] std::vector<CheckpointUse> checkpoint_use() const;
   [[nodiscard]] const health::HealthConfig& config() const noexcept { return engine_.config(); }
@@ -88,6 +95,16 @@ class HealthSupervision {
     std::uint32_t misuses = 0;
     std::uint32_t misuses_raised = 0;
     bool alive = true;
+    // The latest checkpoint reports (a ring of kKeptCheckpoints, allocated at the first one).
+    struct Mark {
+      Nanos time = 0;
+      std::uint64_t cycle = 0;
+      std::uint16_t index = 0;
+    };
+    std::vector<Mark> recent;
+    std::size_t next = 0;  // where the next one goes
+    std::uint64_t kept = 0;
+    std::vector<std::string> names;  // report index -> declared name
   };
   Binding* binding(std::uint32_t id);
 

@@ -275,6 +275,11 @@ class CycleRecorder {
   [[nodiscard]] std::uint32_t checkpoint_misuses() const noexcept { return misuses_; }
   /// Checkpoints declared so far.
   [[nodiscard]] std::uint16_t checkpoints() const noexcept { return checkpoint_count_; }
+  /// The name of declared checkpoint `i` (< checkpoints()). Not for the real-time path.
+  [[nodiscard]] std::string_view checkpoint_name(std::uint16_t i) const noexcept {
+    const auto* r = std::get_if<health::CheckpointReport>(&checkpoints_[i]);
+    return r != nullptr ? r->name.view() : std::string_view{};
+  }
 
   /// Cycles run so far. Any thread (relaxed atomic).
   [[nodiscard]] std::uint64_t cycles() const noexcept {

@@ -24,6 +24,7 @@
 #include <type_traits>
 #include <typeinfo>
 #include <utility>
+#include <vector>
 
 #include "vigil/expected.hpp"
 #include "vigil/task/supervision.hpp"
@@ -105,6 +106,15 @@ class Task : public TaskCore {
   /// than 63 bytes (from on_configure(): the configuration fails with that reason).
   health::CheckpointId declare_checkpoint(std::string_view name) {
     return recorder_.declare_checkpoint(name);
+  }
+  /// The checkpoints declared so far, in declaration order. Not RT-safe.
+  [[nodiscard]] std::vector<std::string> declared_checkpoints() const override {
+    std::vector<std::string> names;
+    names.reserve(recorder_.checkpoints());
+    for (std::uint16_t i = 0; i < recorder_.checkpoints(); ++i) {
+      names.emplace_back(recorder_.checkpoint_name(i));
+    }
+    return names;
   }
   /// Reports that the cycle passed checkpoint `id` now: one clock read and one push. RT-safe
   /// (wait-free; no allocation, lock, system call or exception); from on_update() (the

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "vigil/platform/clock.hpp"
 #include "vigil/task/messages.hpp"
@@ -92,6 +93,9 @@ class TaskCore {
   [[nodiscard]] ActivityInfo* activity() const noexcept { return activity_; }
 
   /// Moves a Running task to Exception with a report (e.g. the activity's overrun limit).
+  /// The names of the checkpoints this task has declared so far (vigil/health/checkpoint.hpp),
+  /// in declaration order; none for a task that cannot declare any. Not RT-safe.
+  [[nodiscard]] virtual std::vector<std::string> declared_checkpoints() const { return {}; }
   /// RT-safe (no allocation): `reason` is copied into a fixed-size message.
   void raise_exception(Hook hook, std::string_view type, std::string_view reason) noexcept;
   /// Moves the task to FatalError, from any state. Final.
