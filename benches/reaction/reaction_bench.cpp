@@ -11,6 +11,11 @@
 // Next to it, `monitor_*`: when the 1 s monitor cycle would have reported the same fault (the
 // monitor's first cycle after it, on a 1 s grid started with the system; computed from the same
 // fault times, no monitor runs). Values in ms. Trials: VIGIL_REACTION_TRIALS (default 40).
+// Health supervision (issue 45) adds two rows: `deadline_missed` (the cycle passes checkpoint
+// "start" and not "end"; a deadline supervision with max 500 us, under the 1 ms period; latency
+// from start + max) and `alive_too_rare` (checkpoint "tick" every cycle, then none for 30 cycles;
+// an alive supervision of 10 per 10 ms reference cycle, min margin 2; latency from the end of the
+// first short window). The supervisor wakes at those due times, not at its next 10 ms drain.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -27,13 +32,23 @@
 #include <vector>
 
 #include "vigil/exec/periodic_activity.hpp"
+#include "vigil/health/config.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 #include "vigil/task/task.hpp"
 
 namespace vigil::bench {
 namespace {
 
-enum class Fault { Exception, Hang, OverrunBurst, Allocation };
+enum class Fault { Exception, Hang, OverrunBurst, Allocation, DeadlineMissed, AliveTooRare };
+
+int trial_count() {
+  const char* env = std::getenv("VIGIL_REACTION_TRIALS");
+  return env != nullptr ? std::max(1, std::atoi(env)) : 40;
+}
+
+std::string trial_name(Fault f, int i) {
+  return "r" + std::to_string(static_cast<int>(f)) + "_" + std::to_string(i);
+}
 
 void burn(Nanos ns) noexcept {
   const Nanos end = platform::now_ns() + ns;
@@ -44,10 +59,29 @@ void burn(Nanos ns) noexcept {
 class Injected : public Task<Injected> {
  public:
   Injected(std::string name, Registry<task::Message>& reg)
-      : Task(std::move(name), {.detectors = Detectors::Allocation}, reg) {}
+      : Task(std::move(name), {.detectors = Detectors::Allocation}, reg),
+        start_(declare_checkpoint("start")),
+        end_(declare_checkpoint("end")),
+        tick_(declare_checkpoint("tick")) {}
   std::atomic<bool> armed{false};
   Fault fault = Fault::Exception;
   void on_update() {
+    if (fault == Fault::DeadlineMissed) {
+      checkpoint(start_);
+      burn(20 * kNanosPerMicro);
+      if (!armed.exchange(false, std::memory_order_acq_rel)) checkpoint(end_);
+      return;
+    }
+    if (fault == Fault::AliveTooRare) {
+      if (armed.exchange(false, std::memory_order_acq_rel)) silent_ = 30;
+      if (silent_ > 0) {
+        --silent_;
+      } else {
+        checkpoint(tick_);
+      }
+      burn(20 * kNanosPerMicro);
+      return;
+    }
     if (burst_ > 0) {
       --burst_;
       burn(1500 * kNanosPerMicro);
@@ -73,11 +107,16 @@ class Injected : public Task<Injected> {
         delete p;
         break;
       }
+      case Fault::DeadlineMissed:
+      case Fault::AliveTooRare:
+        break;
     }
   }
 
  private:
+  CheckpointId start_, end_, tick_;
   int burst_ = 0;
+  int silent_ = 0;
 };
 
 EventKind kind_of(Fault f) {
@@ -90,6 +129,10 @@ EventKind kind_of(Fault f) {
       return EventKind::Overrun;
     case Fault::Allocation:
       return EventKind::RealTimeLoss;
+    case Fault::DeadlineMissed:
+      return EventKind::DeadlineSupervision;
+    case Fault::AliveTooRare:
+      return EventKind::AliveSupervision;
   }
   return EventKind::Exception;
 }
@@ -105,6 +148,22 @@ struct Shared {
   std::string want;
   EventKind want_kind = EventKind::Exception;
   Shared() {
+    // One deadline and one alive supervision per trial component of the health rows.
+    health::HealthConfig cfg;
+    for (int i = 0; i < trial_count(); ++i) {
+      const std::string d = trial_name(Fault::DeadlineMissed, i);
+      cfg.deadline.push_back(
+          {.name = d, .start = {d, "start"}, .end = {d, "end"}, .max_ns = 500 * kNanosPerMicro});
+      const std::string a = trial_name(Fault::AliveTooRare, i);
+      cfg.alive.push_back({.name = a,
+                           .checkpoint = {a, "tick"},
+                           .reference_cycle_ns = 10 * kNanosPerMilli,
+                           .expected_indications = 10,
+                           .min_margin = 2,
+                           .max_margin = 2,
+                           .startup_grace_ns = 0});
+    }
+    if (!agg.supervise_health(std::move(cfg))) std::abort();
     agg.events().subscribe([this](const Event& e) {
       std::lock_guard lock(m);
       if (!got && e.component == want && e.kind == want_kind) {
@@ -130,15 +189,13 @@ double percentile(std::vector<double> v, double q) {
 
 void BM_Reaction(benchmark::State& state, Fault fault) {
   Shared& s = shared();
-  const char* env = std::getenv("VIGIL_REACTION_TRIALS");
-  const int trials = env != nullptr ? std::max(1, std::atoi(env)) : 40;
+  const int trials = trial_count();
   std::mt19937 rng(42);
   std::vector<double> lat, mon;
   int missed = 0;
   for (auto _ : state) {
     for (int i = 0; i < trials; ++i) {
-      const std::string name =
-          "r" + std::to_string(static_cast<int>(fault)) + "_" + std::to_string(i);
+      const std::string name = trial_name(fault, i);
       Injected task(name, s.reg);
       task.fault = fault;
       PeriodicActivity act(task, {.name = name,
@@ -188,6 +245,10 @@ BENCHMARK_CAPTURE(BM_Reaction, exception, Fault::Exception)->Iterations(1)->UseR
 BENCHMARK_CAPTURE(BM_Reaction, hang, Fault::Hang)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Reaction, overrun_burst, Fault::OverrunBurst)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Reaction, allocation_loss, Fault::Allocation)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Reaction, deadline_missed, Fault::DeadlineMissed)
+    ->Iterations(1)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(BM_Reaction, alive_too_rare, Fault::AliveTooRare)->Iterations(1)->UseRealTime();
 
 }  // namespace
 }  // namespace vigil::bench

@@ -192,7 +192,7 @@ class Parser {
         t.error("a transition is [from, to], {from: a, to: b} or \"a -> b\"");
         return tr;
       }
-      auto trim = [](std::string s) {
+      auto trim = [](const std::string& s) {
         const auto b = s.find_first_not_of(" \t");
         const auto e = s.find_last_not_of(" \t");
         return b == std::string::npos ? std::string() : s.substr(b, e - b + 1);
