@@ -76,6 +76,7 @@ namespace {
 
 // What a group's report is made of: the sum and worst of its nodes.
 struct GroupTally {
+  std::vector<std::string> members;  // its nodes' report names: what the group depends on
   std::uint64_t frames = 0;
   std::uint64_t nodes = 0;
   std::uint64_t responding = 0;
@@ -120,6 +121,7 @@ Report group_report(const std::string& name, GroupTally& t) {
   g.add_field(Field::of_count("frames", t.frames));
   g.add_field(Field::of_count("nodes", t.nodes));
   g.add_field(Field::of_count("responding", t.responding));
+  g.depends_on = std::move(t.members);  // the diagnosis graph: a node explains its group
   return g;
 }
 
@@ -151,6 +153,7 @@ void CanExtension::add_reports(ReportSet& reports,
     const std::uint64_t frames = (n.rx ? n.rx->frames : 0) + (n.tx ? n.tx->frames : 0);
     for (const auto& g : n.groups) {
       GroupTally& t = groups[g];
+      t.members.push_back(rep.name);
       t.frames += frames;
       ++t.nodes;
       if (n.liveness == can::Liveness::Responding) ++t.responding;
@@ -185,6 +188,15 @@ void CanExtension::add_reports(ReportSet& reports,
   });
   histograms->reserve(histograms->size() + by_name.size());
   for (auto& [name, h] : by_name) histograms->push_back(std::move(h));
+}
+
+std::vector<std::string> CanExtension::unit_names() const {
+  std::vector<std::string> names;
+  for (const auto& n : config_.nodes) {
+    if (n.bus) names.push_back(fmt::format("can{}/{}", *n.bus, n.name));
+  }
+  for (const auto& g : config_.groups) names.push_back("can group " + g.members.name);
+  return names;
 }
 
 void CanExtension::publish_changes(const can::CanReport& r, Nanos now) {

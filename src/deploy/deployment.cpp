@@ -112,8 +112,8 @@ ComponentSpec parse_component(const config::Node& n, const ComponentFactory& fac
 
 // Top-level keys: the built-in ones, then the sections of registered extensions (kept in `d`).
 void parse_sections(const config::Node& root, DeploymentSpec& d) {
-  constexpr std::string_view kBuiltIn[] = {"name",        "activities", "components",
-                                           "supervision", "outputs",    "health"};
+  constexpr std::string_view kBuiltIn[] = {"name",    "activities", "components", "supervision",
+                                           "outputs", "health",     "diagnosis"};
   const std::vector<std::string> registered = registered_extensions();
   std::vector<std::string_view> allowed(std::begin(kBuiltIn), std::end(kBuiltIn));
   allowed.insert(allowed.end(), registered.begin(), registered.end());
@@ -299,7 +299,8 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
   d.root = root;
   if (!root.is_mapping()) {
     root.error(
-        "a deployment is a mapping with activities, components, supervision, outputs, health");
+        "a deployment is a mapping with activities, components, supervision, outputs, health, "
+        "diagnosis");
     return root.finish(std::move(d));
   }
   parse_sections(root, d);
@@ -316,6 +317,7 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
     for (const ComponentSpec& c : d.components) names.push_back(c.name);
     d.health = parse_health(h, names);
   }
+  if (const config::Node g = root["diagnosis"]; g.defined()) d.diagnosis = parse_diagnosis(g);
   return root.finish(std::move(d));
 }
 

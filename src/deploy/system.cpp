@@ -43,7 +43,9 @@ System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
     h.dashboard = out.http->dashboard;
     if (out.http->clear) {  // POST /api/v1/clear: off unless the deployment enables it
       h.clear = [this](const std::string& name) {
-        return name.empty() ? aggregator().clear_all() : aggregator().clear(name);
+        // The aggregator's latched faults, and the diagnosis graph's latched units.
+        const std::size_t n = name.empty() ? aggregator().clear_all() : aggregator().clear(name);
+        return n + service_->clear_diagnosis(name);
       };
     }
     // The server logs at start only (its URL; a warning for a non-loopback address).
@@ -121,6 +123,7 @@ expected<std::unique_ptr<System>, config::ConfigErrors> System::create(
     sys->slots_.push_back(std::move(slot));
   }
   sys->supervise_health();
+  sys->configure_diagnosis();
   if (root.has_errors()) return vigil::unexpected(root.errors());
   return sys;
 }
@@ -145,6 +148,22 @@ void System::supervise_health() {
   if (auto r = aggregator().supervise_health(health.config); !r) {
     spec_.root["health"].error(r.error().message);
   }
+}
+
+void System::configure_diagnosis() {
+  const DiagnosisSpec& d = spec_.diagnosis;
+  if (!d.defined) return;  // the default graph
+  std::vector<std::string> known{"vigil.supervisor", "vigil.monitor"};
+  for (const ComponentSpec& c : spec_.components) known.push_back(c.name);
+  for (const auto& a : spec_.health.config.alive) known.push_back("supervision " + a.name);
+  for (const auto& a : spec_.health.config.deadline) known.push_back("supervision " + a.name);
+  for (const auto& a : spec_.health.config.logical) known.push_back("supervision " + a.name);
+  for (const auto& e : extensions_) {
+    for (std::string& n : e->unit_names()) known.push_back(std::move(n));
+  }
+  if (check_unit_names(d, known) > 0 || spec_.root.has_errors()) return;
+  if (auto r = service_->set_diagnosis(d.config); !r)
+    spec_.root["diagnosis"].error(r.error().message);
 }
 
 expected<void, Error> System::start() {

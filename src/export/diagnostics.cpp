@@ -1,6 +1,9 @@
 #include "vigil/export/diagnostics.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
 
 #include "vigil/can/can_monitor.hpp"
 #include "vigil/export/json_writer.hpp"
@@ -62,7 +65,11 @@ std::string to_diagnostics_json(const ReportSet& reports, std::int64_t wall_time
     w.begin_object();
     w.field("level", static_cast<int>(r.status.level()));
     w.field("name", "vigil: " + r.name);
-    const std::string message = r.status.summary();
+    std::string message = r.status.summary();
+    if (!r.caused_by.empty()) {
+      message = fmt::format("caused by {}{}{}", fmt::join(r.caused_by, ", "),
+                            message.empty() ? "" : ": ", message);
+    }
     w.field("message", message.empty() ? std::string(to_string(r.status.level())) : message);
     w.field("hardware_id", hardware_id(r));
     w.key("values").begin_array();
@@ -95,9 +102,19 @@ std::string to_diagnostics_json(const ReportSet& reports, std::int64_t wall_time
       kv(w, "cycles", std::to_string(r.counters.cycles));
     }
     for (const auto& v : r.values) kv(w, v.key, v.value);
+    // The diagnosis graph: a root cause says so; a dependent names its roots.
+    if (std::find(reports.root_causes.begin(), reports.root_causes.end(), r.name) !=
+        reports.root_causes.end()) {
+      kv(w, "root_cause", "true");
+    }
+    if (!r.caused_by.empty()) kv(w, "caused_by", fmt::format("{}", fmt::join(r.caused_by, ", ")));
     w.end_array();
     w.end_object();
   }
+  w.end_array();
+  // Not in diagnostic_msgs/DiagnosticArray: the root causes, named once.
+  w.key("root_causes").begin_array();
+  for (const std::string& name : reports.root_causes) w.value("vigil: " + name);
   w.end_array();
   w.end_object();
   return w.take();

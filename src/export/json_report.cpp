@@ -152,6 +152,13 @@ void write_status(JsonWriter& w, const Report& r) {
     w.begin_object().field("level", to_string(m.level)).field("text", m.text).end_object();
   }
   w.end_array();
+  // The diagnosis graph: what it needs, and the root causes that explain its status.
+  w.key("depends_on").begin_array();
+  for (const auto& d : r.depends_on) w.value(d);
+  w.end_array();
+  w.key("caused_by").begin_array();
+  for (const auto& c : r.caused_by) w.value(c);
+  w.end_array();
 }
 
 // Name, kind, status with its messages, identity and placement.
@@ -264,6 +271,9 @@ std::string to_json(const ReportSet& reports, const JsonOptions& options) {
   w.field("cycle", reports.cycle);
   w.field("time_ns", reports.time_ns);
   w.field("status", to_string(reports.worst()));
+  w.key("root_causes").begin_array();
+  for (const std::string& name : reports.root_causes) w.value(name);
+  w.end_array();
   w.key("components").begin_array();
   for (const Report& r : reports.components) write_json(w, r);
   w.end_array();

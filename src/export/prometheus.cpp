@@ -411,6 +411,27 @@ void status_families(const Section& s) {
   });
 }
 
+// The diagnosis graph: the root causes, and what each dependent report's status comes from.
+void diagnosis_families(const Section& s) {
+  Writer& w = s.w;
+  const ReportSet& reports = s.snap.reports;
+  w.family("vigil_root_cause", Type::Gauge,
+           "1 for each report whose status (not OK) no failed dependency explains: what to act on "
+           "first (the diagnosis graph).");
+  for (const std::string& name : reports.root_causes) {
+    const Report* r = reports.find(name);
+    if (r == nullptr) continue;
+    w.sample_u("vigil_root_cause", name, {{"kind", r->kind_name()}}, 1);
+  }
+  w.family("vigil_caused_by", Type::Gauge,
+           "1 for each root cause (label cause) that explains a dependent report's status.");
+  s.each(any_report, [&](const Report& r) {
+    for (const std::string& cause : r.caused_by) {
+      w.sample_u("vigil_caused_by", r.name, {{"cause", cause}}, 1);
+    }
+  });
+}
+
 void component_placement_families(const Section& s) {
   Writer& w = s.w;
   w.family("vigil_component_info", Type::Info,
@@ -789,17 +810,12 @@ void supervision_families(const Section& s) {
 // Every family, section by section, in the order they are exposed.
 using SectionWriter = void (*)(const Section&);
 constexpr SectionWriter kSections[] = {
-    process_families,
-    status_families,
-    component_placement_families,
-    component_counter_families,
-    component_histogram_families,
-    component_gauge_families,
-    thread_families,
-    supervisor_families,
-    monitor_families,
-    can_node_families,
-    can_group_families,
+    process_families,           status_families,
+    diagnosis_families,         component_placement_families,
+    component_counter_families, component_histogram_families,
+    component_gauge_families,   thread_families,
+    supervisor_families,        monitor_families,
+    can_node_families,          can_group_families,
     supervision_families,
 };
 

@@ -1,6 +1,7 @@
 #include "vigil/export/text_report.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "vigil/platform/process.hpp"
 
@@ -120,6 +121,15 @@ std::string title_of(const Field& f) {
 
 // The units of one kind as a table: status, name, state, a column per field name (in the order
 // of first appearance), the messages. Columns are as wide as their widest cell.
+// A report's messages, after the root causes that explain it (the diagnosis graph's).
+std::string messages_of(const Report& r) {
+  std::string out;
+  if (!r.caused_by.empty()) out = fmt::format("caused by {}", fmt::join(r.caused_by, ", "));
+  const std::string own = r.status.summary();
+  if (!own.empty()) out += (out.empty() ? "" : ": ") + own;
+  return out;
+}
+
 std::string format_unit_table(const std::vector<const Report*>& units, bool color) {
   std::vector<std::string> titles;  // by field name, in order of first appearance
   std::vector<std::string> names;
@@ -156,7 +166,7 @@ std::string format_unit_table(const std::vector<const Report*>& units, bool colo
       const Field* f = u->field(names[i]);
       out += fmt::format("  {:>{}}", f != nullptr ? cell_of(*f) : std::string("-"), widths[i]);
     }
-    const std::string messages = u->status.summary();
+    const std::string messages = messages_of(*u);
     if (!messages.empty()) out += "  " + printable(messages);
     out += '\n';
   }
@@ -182,6 +192,29 @@ bool use_color(ColorMode mode, std::FILE* out) {
   return term == nullptr || std::strcmp(term, "dumb") != 0;
 }
 
+std::string format_root_causes(const ReportSet& reports, bool color) {
+  std::string out;
+  for (const std::string& name : reports.root_causes) {
+    const Report* r = reports.find(name);
+    if (r == nullptr) continue;
+    std::size_t dependents = 0;
+    for (const Report& d : reports.components) {
+      if (std::find(d.caused_by.begin(), d.caused_by.end(), name) != d.caused_by.end()) {
+        ++dependents;
+      }
+    }
+    out +=
+        fmt::format("ROOT CAUSE {} {}", status_word(r->status.level(), color, 5), printable(name));
+    if (dependents > 0) {
+      out += fmt::format(" ({} dependent{})", dependents, dependents == 1 ? "" : "s");
+    }
+    const std::string messages = r->status.summary();
+    if (!messages.empty()) out += ": " + printable(messages);
+    out += '\n';
+  }
+  return out;
+}
+
 std::string format_summary_header() {
   return fmt::format("{:<7} {:<{}} {:<14} {:>10}  {:<{}} {:>{}} {:>8} {:>7}  {}", "STATUS", "NAME",
                      kNameWidth, "STATE", "CYCLES", "EXEC MEAN/P99/MAX", kExecutionWidth,
@@ -194,7 +227,7 @@ std::string format_summary_line(const Report& r, bool color) {
     std::string line = status_word(r.status.level(), color, 7);
     line += fmt::format(" {:<{}} {:<14}", printable(r.name), kNameWidth, state_of(r));
     for (const Field& f : r.fields) line += fmt::format("  {} {}", printable(f.name), cell_of(f));
-    const std::string messages = r.status.summary();
+    const std::string messages = messages_of(r);
     if (!messages.empty()) line += "  " + printable(messages);
     return line;
   }
@@ -213,7 +246,7 @@ std::string format_summary_line(const Report& r, bool color) {
                       latency, kLatencyWidth,
                       r.counters.overruns - std::min(r.counters.overruns, r.warmup.overruns),
                       r.counters.total_losses());
-  const std::string messages = r.status.summary();
+  const std::string messages = messages_of(r);
   if (!messages.empty()) {
     line += "  ";
     line += printable(messages);
@@ -222,9 +255,12 @@ std::string format_summary_line(const Report& r, bool color) {
 }
 
 std::string format_summary(const ReportSet& reports, bool color) {
-  // The components, the supervisor and the monitor in one table; then each kind of unit in a
-  // table of its own, with its own columns, in the order the kinds first appear.
-  std::string out = format_summary_header();
+  // The root causes first (what to act on), then the components, the supervisor and the monitor
+  // in one table; then each kind of unit in a table of its own, with its own columns, in the
+  // order the kinds first appear.
+  std::string out = format_root_causes(reports, color);
+  if (!out.empty()) out += '\n';
+  out += format_summary_header();
   out += '\n';
   std::vector<std::string_view> kinds;
   for (const Report& r : reports.components) {

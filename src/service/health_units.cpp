@@ -48,6 +48,7 @@ monitor::Report supervision_unit(const health::SupervisionReport& s) {
   std::string entities;
   for (const std::string& e : s.entities) entities += (entities.empty() ? "" : ", ") + e;
   r.add_field(Field::of_text("entities", std::move(entities)));
+  r.depends_on = s.entities;  // the diagnosis graph: a failed component explains its supervision
   r.add_field(Field::of_count("checkpoints", s.checkpoints));
   r.add_field(Field::of_count("lost", s.lost));
   r.add_field(Field::of_count("evaluations", s.evaluations));

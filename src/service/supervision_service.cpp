@@ -202,6 +202,18 @@ void SupervisionService::add_contributor(Contributor& contributor) {
   contributors_.push_back(&contributor);
 }
 
+expected<void, Error> SupervisionService::set_diagnosis(monitor::DiagnosisConfig config) {
+  if (auto ok = monitor::validate(config); !ok) return ok;
+  std::lock_guard lock(diagnosis_mutex_);
+  diagnosis_ = monitor::DiagnosisGraph(std::move(config));
+  return {};
+}
+
+std::size_t SupervisionService::clear_diagnosis(std::string_view name) {
+  std::lock_guard lock(diagnosis_mutex_);
+  return diagnosis_.clear(name);
+}
+
 // One monitor cycle, on the monitor's thread (or step()'s or stop()'s caller): the snapshot is
 // made once (contributors run once), kept for readers, and handed to every output.
 void SupervisionService::on_cycle(const ReportSet& monitor_reports) {
@@ -219,6 +231,10 @@ void SupervisionService::on_cycle(const ReportSet& monitor_reports) {
     last_event_seq_ = s->events.back().seq;
   }
   for (Contributor* c : contributors_) guarded("a contributor", [&] { c->contribute(*s); });
+  {
+    std::lock_guard lock(diagnosis_mutex_);
+    guarded("the diagnosis graph", [&] { diagnosis_.apply(s->reports, s->reports.time_ns); });
+  }
   std::shared_ptr<const exporter::Snapshot> done = std::move(s);
   {
     std::lock_guard lock(latest_mutex_);

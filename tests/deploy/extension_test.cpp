@@ -78,10 +78,11 @@ TEST_CASE("A section is accepted only when an extension is registered under its 
                                   factory());
   REQUIRE_FALSE(d.has_value());
   const std::string e = config::to_string(d.error());
-  CHECK_THAT(
-      e, Catch::StartsWith("d.yaml:5:8: lidar: unknown section 'lidar': not a deployment "
-                           "key (name, activities, components, supervision, outputs, health) and "
-                           "no extension handles it in this program (registered: "));
+  CHECK_THAT(e,
+             Catch::StartsWith("d.yaml:5:8: lidar: unknown section 'lidar': not a deployment "
+                               "key (name, activities, components, supervision, outputs, health, "
+                               "diagnosis) and "
+                               "no extension handles it in this program (registered: "));
   // A typo of a known key still gets a suggestion.
   auto typo = load_deployment_string(std::string(kBase) + "supervison: {}\n", "d.yaml", factory());
   REQUIRE_FALSE(typo.has_value());

@@ -222,11 +222,19 @@ class RowReader(html.parser.HTMLParser):
         self.canvases = 0
         self.body = {}
         self.unit_heads = {}  # unit kind -> its table's column titles
+        self.roots = []  # the root causes' tree: each root, in order
+        self.dependents = {}  # root -> the reports it explains
+        self._root = None
         self._kind = None
         self._in_th = False
 
     def handle_starttag(self, tag, attrs):
         a = dict(attrs)
+        if tag == "li" and "data-root" in a:
+            self._root = a["data-root"]
+            self.roots.append(self._root)
+        if tag == "li" and "data-dependent" in a and self._root is not None:
+            self.dependents.setdefault(self._root, []).append(a["data-dependent"])
         if tag == "tr" and "data-component" in a:
             self.rows[a["data-component"]] = a.get("data-status")
         if tag == "div" and "card" in (a.get("class") or "").split():
@@ -335,6 +343,12 @@ def check_chromium(args):
             fail(f"no table for the {kind} units")
         if kind == "can_node" and not {"frames rx", "rx gap p50 / p99 / max"} <= set(heads):
             fail(f"the can_node table's columns are {heads}")
+    # The diagnosis graph's tree: drive_5 (silent from 3 s) is a root cause, right_arm under it.
+    if "can0/drive_5" in json.loads(after).get("root_causes", []):
+        if "can0/drive_5" not in reader.roots:
+            fail(f"the root causes shown are {reader.roots}, without can0/drive_5")
+        if "can group right_arm" not in reader.dependents.get("can0/drive_5", []):
+            fail(f"drive_5 explains {reader.dependents.get('can0/drive_5')}, not right_arm")
     components = {n for n, c in ((c["name"], c) for c in json.loads(after)["components"])
                   if c["kind"] == "component"}
     if reader.body.get("data-charts") == "1":

@@ -64,6 +64,8 @@ class CanExtension : public Extension {
   /// histograms (its samples in exact mode), taken right after the reports. Once per monitor
   /// cycle.
   void contribute(exporter::Snapshot& snapshot) override;
+  /// Its configured nodes on a bus ("can0/drive_5") and its groups ("can group right_arm").
+  [[nodiscard]] std::vector<std::string> unit_names() const override;
 
   /// Where the deployment's sniffers join. Thread-safe.
   [[nodiscard]] can::CanRegistry& registry() noexcept { return registry_; }

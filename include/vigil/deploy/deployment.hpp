@@ -36,6 +36,7 @@
 
 #include "vigil/config/error.hpp"
 #include "vigil/config/node.hpp"
+#include "vigil/deploy/diagnosis_section.hpp"
 #include "vigil/deploy/factory.hpp"
 #include "vigil/deploy/health_section.hpp"
 #include "vigil/exec/periodic_activity.hpp"
@@ -131,6 +132,9 @@ struct DeploymentSpec {
   OutputSpec outputs;
   /// `health:`: alive, deadline and logical supervisions (vigil/deploy/health_section.hpp).
   HealthSpec health;
+  /// `diagnosis:`: the diagnosis graph (vigil/deploy/diagnosis_section.hpp); the default graph
+  /// when absent.
+  DiagnosisSpec diagnosis;
   /// Sections handled by registered extensions (e.g. `can:`), in file order, unparsed.
   std::vector<ExtensionSection> extensions;
   /// The document (keeps the nodes valid; component parameters report into it).

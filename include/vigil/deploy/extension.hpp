@@ -53,6 +53,9 @@ class Extension : public service::Contributor {
   virtual void stop() {}
   /// Adds the extension's units to a monitor cycle (default: none).
   void contribute(exporter::Snapshot& /*snapshot*/) override {}
+  /// The names of the units it will report that a configuration may name (the `diagnosis:`
+  /// section's units are checked against them when the system is built). Default: none.
+  [[nodiscard]] virtual std::vector<std::string> unit_names() const { return {}; }
 };
 
 /// Makes an extension from its deployment section. Errors are the section's configuration

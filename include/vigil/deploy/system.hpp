@@ -118,6 +118,8 @@ class System {
   explicit System(DeploymentSpec spec);
   // `health:`: checks the checkpoints components declared when built, supervises the section.
   void supervise_health();
+  // `diagnosis:`: checks the unit names it uses, sets the service's diagnosis graph.
+  void configure_diagnosis();
 
   struct Slot {
     std::unique_ptr<TaskCore> task;

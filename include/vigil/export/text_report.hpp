@@ -30,7 +30,11 @@ enum class ColorMode : std::uint8_t {
 [[nodiscard]] std::string format_summary_header();
 /// One summary line for `report` (no newline).
 [[nodiscard]] std::string format_summary_line(const Report& report, bool color);
-/// The header and one line per report, each ending with a newline.
+/// One line per root cause of `reports` (the diagnosis graph's, monitor/diagnosis.hpp):
+/// "ROOT CAUSE ERROR can0/drive_5 (2 dependents): not responding..."; empty when none.
+[[nodiscard]] std::string format_root_causes(const ReportSet& reports, bool color);
+/// The root causes (and a blank line) when there are any, the header and one line per report,
+/// each ending with a newline; a dependent report's messages start with "caused by <roots>".
 [[nodiscard]] std::string format_summary(const ReportSet& reports, bool color);
 
 /// The detail view of one report: a title line "name: STATUS", then indented key: value lines.

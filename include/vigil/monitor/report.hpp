@@ -205,6 +205,12 @@ struct Report {
   /// monitor's own kinds.
   std::string unit_kind;
   std::vector<Field> fields;  ///< its figures, in the order its contributor added them
+  /// The reports this one needs, by name: edges of the diagnosis graph its contributor knows (a
+  /// CAN group its nodes, a health supervision its components; monitor/diagnosis.hpp).
+  std::vector<std::string> depends_on;
+  /// Set by the diagnosis graph when a failed dependency explains this report's status: the root
+  /// causes it depends on (report names). Empty for a root cause, and for an OK report.
+  std::vector<std::string> caused_by;
 
   // --- verdict ---
   Status status;
@@ -239,6 +245,9 @@ struct ReportSet {
   std::uint64_t cycle = 0;         ///< monitor cycles so far (0 before the first)
   Nanos time_ns = 0;               ///< monitor clock at the start of the cycle
   std::vector<Report> components;  ///< by registry id, then the supervisor, then the monitor
+  /// The reports whose status (not OK) no failed dependency explains, in report order: what to
+  /// act on first. Set by the diagnosis graph (monitor/diagnosis.hpp); empty when none ran.
+  std::vector<std::string> root_causes;
 
   /// The report named `name`, or null.
   [[nodiscard]] const Report* find(std::string_view name) const noexcept;

@@ -56,6 +56,7 @@
 #include "vigil/export/outputs.hpp"
 #include "vigil/export/systemd_notify.hpp"
 #include "vigil/export/text_report.hpp"
+#include "vigil/monitor/diagnosis.hpp"
 #include "vigil/monitor/monitor.hpp"
 #include "vigil/monitor/report.hpp"
 #include "vigil/platform/clock.hpp"
@@ -182,6 +183,14 @@ class SupervisionService {
   /// Adds a contributor owned elsewhere (it must outlive the service or be stopped with it).
   void add_contributor(Contributor& contributor);
 
+  /// The diagnosis graph applied to every cycle after the contributors (root causes, dependents,
+  /// aggregates, hysteresis; vigil/monitor/diagnosis.hpp). Without a call the default graph runs:
+  /// the edges the contributors declare, no hysteresis. Fails with validate()'s message. Any
+  /// thread.
+  expected<void, Error> set_diagnosis(monitor::DiagnosisConfig config);
+  /// Clears latched units of the diagnosis graph ("": all); how many were cleared. Any thread.
+  std::size_t clear_diagnosis(std::string_view name = {});
+
   // --- the parts ---
 
   /// The events of the pipeline, within milliseconds of their detection (faults of components,
@@ -225,7 +234,9 @@ class SupervisionService {
   std::vector<exporter::ComponentHistograms> cycle_histograms_;
   std::uint64_t last_event_seq_ = 0;
   std::atomic<bool> publishing_{false};  // set by the control thread, read by the monitor's
-  mutable std::mutex latest_mutex_;      // guards latest_: held for a pointer copy
+  std::mutex diagnosis_mutex_;  // guards diagnosis_: the monitor's thread and set/clear callers
+  monitor::DiagnosisGraph diagnosis_;
+  mutable std::mutex latest_mutex_;  // guards latest_: held for a pointer copy
   std::shared_ptr<const exporter::Snapshot> latest_;
   ReportSet final_;
   bool running_ = false;

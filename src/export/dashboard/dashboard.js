@@ -106,7 +106,52 @@
     return tr;
   }
 
+  // A report's messages, after the root causes that explain it (the diagnosis graph).
+  function messageOf(r) {
+    const own = r.messages.join('; ');
+    if (!r.caused_by || r.caused_by.length === 0) return own;
+    return 'caused by ' + r.caused_by.join(', ') + (own ? ': ' + own : '');
+  }
+
+  // The root causes as a tree: each root with its status and messages, the reports it explains
+  // below it. Rebuilt each refresh (a few nodes); text only, never markup from the server.
+  function renderCauses(doc) {
+    const list = document.getElementById('causes');
+    const roots = doc.root_causes || [];
+    list.hidden = roots.length === 0;
+    list.replaceChildren();
+    const byName = new Map(doc.components.map((c) => [c.name, c]));
+    for (const name of roots) {
+      const r = byName.get(name);
+      if (!r) continue;
+      const li = document.createElement('li');
+      li.dataset.root = name;
+      const badge = document.createElement('span');
+      badge.className = 'badge';
+      badge.dataset.status = r.status;
+      badge.textContent = r.status;
+      li.appendChild(badge);
+      const title = document.createElement('strong');
+      title.textContent = ' ' + name;
+      li.appendChild(title);
+      li.appendChild(document.createTextNode(r.messages.length ? ': ' + r.messages.join('; ') : ''));
+      const deps = doc.components.filter((c) => (c.caused_by || []).includes(name));
+      if (deps.length) {
+        const ul = document.createElement('ul');
+        for (const d of deps) {
+          const dl = document.createElement('li');
+          dl.dataset.dependent = d.name;
+          dl.textContent = d.name + ' (' + d.status + ')';
+          ul.appendChild(dl);
+        }
+        li.appendChild(ul);
+      }
+      list.appendChild(li);
+    }
+  }
+
   function renderTable(doc) {
+    renderCauses(doc);
     const tbody = document.querySelector('#status tbody');
     const seen = new Set();
     const units = new Map();  // kind -> reports, in the server's order
@@ -132,7 +177,7 @@
       cell(tr, 6, p99Max(c.timing.latency_ns), 'num');
       cell(tr, 7, isComp ? c.window.overruns + ' / ' + c.counters.overruns : '-', 'num');
       cell(tr, 8, isComp ? String(c.counters.rt_losses) : '-', 'num');
-      cell(tr, 9, c.messages.join('; '), 'msg');
+      cell(tr, 9, messageOf(c), 'msg');
     }
     for (const [kind, list] of units) {
       const t = unitTable(kind);
@@ -150,7 +195,7 @@
         cell(tr, 2, u.state);
         let i = 3;
         for (const key of fieldsSeen.keys()) cell(tr, i++, fieldText(key, u.fields[key]), 'num');
-        cell(tr, i, u.messages.join('; '), 'msg');
+        cell(tr, i, messageOf(u), 'msg');
       }
     }
     for (const [name, tr] of rows) {
