@@ -497,7 +497,7 @@ health:                                   # checkpoints supervised (docs/guide/h
     - {name: lidar_alive, checkpoint: lidar, reference_cycle: 500ms, expected: 5,
        min_margin: 1, max_margin: 1, startup_grace: 1s}
   deadline:
-    - {name: sample_to_decode, start: logger.sample, end: encoder.decoded, max: 800us,
+    - {name: sample_to_decode, start: logger.sample, end: encoder.decoded, max: 5ms,
        tolerance: 2}
   logical:
     - name: gripper_sequence

@@ -622,14 +622,17 @@ struct HealthEngine::Impl {
     }
   }
 
-  void advance(Nanos at) {
+  void advance(Nanos at, Nanos drained_to) {
     if (!started) {
       started = true;
       origin = at;
       min_due = kMinusInfinity;  // grace periods now have an end: scan
     }
     now = at;
-    const Nanos horizon = at - config.settle_ns;
+    // Inputs are complete only up to when the drain that brought them began: a port drained
+    // later in the same pass may still hold an older report than the newest one of a port
+    // drained earlier.
+    const Nanos horizon = std::min(at, drained_to) - config.settle_ns;
     // Nothing drained can have happened after now: a later time is another clock's (a
     // transition made outside a cycle, stamped with the system clock while the cycles run on a
     // replaced one). Taken as now.
@@ -756,7 +759,8 @@ void HealthEngine::report(int checkpoint, Nanos time, std::uint64_t count) {
   impl_->queue(InputKind::Checkpoint, checkpoint, time, count);
 }
 
-void HealthEngine::advance(Nanos now) { impl_->advance(now); }
+void HealthEngine::advance(Nanos now) { impl_->advance(now, now); }
+void HealthEngine::advance(Nanos now, Nanos drained_to) { impl_->advance(now, drained_to); }
 
 Nanos HealthEngine::next_deadline() const noexcept { return impl_->next_deadline(); }
 

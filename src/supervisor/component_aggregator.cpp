@@ -818,9 +818,9 @@ void ComponentAggregator::on(const Entry& e, const health::CheckpointReport& m) 
   if (health_) health_->checkpoint(e.id, m);
 }
 
-std::size_t ComponentAggregator::raise_health(Nanos now) {
+std::size_t ComponentAggregator::raise_health(Nanos now, Nanos drained_to) {
   health_events_.clear();
-  health_->advance(now, health_events_);
+  health_->advance(now, drained_to, health_events_);
   for (Event& ev : health_events_) {
     // On the component's record (latched when Error, a flight record frozen); an entity that
     // never joined has none: straight to the hub.
@@ -865,7 +865,8 @@ void ComponentAggregator::on_cycle(const DrainCycle& c) {
   if (auto* lc = log_consumer_.load()) lc->on_supervisor_cycle(c.time_ns + c.drain_ns);
   hint_ = 0;
   clock_reads_ = 0;  // the first port of the next cycle reads the clock
-  if (health_) (void)raise_health(options_.clock.now());
+  // The reports are complete up to when this drain began (ports are drained one after another).
+  if (health_) (void)raise_health(options_.clock.now(), c.time_ns);
   if (options_.watchdog.enabled || options_.auto_clear_ns > 0) {
     const Nanos now = options_.clock.now();
     for (const auto& slot : slots_) watch(*slot, now);

@@ -101,9 +101,11 @@ EventKind kind_of(health::SupervisionKind k) {
 }
 }  // namespace
 
-void HealthSupervision::advance(Nanos now, std::vector<Event>& out) {
+void HealthSupervision::advance(Nanos now, std::vector<Event>& out) { advance(now, now, out); }
+
+void HealthSupervision::advance(Nanos now, Nanos drained_to, std::vector<Event>& out) {
   std::lock_guard lock(mutex_);
-  engine_.advance(now);
+  engine_.advance(now, drained_to);
   for (auto& f : engine_.take_failures()) {
     Event e;
     e.kind = kind_of(f.kind);

@@ -241,6 +241,30 @@ TEST_CASE("Deadline: an end within [min, max] passes, across entities", "[health
   CHECK(r.entities == std::vector<std::string>{"camera", "drive"});
 }
 
+TEST_CASE("Deadline: inputs wait until every port is drained up to their time",
+          "[health][deadline]") {
+  // Ports are drained one after the other: the camera's port was drained after its second frame,
+  // the drive's before its (earlier) end. Judged up to when the drain began, nothing is wrong.
+  Chain c;
+  c.e.report(c.frame, kT0 + 10 * kMs);
+  c.e.report(c.frame, kT0 + 12 * kMs);  // drained; the end at 11 ms still in the drive's port
+  c.e.advance(kT0 + 12 * kMs + kSettle, /*drained_to=*/kT0 + 10 * kMs + kSettle);
+  CHECK(c.e.take_failures().empty());
+  c.e.report(c.sent, kT0 + 11 * kMs + 500'000);  // the next drain brings it
+  c.e.report(c.sent, kT0 + 14 * kMs);
+  c.e.advance(kT0 + 20 * kMs, kT0 + 20 * kMs);
+  CHECK(c.e.take_failures().empty());
+  CHECK(c.e.reports().at(0).evaluations == 2);
+  // Without the drain's time, the same inputs would pair the second frame with no end yet.
+  Chain naive;
+  naive.e.report(naive.frame, kT0 + 10 * kMs);
+  naive.e.report(naive.frame, kT0 + 12 * kMs);
+  naive.e.advance(kT0 + 12 * kMs + kSettle);
+  const auto f = naive.e.take_failures();
+  REQUIRE(f.size() == 1);
+  CHECK(f[0].failure == FailureKind::DeadlineRestarted);
+}
+
 TEST_CASE("Deadline: the latest pairs are kept as spans for traces, failures marked",
           "[health][deadline]") {
   Chain c;

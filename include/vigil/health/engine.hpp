@@ -91,6 +91,10 @@ class HealthEngine {
   /// Applies the inputs time-stamped before `now - settle_ns` and judges everything due by
   /// then; failures found are stamped `detected_ns = now` and queued for take_failures().
   void advance(Nanos now);
+  /// As advance(now), when the inputs are known complete only up to `drained_to` (the time the
+  /// drain that brought them began: ports drained one after the other): inputs and due times
+  /// after `drained_to - settle_ns` wait for the next call; what is found is stamped `now`.
+  void advance(Nanos now, Nanos drained_to);
   /// The earliest time at which advance() has something to judge: a due time or a waiting
   /// input, plus `settle_ns`; kNever when nothing waits. Call advance() then. An active deadline
   /// supervision waiting for its start also asks for an advance (a drain) at least every max_ns

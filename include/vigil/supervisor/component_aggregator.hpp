@@ -326,8 +326,8 @@ class ComponentAggregator {
   std::atomic<log::RecordConsumer*> log_consumer_{nullptr};
   std::unique_ptr<HealthSupervision> health_;  // supervise_health(); set while not draining
   std::vector<Event> health_events_;           // advance()'s output, reused
-  std::size_t raise_health(Nanos now);         // advance() health, raise what it found
-  mutable std::mutex frozen_mutex_;            // frozen_: taken before the hub's lock, never after
+  std::size_t raise_health(Nanos now, Nanos drained_to);  // advance() health, raise what it found
+  mutable std::mutex frozen_mutex_;  // frozen_: taken before the hub's lock, never after
   std::deque<std::shared_ptr<const FlightRecord>> frozen_;
   std::size_t frozen_total_ = 0;
   std::size_t cache_bytes_ = 0;      // last-level cache (RingStores::Auto)

@@ -61,6 +61,8 @@ class HealthSupervision {
   /// Judges what is due at `now` and appends the failures (and misuses) as events to `out`,
   /// with the component's id when it is known (0 otherwise: an entity that never joined).
   void advance(Nanos now, std::vector<Event>& out);
+  /// As above, the reports complete up to `drained_to` only (when the drain pass began).
+  void advance(Nanos now, Nanos drained_to, std::vector<Event>& out);
   /// When advance() has something to judge next (kNever: nothing).
   [[nodiscard]] Nanos next_deadline() const;
 
