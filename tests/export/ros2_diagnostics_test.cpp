@@ -1,5 +1,7 @@
 #include "vigil/export/ros2_diagnostics.hpp"
 
+#include <fmt/format.h>
+
 #include <catch2/catch.hpp>
 #include <atomic>
 #include <chrono>
@@ -12,6 +14,8 @@
 
 #include "vigil/config/load.hpp"
 #include "vigil/deploy/deployment.hpp"
+#include "vigil/deploy/system.hpp"
+#include "vigil/task/task.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 
 #ifdef VIGIL_TEST_FASTDDS
@@ -143,43 +147,108 @@ TEST_CASE("A bad domain makes the ROS 2 output warn and publish nothing", "[expo
 }
 
 namespace {
-expected<deploy::DeploymentSpec, config::ConfigErrors> deployment(const std::string& text) {
-  auto root = config::load_string(text, "d.yaml");
-  REQUIRE(root);
-  return deploy::parse_deployment(*root);
+class Idle : public Task<Idle> {
+ public:
+  explicit Idle(const deploy::ComponentContext& c) : Task(c.name, c.supervision, c.registry()) {}
+  void on_update() {}
+};
+
+deploy::ComponentFactory& factory() {
+  static deploy::ComponentFactory f;
+  static const bool once = f.add<Idle>("test.idle", "does nothing");
+  (void)once;
+  return f;
+}
+
+expected<deploy::DeploymentSpec, config::ConfigErrors> deployment(std::string_view outputs) {
+  return deploy::load_deployment_string(std::string(R"(
+activities: [{name: a, period: 10ms}]
+components: [{name: c, type: test.idle, activity: a}]
+supervision: {lock_memory: false}
+outputs:
+)") + std::string(outputs) + "\n",
+                                        "d.yaml", factory());
 }
 }  // namespace
 
 TEST_CASE("outputs.ros2 in a deployment is parsed and checked", "[export][ros2][deploy]") {
-  const auto ok = deployment(
-      "outputs: {ros2: {domain_id: 7, events: false, dds_config: '<CycloneDDS/>'}}");
+  const auto ok =
+      deployment("  ros2: {domain_id: 7, events: false, dds_config: '<CycloneDDS/>'}");
   REQUIRE(ok);
   REQUIRE(ok->outputs.ros2);
   CHECK(ok->outputs.ros2->domain_id == 7);
   CHECK(!ok->outputs.ros2->events);
   CHECK(ok->outputs.ros2->dds_config == "<CycloneDDS/>");
-  const auto bare = deployment("outputs: {ros2: }");
+  const auto bare = deployment("  ros2:");
   REQUIRE(bare);
   REQUIRE(bare->outputs.ros2);
   CHECK(!bare->outputs.ros2->domain_id);
   CHECK(bare->outputs.ros2->events);
-  const auto bad = deployment("outputs:\n  ros2: {domain_id: 233, domian: 1}\n");
+  CHECK(bare->outputs.ros2->dds_config.empty());
+  const auto none = deployment("  json: f.json");
+  REQUIRE(none);
+  CHECK(!none->outputs.ros2);
+  // Line 6 of the document: the range and the misspelt key, each at its place.
+  const auto bad = deployment("  ros2: {domain_id: 233, domian: 1}");
   REQUIRE(!bad);
   const std::string text = config::to_string(bad.error());
-  CHECK(text.find("d.yaml:2:") != std::string::npos);
+  CHECK(text.find("d.yaml:6:") != std::string::npos);
   CHECK(text.find("domain_id") != std::string::npos);
   CHECK(text.find("domian") != std::string::npos);
+  CHECK(!deployment("  ros2: {dds_config: ''}"));
+  CHECK(!deployment("  ros2: [7]"));
+}
+
+TEST_CASE("A deployment's System runs the ROS 2 output", "[export][ros2][deploy]") {
+  const int domain = random_domain();
+  auto spec = deployment(fmt::format("  ros2: {{domain_id: {}, dds_config: '{}'}}", domain,
+                                     loopback_config()));
+  REQUIRE(spec);
+  auto system = deploy::System::create(std::move(*spec), factory());
+  REQUIRE(system);
+  const exporter::Ros2DiagnosticsOutput* out = (*system)->ros2_output();
+  REQUIRE(out != nullptr);
+  REQUIRE((*system)->start());
+  if (ros2_output_built()) {
+    CHECK(out->active());
+    CHECK(out->domain_id() == domain);
+    bool said = false;
+    for (const std::string& line : (*system)->log()) {
+      said = said || line == fmt::format("ROS 2: /diagnostics (DDS topic rt/diagnostics) in "
+                                         "domain {}", domain);
+    }
+    CHECK(said);
+  } else {
+    CHECK(!out->active());
+    CHECK(out->error().find("without Cyclone DDS") != std::string::npos);
+  }
+  (*system)->stop();
+  if (ros2_output_built()) CHECK(out->published() >= 1);  // the final cycle at least
+  CHECK(!out->active());
 }
 
 TEST_CASE("Without the DDS module the ROS 2 output says it is unavailable", "[export][ros2]") {
-  if (ros2_output_built()) {
-    SUCCEED("built with Cyclone DDS: the module exists");
+  if (!ros2_output_built()) {  // a build without Cyclone DDS
+    Started s(Ros2Options{.domain_id = 1});
+    CHECK(!s.output.active());
+    REQUIRE(s.warnings.size() == 1);
+    CHECK(s.warnings[0].find("without Cyclone DDS") != std::string::npos);
+  }
+  // A module that is not there (VIGIL_ROS2_MODULE names it): the path and the variable are said.
+  // (The module, once loaded by an earlier test, stays loaded: only a fresh process sees this.)
+  ::setenv("VIGIL_ROS2_MODULE", "/nonexistent/libvigil_ros2.so", 1);
+  const bool fresh = ros2_output_built();
+  Started s(Ros2Options{.domain_id = 1});
+  ::unsetenv("VIGIL_ROS2_MODULE");
+  if (fresh && s.output.active()) {
+    SUCCEED("the module was loaded before this test: a loaded module is kept");
+    s.output.stop(Snapshot{});
     return;
   }
-  Started s(Ros2Options{.domain_id = 1});
   CHECK(!s.output.active());
   REQUIRE(s.warnings.size() == 1);
-  CHECK(s.warnings[0].find("without Cyclone DDS") != std::string::npos);
+  CHECK(s.warnings[0].find("/nonexistent/libvigil_ros2.so") != std::string::npos);
+  CHECK(s.warnings[0].find("VIGIL_ROS2_MODULE") != std::string::npos);
 }
 
 TEST_CASE("A Cyclone DDS subscriber receives every field of /diagnostics", "[export][ros2]") {

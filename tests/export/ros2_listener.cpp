@@ -6,8 +6,9 @@
 //   vigil_ros2_listener DOMAIN COUNT TIMEOUT_S [MIN_STATUSES]
 //
 // Prints each sample as one JSON line (exporter::to_diagnostics_json, the same document the
-// tests build from what they published) and exits 0 after COUNT samples with at least
-// MIN_STATUSES statuses (default 0), 1 when TIMEOUT_S passes first, 2 on a DDS error. The DDS
+// tests build from what they published) and exits 0 once it has printed COUNT samples with at
+// least MIN_STATUSES statuses (default 0; smaller ones are printed but not counted), 1 when
+// TIMEOUT_S passes first, 2 on a DDS error. The DDS
 // configuration comes from CYCLONEDDS_URI (the tests restrict it to loopback).
 #include <dds/dds.h>
 
@@ -92,11 +93,9 @@ int main(int argc, char** argv) {
     }
     if (info[0].valid_data) {
       const auto* a = static_cast<const diagnostic_msgs_msg_dds__DiagnosticArray_*>(samples[0]);
-      if (a->status._length >= min_statuses) {
-        std::printf("%s\n", vigil::exporter::to_diagnostics_json(convert(*a)).c_str());
-        std::fflush(stdout);
-        ++received;
-      }
+      std::printf("%s\n", vigil::exporter::to_diagnostics_json(convert(*a)).c_str());
+      std::fflush(stdout);
+      if (a->status._length >= min_statuses) ++received;
     }
     (void)dds_return_loan(reader, samples, n);
   }

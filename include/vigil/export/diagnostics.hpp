@@ -30,18 +30,18 @@ namespace vigil::exporter {
 
 /// `diagnostic_msgs/msg/KeyValue`.
 struct DiagnosticKeyValue {
-  std::string key;
-  std::string value;
+  std::string key{};
+  std::string value{};
   bool operator==(const DiagnosticKeyValue&) const = default;
 };
 
 /// `diagnostic_msgs/msg/DiagnosticStatus`.
 struct DiagnosticStatusMessage {
   std::uint8_t level = 0;  ///< OK 0, WARN 1, ERROR 2, STALE 3
-  std::string name;
-  std::string message;
-  std::string hardware_id;
-  std::vector<DiagnosticKeyValue> values;
+  std::string name{};
+  std::string message{};
+  std::string hardware_id{};
+  std::vector<DiagnosticKeyValue> values{};
   bool operator==(const DiagnosticStatusMessage&) const = default;
 };
 
@@ -51,8 +51,8 @@ struct DiagnosticStatusMessage {
 struct DiagnosticArrayMessage {
   std::int32_t sec = 0;        ///< header.stamp.sec
   std::uint32_t nanosec = 0;   ///< header.stamp.nanosec
-  std::string frame_id;        ///< header.frame_id ("" from vigil)
-  std::vector<DiagnosticStatusMessage> status;
+  std::string frame_id{};      ///< header.frame_id ("" from vigil)
+  std::vector<DiagnosticStatusMessage> status{};
   bool operator==(const DiagnosticArrayMessage&) const = default;
 };
 
