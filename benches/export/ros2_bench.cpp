@@ -81,8 +81,8 @@ pid_t start_remote_reader(int domain) {
   for (int c = 0; c < CPU_SETSIZE; ++c) CPU_SET(c, &all);
   (void)sched_setaffinity(0, sizeof all, &all);
   const dds_entity_t d = dds_create_domain(static_cast<dds_domainid_t>(domain), kLoopback);
-  const dds_entity_t pp = dds_create_participant(static_cast<dds_domainid_t>(domain), nullptr,
-                                                 nullptr);
+  const dds_entity_t pp =
+      dds_create_participant(static_cast<dds_domainid_t>(domain), nullptr, nullptr);
   dds_qos_t* q = dds_create_qos();
   dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
   dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 10);

@@ -54,11 +54,13 @@ System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
   if (out.textfile) textfile_ = &service_->add_output<exporter::TextfileOutput>(*out.textfile);
   if (out.json) json_ = &service_->add_output<exporter::JsonFileOutput>(*out.json, 2);
   if (out.ros2) {
-    ros2_ = &service_->add_output<exporter::Ros2DiagnosticsOutput>(exporter::Ros2Options{
-        .domain_id = out.ros2->domain_id,
-        .dds_config = out.ros2->dds_config,
-        .events = out.ros2->events,
-        .warn = [](const std::string& line) { std::fprintf(stderr, "outputs.ros2: %s\n", line.c_str()); }});
+    ros2_ = &service_->add_output<exporter::Ros2DiagnosticsOutput>(
+        exporter::Ros2Options{.domain_id = out.ros2->domain_id,
+                              .dds_config = out.ros2->dds_config,
+                              .events = out.ros2->events,
+                              .warn = [](const std::string& line) {
+                                std::fprintf(stderr, "outputs.ros2: %s\n", line.c_str());
+                              }});
   }
 }
 

@@ -14,7 +14,6 @@ namespace {
 
 std::string nanos_text(Nanos ns) { return format_nanos(static_cast<double>(ns)); }
 
-
 }  // namespace
 
 std::string hardware_id(const Report& r) {

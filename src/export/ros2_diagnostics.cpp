@@ -40,12 +40,13 @@ expected<VigilRos2TransportCreateFn, std::string> open_module(const std::string&
       ::dlsym(handle, detail::kRos2ModuleCreateSymbol));
   std::string wrong;
   if (abi == nullptr || version == nullptr || create == nullptr) {
-    wrong = fmt::format("{}: not a vigil ROS 2 module (no {})", path,
-                        detail::kRos2ModuleCreateSymbol);
+    wrong =
+        fmt::format("{}: not a vigil ROS 2 module (no {})", path, detail::kRos2ModuleCreateSymbol);
   } else if (abi() != detail::kRos2TransportAbi || std::strcmp(version(), kVersion) != 0) {
-    wrong = fmt::format("{}: built from vigil {} (interface {}), this program is vigil {} "
-                        "(interface {})",
-                        path, version(), abi(), kVersion, detail::kRos2TransportAbi);
+    wrong = fmt::format(
+        "{}: built from vigil {} (interface {}), this program is vigil {} "
+        "(interface {})",
+        path, version(), abi(), kVersion, detail::kRos2TransportAbi);
   }
   if (!wrong.empty()) {
     (void)::dlclose(handle);
@@ -89,9 +90,9 @@ expected<VigilRos2TransportCreateFn, std::string> load_module() {
     }
     tried += "\n  " + m.error();
   }
-  return vigil::unexpected(fmt::format(
-      "cannot load the ROS 2 module {} (set VIGIL_ROS2_MODULE to its path):{}",
-      detail::kRos2ModuleFile, tried));
+  return vigil::unexpected(
+      fmt::format("cannot load the ROS 2 module {} (set VIGIL_ROS2_MODULE to its path):{}",
+                  detail::kRos2ModuleFile, tried));
 }
 
 std::uint8_t event_level(EventSeverity s) {
@@ -121,10 +122,10 @@ expected<int, Error> parse_ros_domain_id(std::string_view text, std::string_view
   const char* end = text.data() + text.size();
   const auto [p, ec] = std::from_chars(text.data(), end, v);
   if (text.empty() || ec != std::errc{} || p != end || v < 0 || v > kRosDomainIdMax) {
-    return vigil::unexpected(Error(
-        EINVAL, fmt::format("{}='{}' is not a DDS domain id: an integer from 0 to {} (ROS 2 "
-                            "advises 0 to 101 on Linux)",
-                            what, text.substr(0, 40), kRosDomainIdMax)));
+    return vigil::unexpected(
+        Error(EINVAL, fmt::format("{}='{}' is not a DDS domain id: an integer from 0 to {} (ROS 2 "
+                                  "advises 0 to 101 on Linux)",
+                                  what, text.substr(0, 40), kRosDomainIdMax)));
   }
   return v;
 }
@@ -135,8 +136,7 @@ expected<int, Error> ros_domain_id_from_environment() {
   return parse_ros_domain_id(env);
 }
 
-Ros2DiagnosticsOutput::Ros2DiagnosticsOutput(Ros2Options options)
-    : options_(std::move(options)) {}
+Ros2DiagnosticsOutput::Ros2DiagnosticsOutput(Ros2Options options) : options_(std::move(options)) {}
 
 Ros2DiagnosticsOutput::~Ros2DiagnosticsOutput() {
   if (hub_ != nullptr) hub_->unsubscribe(subscription_);

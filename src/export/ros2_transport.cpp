@@ -16,7 +16,6 @@
 namespace vigil::exporter::detail {
 namespace {
 
-
 // Cyclone reads the sample only: the strings are borrowed from the message, never freed.
 char* borrow(const std::string& s) { return const_cast<char*>(s.c_str()); }
 
@@ -106,8 +105,8 @@ class CycloneTransport final : public Ros2Transport {
   std::string open(const Ros2TransportConfig& config) {
     if (!config.config.empty()) {
       domain_ = dds_create_domain(config.domain_id, config.config.c_str());
-      if (domain_ < 0) return dds_error("cannot create the DDS domain with this configuration",
-                                        domain_);
+      if (domain_ < 0)
+        return dds_error("cannot create the DDS domain with this configuration", domain_);
     }
     dds_qos_t* pq = dds_create_qos();
     // What rmw_cyclonedds_cpp puts in a participant's user data: the security enclave.

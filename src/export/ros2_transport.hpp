@@ -55,6 +55,7 @@ using VigilRos2TransportAbiFn = int (*)();
 using VigilRos2TransportVersionFn = const char* (*)();
 /// A new transport (owned by the caller; delete it before closing the module), or null with
 /// `*error` saying why (the domain cannot be created, the configuration is bad...).
-using VigilRos2TransportCreateFn = vigil::exporter::detail::Ros2Transport* (*)(
-    const vigil::exporter::detail::Ros2TransportConfig&, std::string* error);
+using VigilRos2TransportCreateFn =
+    vigil::exporter::detail::Ros2Transport* (*)(const vigil::exporter::detail::Ros2TransportConfig&,
+                                                std::string* error);
 }

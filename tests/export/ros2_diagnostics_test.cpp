@@ -2,8 +2,8 @@
 
 #include <fmt/format.h>
 
-#include <catch2/catch.hpp>
 #include <atomic>
+#include <catch2/catch.hpp>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -15,8 +15,8 @@
 #include "vigil/config/load.hpp"
 #include "vigil/deploy/deployment.hpp"
 #include "vigil/deploy/system.hpp"
-#include "vigil/task/task.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
+#include "vigil/task/task.hpp"
 
 #ifdef VIGIL_TEST_FASTDDS
 #include "ros2_fastdds_subscriber.hpp"
@@ -53,11 +53,20 @@ DiagnosticArrayMessage sample_message() {
   m.sec = 1'700'000'123;
   m.nanosec = 456'789'012;
   m.frame_id = "base_link";
-  m.status.push_back({0, "vigil: motor_left", "OK", "tid 4242 cpu 1",
+  m.status.push_back({0,
+                      "vigil: motor_left",
+                      "OK",
+                      "tid 4242 cpu 1",
                       {{"kind", "component"}, {"cycles", "123456"}, {"period", "1.00 ms"}}});
-  m.status.push_back({1, "vigil: planner", "near overrun; 3 rt losses", "tid 77 cpu any",
+  m.status.push_back({1,
+                      "vigil: planner",
+                      "near overrun; 3 rt losses",
+                      "tid 77 cpu any",
                       {{"latency_p99", "12.5 µs"}, {"note", "quote \" and ; and = kept"}}});
-  m.status.push_back({2, "vigil: can0/drive_5", "exception: std::runtime_error: boom", "can0:drive_5",
+  m.status.push_back({2,
+                      "vigil: can0/drive_5",
+                      "exception: std::runtime_error: boom",
+                      "can0:drive_5",
                       {{"empty", ""}}});
   m.status.push_back({3, "vigil: can group left_arm", "silent for 2.0 s", "", {}});
   return m;
@@ -172,8 +181,7 @@ outputs:
 }  // namespace
 
 TEST_CASE("outputs.ros2 in a deployment is parsed and checked", "[export][ros2][deploy]") {
-  const auto ok =
-      deployment("  ros2: {domain_id: 7, events: false, dds_config: '<CycloneDDS/>'}");
+  const auto ok = deployment("  ros2: {domain_id: 7, events: false, dds_config: '<CycloneDDS/>'}");
   REQUIRE(ok);
   REQUIRE(ok->outputs.ros2);
   CHECK(ok->outputs.ros2->domain_id == 7);
@@ -201,8 +209,8 @@ TEST_CASE("outputs.ros2 in a deployment is parsed and checked", "[export][ros2][
 
 TEST_CASE("A deployment's System runs the ROS 2 output", "[export][ros2][deploy]") {
   const int domain = random_domain();
-  auto spec = deployment(fmt::format("  ros2: {{domain_id: {}, dds_config: '{}'}}", domain,
-                                     loopback_config()));
+  auto spec = deployment(
+      fmt::format("  ros2: {{domain_id: {}, dds_config: '{}'}}", domain, loopback_config()));
   REQUIRE(spec);
   auto system = deploy::System::create(std::move(*spec), factory());
   REQUIRE(system);
@@ -214,8 +222,10 @@ TEST_CASE("A deployment's System runs the ROS 2 output", "[export][ros2][deploy]
     CHECK(out->domain_id() == domain);
     bool said = false;
     for (const std::string& line : (*system)->log()) {
-      said = said || line == fmt::format("ROS 2: /diagnostics (DDS topic rt/diagnostics) in "
-                                         "domain {}", domain);
+      said = said || line == fmt::format(
+                                 "ROS 2: /diagnostics (DDS topic rt/diagnostics) in "
+                                 "domain {}",
+                                 domain);
     }
     CHECK(said);
   } else {
@@ -256,10 +266,10 @@ TEST_CASE("A Cyclone DDS subscriber receives every field of /diagnostics", "[exp
   WARN("skipped: cyclonedds-dev absent (vigil was built without Cyclone DDS)");
 #else
   const int domain = random_domain();
-  Started s(Ros2Options{.domain_id = domain,
-                        .dds_config = loopback_config(),
-                        .events = false,
-                        .wall_clock_ns = [] { return kStamp; }});
+  Started s(Ros2Options{
+      .domain_id = domain, .dds_config = loopback_config(), .events = false, .wall_clock_ns = [] {
+        return kStamp;
+      }});
   REQUIRE(s.output.active());
   CHECK(s.warnings.empty());
   CHECK(s.output.domain_id() == domain);
@@ -305,10 +315,10 @@ TEST_CASE("A Fast DDS subscriber receives every field of /diagnostics over the w
   const int domain = random_domain();
   test::FastDdsDiagnosticsSubscriber sub(domain);
   REQUIRE(sub.error().empty());
-  Started s(Ros2Options{.domain_id = domain,
-                        .dds_config = loopback_config(),
-                        .events = false,
-                        .wall_clock_ns = [] { return kStamp; }});
+  Started s(Ros2Options{
+      .domain_id = domain, .dds_config = loopback_config(), .events = false, .wall_clock_ns = [] {
+        return kStamp;
+      }});
   REQUIRE(s.output.active());
   const DiagnosticArrayMessage m = sample_message();
   const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(30);

@@ -2,6 +2,8 @@
 
 #include <fastcdr/Cdr.h>
 #include <fastcdr/FastBuffer.h>
+#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
+#include <fastrtps/utils/IPLocator.h>
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/subscriber/DataReader.hpp>
@@ -11,8 +13,6 @@
 #include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
 #include <fastdds/dds/topic/TopicDataType.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
-#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
-#include <fastrtps/utils/IPLocator.h>
 
 namespace vigil::test {
 
@@ -164,8 +164,8 @@ FastDdsDiagnosticsSubscriber::FastDdsDiagnosticsSubscriber(int domain)
     error_ = "Fast DDS: cannot register the type";
     return;
   }
-  impl_->topic =
-      impl_->participant->create_topic("rt/diagnostics", type.get_type_name(), dds::TOPIC_QOS_DEFAULT);
+  impl_->topic = impl_->participant->create_topic("rt/diagnostics", type.get_type_name(),
+                                                  dds::TOPIC_QOS_DEFAULT);
   impl_->subscriber = impl_->participant->create_subscriber(dds::SUBSCRIBER_QOS_DEFAULT);
   if (impl_->topic == nullptr || impl_->subscriber == nullptr) {
     error_ = "Fast DDS: cannot create the topic or the subscriber";

@@ -24,7 +24,8 @@ namespace {
 
 std::string text(const char* s) { return s != nullptr ? std::string(s) : std::string(); }
 
-vigil::exporter::DiagnosticArrayMessage convert(const diagnostic_msgs_msg_dds__DiagnosticArray_& a) {
+vigil::exporter::DiagnosticArrayMessage convert(
+    const diagnostic_msgs_msg_dds__DiagnosticArray_& a) {
   vigil::exporter::DiagnosticArrayMessage m;
   m.sec = a.header.stamp.sec;
   m.nanosec = a.header.stamp.nanosec;

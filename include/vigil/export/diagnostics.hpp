@@ -49,9 +49,9 @@ struct DiagnosticStatusMessage {
 /// `builtin_interfaces/msg/Time` stamp and a frame id) and its statuses. The one value both the
 /// JSON document and the ROS 2 output (vigil/export/ros2_diagnostics.hpp) are made from.
 struct DiagnosticArrayMessage {
-  std::int32_t sec = 0;        ///< header.stamp.sec
-  std::uint32_t nanosec = 0;   ///< header.stamp.nanosec
-  std::string frame_id{};      ///< header.frame_id ("" from vigil)
+  std::int32_t sec = 0;       ///< header.stamp.sec
+  std::uint32_t nanosec = 0;  ///< header.stamp.nanosec
+  std::string frame_id{};     ///< header.frame_id ("" from vigil)
   std::vector<DiagnosticStatusMessage> status{};
   bool operator==(const DiagnosticArrayMessage&) const = default;
 };

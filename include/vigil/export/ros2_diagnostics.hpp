@@ -127,7 +127,7 @@ class Ros2DiagnosticsOutput final : public Output {
   mutable std::mutex mutex_;  // guards transport_, error_, latest_
   std::unique_ptr<detail::Ros2Transport> transport_;
   std::string error_;
-  bool write_failed_ = false;  // the latest write failed (said once until one succeeds)
+  bool write_failed_ = false;      // the latest write failed (said once until one succeeds)
   DiagnosticArrayMessage latest_;  // of the latest cycle: what an event's status starts from
   supervisor::EventHub* hub_ = nullptr;
   std::uint64_t subscription_ = 0;
