@@ -144,7 +144,7 @@ Ros2DiagnosticsOutput::~Ros2DiagnosticsOutput() {
   transport_.reset();
 }
 
-void Ros2DiagnosticsOutput::fail(std::string why) {
+void Ros2DiagnosticsOutput::fail(const std::string& why) {
   const std::string line = "ROS 2 /diagnostics: " + why;
   {
     std::lock_guard lock(mutex_);

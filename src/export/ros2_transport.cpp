@@ -6,6 +6,7 @@
 
 #include <dds/dds.h>
 
+#include <cstdlib>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -33,6 +34,22 @@ dds_qos_t* ros_default_qos() {
   dds_qset_data_representation(q, 1, &xcdr1);
   return q;
 }
+
+// Cyclone's threads (gc, dq.builtins, dq.user, tev, recv, recvMC, recvUC) get glibc's default
+// stack, the stack limit (8 MiB), unless the configuration says otherwise, and under mlockall (a
+// deployment's lock_memory) every byte of it is resident: 56 MiB for the seven threads. 512 KiB
+// each is plenty for them. The extra receive threads (recvMC, recvUC) take no configured stack,
+// so one receive thread serves every socket: ample for a topic written once a second.
+constexpr const char* kThreadStacks =
+    "<CycloneDDS><Domain id=\"any\"><Threads>"
+    "<Thread name=\"gc\"><StackSize>512KiB</StackSize></Thread>"
+    "<Thread name=\"dq.builtins\"><StackSize>512KiB</StackSize></Thread>"
+    "<Thread name=\"dq.user\"><StackSize>512KiB</StackSize></Thread>"
+    "<Thread name=\"tev\"><StackSize>512KiB</StackSize></Thread>"
+    "<Thread name=\"recv\"><StackSize>512KiB</StackSize></Thread>"
+    "<Thread name=\"lease\"><StackSize>512KiB</StackSize></Thread>"
+    "</Threads><Internal><MultipleReceiveThreads>false</MultipleReceiveThreads></Internal>"
+    "</Domain></CycloneDDS>";
 
 class CycloneTransport final : public Ros2Transport {
  public:
@@ -103,10 +120,22 @@ class CycloneTransport final : public Ros2Transport {
   CycloneTransport() = default;
 
   std::string open(const Ros2TransportConfig& config) {
-    if (!config.config.empty()) {
-      domain_ = dds_create_domain(config.domain_id, config.config.c_str());
-      if (domain_ < 0)
-        return dds_error("cannot create the DDS domain with this configuration", domain_);
+    // The configuration: the thread stacks below, then the user's (config.config, else
+    // CYCLONEDDS_URI), which may override them; Cyclone merges a comma-separated list.
+    std::string merged = kThreadStacks;
+    const char* env = std::getenv("CYCLONEDDS_URI");
+    const std::string user = !config.config.empty() ? config.config
+                             : env != nullptr       ? std::string(env)
+                                                    : std::string();
+    if (!user.empty()) merged += "," + user;
+    domain_ = dds_create_domain(config.domain_id, merged.c_str());
+    if (domain_ == DDS_RETCODE_PRECONDITION_NOT_MET) {
+      domain_ = 0;  // another part of the process made this domain: join it as it is
+    } else if (domain_ < 0) {
+      return dds_error(config.config.empty() && env != nullptr
+                           ? "cannot create the DDS domain with CYCLONEDDS_URI"
+                           : "cannot create the DDS domain with this configuration",
+                       domain_);
     }
     dds_qos_t* pq = dds_create_qos();
     // What rmw_cyclonedds_cpp puts in a participant's user data: the security enclave.

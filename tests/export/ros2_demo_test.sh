@@ -32,6 +32,7 @@ listener_pid=$!
 "$vigil" demo --ros2 --no-live --duration 14 > "$out/demo.out" 2>&1 &
 demo_pid=$!
 wait "$listener_pid" || fail "the listener did not receive 8 monitor cycles"
+ros2_locked=$(awk '/^VmLck:/ {print $2}' "/proc/$demo_pid/status" 2>/dev/null || echo 0)
 wait "$demo_pid" || fail "the demo failed"
 
 grep -q "ROS 2: /diagnostics (DDS topic rt/diagnostics) in domain $domain" "$out/demo.out" ||
@@ -46,11 +47,20 @@ grep -q '"name":"vigil: encoder","message":"ERROR encoder: exception' "$out/samp
   fail "the encoder's exception is not its status's message"
 
 # Without --ros2 no DDS library is mapped (the module is opened only by the output).
-"$vigil" demo --no-live --duration 3 > "$out/plain.out" 2>&1 &
+"$vigil" demo --no-live --duration 4 > "$out/plain.out" 2>&1 &
 plain_pid=$!
-sleep 1.5
+sleep 3
 if grep -q -E 'libddsc|libvigil_ros2' "/proc/$plain_pid/maps"; then
   fail "a demo without --ros2 maps a DDS library"
 fi
+plain_locked=$(awk '/^VmLck:/ {print $2}' "/proc/$plain_pid/status")
 wait "$plain_pid" || fail "the plain demo failed"
+
+# With memory locked, what DDS adds stays bounded (its libraries, small thread stacks: ~12 MiB);
+# Cyclone's seven threads with glibc's default 8 MiB stacks added 56 MiB.
+if grep -q "memory locked" "$out/plain.out" && ((plain_locked > 0 && ros2_locked > 0)); then
+  ((ros2_locked - plain_locked < 24576)) ||
+    fail "--ros2 locks $((ros2_locked - plain_locked)) kB more than without (limit 24576 kB)"
+  echo "locked: $plain_locked kB without --ros2, $ros2_locked kB with it"
+fi
 echo "ok: $(wc -l < "$out/samples") samples in domain $domain"

@@ -68,8 +68,9 @@ struct Ros2Options {
   /// The DDS domain; none: `ROS_DOMAIN_ID` (read at start), else 0. 0 to kRosDomainIdMax.
   std::optional<int> domain_id{};
   /// Cyclone DDS configuration (XML, or `file://` URIs: what `CYCLONEDDS_URI` holds) for the
-  /// output's domain; empty: Cyclone's own (`CYCLONEDDS_URI`, else its defaults). Used only when
-  /// no other part of the process created that domain first.
+  /// output's domain; empty: `CYCLONEDDS_URI`, else Cyclone's defaults. Either comes after
+  /// vigil's own fragment (its threads' stack sizes, one receive thread), which it may change.
+  /// Used only when no other part of the process created that domain first.
   std::string dds_config{};
   /// Also publish the changed status at once for each event (not only every monitor cycle).
   bool events = true;
@@ -119,7 +120,7 @@ class Ros2DiagnosticsOutput final : public Output {
   bool write(const DiagnosticArrayMessage& message);
 
  private:
-  void fail(std::string why);
+  void fail(const std::string& why);
   void on_event(const Event& e);
   [[nodiscard]] std::int64_t now_ns() const;
 
