@@ -9,9 +9,9 @@
 //  - ros2/publish_remote: the same with a subscriber in another process on loopback (the
 //    writer's thread then also packs and sends the sample's fragments).
 // Every unit is a component with a full report (thread statistics, timing summaries).
-#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <csignal>
 
 #include <dds/dds.h>
 
