@@ -305,6 +305,48 @@ TEST_CASE("A Cyclone DDS subscriber receives every field of /diagnostics", "[exp
 #endif
 }
 
+TEST_CASE("An event publishes the status it changed at once", "[export][ros2]") {
+#ifndef VIGIL_ROS2_LISTENER
+  WARN("skipped: cyclonedds-dev absent (vigil was built without Cyclone DDS)");
+#else
+  const int domain = random_domain();
+  Started s(Ros2Options{.domain_id = domain, .dds_config = loopback_config(), .wall_clock_ns = [] {
+                          return kStamp;
+                        }});
+  REQUIRE(s.output.active());
+  Snapshot snap;
+  Report motor;
+  motor.name = "motor";
+  motor.tid = 4242;
+  motor.cpu = 2;
+  motor.merge(StatusLevel::Warn, "near overrun");
+  Report other;
+  other.name = "other";
+  snap.reports.components = {motor, other};
+  s.output.publish(snap);  // the latest cycle: what the event's status starts from
+  Event e;
+  e.kind = EventKind::Exception;
+  e.severity = EventSeverity::Error;
+  e.component = "motor";
+  e.detail = "std::runtime_error: boom";
+  // Only events, no more cycles: every sample the listener gets came from one.
+  const auto lines = listen(domain, 1, [&] { (void)s.aggregator.events().publish(e); });
+  REQUIRE(lines.size() == 1);
+  const std::string& line = lines[0];
+  // One status, motor's, raised to ERROR, the event as its message, its values kept and the
+  // event's kind and sequence number added.
+  CHECK(line.find("\"name\":\"vigil: other\"") == std::string::npos);
+  CHECK(line.find("\"status\":[{\"level\":2,\"name\":\"vigil: motor\",\"message\":\"ERROR motor: "
+                  "exception: std::runtime_error: boom") != std::string::npos);
+  CHECK(line.find("\"hardware_id\":\"tid 4242 cpu 2\"") != std::string::npos);
+  CHECK(line.find("{\"key\":\"kind\",\"value\":\"component\"}") != std::string::npos);
+  CHECK(line.find("{\"key\":\"event\",\"value\":\"exception\"},{\"key\":\"event_seq\",") !=
+        std::string::npos);
+  CHECK(line.find("\"sec\":1700000123,\"nanosec\":456789012") != std::string::npos);
+  s.output.stop(Snapshot{});
+#endif
+}
+
 TEST_CASE("A Fast DDS subscriber receives every field of /diagnostics over the wire",
           "[export][ros2]") {
 #if !defined(VIGIL_ROS2_LISTENER)
