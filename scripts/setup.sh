@@ -30,6 +30,10 @@ packages=(
   # vigil as a package of a ROS 2 workspace (tests/colcon/colcon_build.sh, docs/guide/colcon.md):
   # colcon, its CMake builds, package.xml, and its `list` verb
   colcon python3-colcon-cmake python3-colcon-ros python3-colcon-package-information
+  # ROS 2 /diagnostics over DDS (docs/guide/ros2.md): Cyclone DDS and its IDL compiler for the
+  # output (optional: without them the output only warns), Fast DDS for the tests' second
+  # subscriber
+  cyclonedds-dev cyclonedds-tools libfastrtps-dev
 )
 
 missing=()

@@ -21,6 +21,7 @@ struct DemoOptions {
   std::string events;              ///< write every event to FILE as JSON lines (empty: none)
   std::string trace_dir;           ///< write flight-recorder traces to DIR (empty: none)
   bool http_clear = false;         ///< enable POST /api/v1/clear on the HTTP endpoint
+  bool ros2 = false;  ///< publish ROS 2 /diagnostics over DDS (adds the deployment's outputs.ros2)
 };
 /// Runs `vigil demo`. Exit codes (docs/guide/faults.md):
 ///  0 ran for --duration or was stopped by SIGINT/SIGTERM; final report printed, JSON written;
@@ -61,6 +62,7 @@ struct SuperviseOptions {
   bool no_live = false;
   bool details = false;
   bool keep_segments = false;
+  bool ros2 = false;  ///< publish ROS 2 /diagnostics over DDS (domain: ROS_DOMAIN_ID)
 };
 int run_supervise(const SuperviseOptions& options);
 

@@ -76,6 +76,7 @@ expected<deploy::DeploymentSpec, int> load_spec(const DemoOptions& o) {
   if (!o.textfile.empty()) spec->outputs.textfile = o.textfile;
   if (!o.json.empty()) spec->outputs.json = o.json;
   if (o.http_clear && spec->outputs.http) spec->outputs.http->clear = true;
+  if (o.ros2 && !spec->outputs.ros2) spec->outputs.ros2.emplace();  // ROS_DOMAIN_ID, else 0
   return std::move(*spec);
 }
 

@@ -61,6 +61,8 @@ int main(int argc, char** argv) {
                        "it goes to ERROR (open them in ui.perfetto.dev)");
   demo_cmd->add_flag("--http-clear", demo.http_clear,
                      "Enable POST /api/v1/clear (clears latched faults) on the HTTP endpoint");
+  demo_cmd->add_flag("--ros2", demo.ros2,
+                     "Publish ROS 2 /diagnostics over DDS (domain: ROS_DOMAIN_ID, else 0)");
 
   vigil::app::CheckConfigOptions check;
   auto* check_cmd = app.add_subcommand(
@@ -106,6 +108,8 @@ int main(int argc, char** argv) {
   sup_cmd->add_flag("--details", sup.details, "End with the detail view of every component");
   sup_cmd->add_flag("--keep-segments", sup.keep_segments,
                     "Do not remove the segments of dead processes and departed components");
+  sup_cmd->add_flag("--ros2", sup.ros2,
+                    "Publish ROS 2 /diagnostics over DDS (domain: ROS_DOMAIN_ID, else 0)");
 
   CLI11_PARSE(app, argc, argv);
 

@@ -14,6 +14,7 @@
 #include "vigil/config/load.hpp"
 #include "vigil/deploy/health_section.hpp"
 #include "vigil/export/outputs.hpp"
+#include "vigil/export/ros2_diagnostics.hpp"
 #include "vigil/export/text_report.hpp"
 #include "vigil/platform/process.hpp"
 #include "vigil/platform/process_watch.hpp"
@@ -116,6 +117,9 @@ int run_supervise(const SuperviseOptions& o) {
                                   .panels = std::move(panels),
                                   .final_title = "Stopped"});
   auto* json = o.json.empty() ? nullptr : &daemon.add_output<exporter::JsonFileOutput>(o.json, 2);
+  // --ros2: the domain is ROS_DOMAIN_ID, else 0; a bad one is a warning (nothing published).
+  exporter::Ros2DiagnosticsOutput* ros2 = nullptr;
+  if (o.ros2) ros2 = &daemon.add_output<exporter::Ros2DiagnosticsOutput>();
 
   platform::install_stop_signals();
   if (auto r = daemon.start(); !r) {
@@ -127,6 +131,9 @@ int run_supervise(const SuperviseOptions& o) {
               format_nanos(static_cast<double>(segments.options().period_ns)).c_str(),
               o.duration_s > 0 ? fmt::format(" for {} s", o.duration_s).c_str() : "; Ctrl-C stops");
   std::printf("Start processes with VIGIL_SUPERVISOR=%s in their environment.\n", o.name.c_str());
+  if (ros2 != nullptr && ros2->active()) {
+    std::printf("ROS 2: /diagnostics (DDS topic rt/diagnostics) in domain %d\n", ros2->domain_id());
+  }
   std::fflush(stdout);
 
   const Clock clock = daemon.options().clock;

@@ -11,6 +11,7 @@
 #include "vigil/bus/shm_segment.hpp"
 #include "vigil/config/load.hpp"
 #include "vigil/deploy/extension.hpp"
+#include "vigil/export/ros2_diagnostics.hpp"
 
 namespace vigil::deploy {
 
@@ -281,14 +282,28 @@ HttpOutputSpec parse_http(const config::Node& h) {
   return http;
 }
 
+// `outputs.ros2`.
+Ros2OutputSpec parse_ros2(const config::Node& r) {
+  Ros2OutputSpec ros2;
+  if (r.is_null()) return ros2;  // `ros2:` alone: every default
+  r.reject_unknown_keys({"domain_id", "dds_config", "events"});
+  if (r.has("domain_id")) {
+    ros2.domain_id = r.required<int>("domain_id", config::in_range(0, exporter::kRosDomainIdMax));
+  }
+  ros2.dds_config = r.optional<std::string>("dds_config", "", config::non_empty());
+  ros2.events = r.optional("events", true);
+  return ros2;
+}
+
 // `outputs`.
 void parse_outputs(const config::Node& o, OutputSpec& out) {
-  o.reject_unknown_keys({"json", "http", "textfile"});
+  o.reject_unknown_keys({"json", "http", "textfile", "ros2"});
   if (o.has("json")) out.json = o.required<std::string>("json", config::non_empty());
   if (o.has("textfile")) {
     out.textfile = o.required<std::string>("textfile", config::non_empty());
   }
   if (const config::Node h = o["http"]; h.defined()) out.http = parse_http(h);
+  if (const config::Node r = o["ros2"]; r.defined()) out.ros2 = parse_ros2(r);
 }
 
 }  // namespace

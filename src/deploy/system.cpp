@@ -5,6 +5,7 @@
 
 #include <cerrno>
 #include <chrono>
+#include <cstdio>
 #include <exception>
 #include <future>
 #include <memory>
@@ -56,6 +57,15 @@ System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
   service_->monitor().set_thresholds(sv.thresholds);
   if (out.textfile) textfile_ = &service_->add_output<exporter::TextfileOutput>(*out.textfile);
   if (out.json) json_ = &service_->add_output<exporter::JsonFileOutput>(*out.json, 2);
+  if (out.ros2) {
+    ros2_ = &service_->add_output<exporter::Ros2DiagnosticsOutput>(
+        exporter::Ros2Options{.domain_id = out.ros2->domain_id,
+                              .dds_config = out.ros2->dds_config,
+                              .events = out.ros2->events,
+                              .warn = [](const std::string& line) {
+                                std::fprintf(stderr, "outputs.ros2: %s\n", line.c_str());
+                              }});
+  }
 }
 
 System::~System() { stop(); }
@@ -182,6 +192,10 @@ expected<void, Error> System::start() {
     return vigil::unexpected(Error{
         r.error().code, spec_.outputs.http ? fmt::format("outputs.http: {}", r.error().message)
                                            : r.error().message});
+  }
+  if (ros2_ != nullptr && ros2_->active()) {
+    log_.push_back(fmt::format("ROS 2: /diagnostics (DDS topic rt/diagnostics) in domain {}",
+                               ros2_->domain_id()));
   }
   if (spec_.outputs.textfile) {
     log_.push_back(

@@ -16,7 +16,7 @@
 ///   ewma_weight: 0.05
 ///   thresholds: {defaults: {overrun: {near_fraction: 0.9}}}   # or a file name
 ///   shared_memory: robot      # optional: supervised by `vigil supervise --name robot`
-/// outputs: {json: final.json, http: {listen: 9479}, textfile: vigil.prom}
+/// outputs: {json: final.json, http: {listen: 9479}, textfile: vigil.prom, ros2: {domain_id: 7}}
 /// health:                         # checkpoints supervised (vigil/deploy/health_section.hpp)
 ///   deadline: [{name: plan_to_act, start: planner.plan_ready, end: motor_left.applied, max: 5ms}]
 /// can: {node_map: canopen}        # a section of a registered extension
@@ -109,12 +109,20 @@ struct HttpOutputSpec {
   bool clear = false;              ///< `clear: true` enables POST /api/v1/clear
 };
 
+/// `outputs.ros2`: publish ROS 2 `/diagnostics` over DDS (docs/guide/ros2.md).
+struct Ros2OutputSpec {
+  std::optional<int> domain_id;  ///< `domain_id: 0..232`; absent: ROS_DOMAIN_ID, else 0
+  std::string dds_config;        ///< `dds_config:` Cyclone DDS XML or file URIs; "": Cyclone's own
+  bool events = true;            ///< `events: false` publishes at the monitor's pace only
+};
+
 /// Where the results go.
 struct OutputSpec {
   std::optional<std::filesystem::path> json;  ///< final reports (the monitor's JSON schema)
   std::optional<HttpOutputSpec> http;         ///< live HTTP endpoint
   /// node-exporter textfile (`.prom`), rewritten atomically after every monitor cycle.
   std::optional<std::filesystem::path> textfile;
+  std::optional<Ros2OutputSpec> ros2;  ///< ROS 2 /diagnostics over DDS
 };
 
 /// A top-level section handled by an extension (e.g. `can:`), unparsed.

@@ -29,6 +29,7 @@
 #include "vigil/deploy/extension.hpp"
 #include "vigil/error.hpp"
 #include "vigil/export/outputs.hpp"
+#include "vigil/export/ros2_diagnostics.hpp"
 #include "vigil/monitor/monitor.hpp"
 #include "vigil/monitor/threshold_file.hpp"
 #include "vigil/platform/memory.hpp"
@@ -97,6 +98,11 @@ class System {
   /// The output of `outputs.json` (the final reports, written at stop), or null. Its `error()`
   /// says why a write failed.
   [[nodiscard]] const exporter::JsonFileOutput* json_output() const noexcept { return json_; }
+  /// The output of `outputs.ros2` (ROS 2 /diagnostics over DDS), or null. Its `active()` and
+  /// `error()` say whether it publishes.
+  [[nodiscard]] const exporter::Ros2DiagnosticsOutput* ros2_output() const noexcept {
+    return ros2_;
+  }
   /// The watched thresholds file (`supervision: {thresholds: FILE}`), or null when the
   /// thresholds are embedded. The monitor polls it at each cycle; `reload()` it to apply an edit
   /// at once.
@@ -139,6 +145,7 @@ class System {
   std::vector<Slot> slots_;
   exporter::TextfileOutput* textfile_ = nullptr;  // among the service's outputs
   exporter::JsonFileOutput* json_ = nullptr;
+  exporter::Ros2DiagnosticsOutput* ros2_ = nullptr;
   std::vector<std::string> log_;
   platform::RealtimeSetupReport rt_setup_;
   bool running_ = false;

@@ -22,10 +22,54 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "vigil/monitor/report.hpp"
 
 namespace vigil::exporter {
+
+/// `diagnostic_msgs/msg/KeyValue`.
+struct DiagnosticKeyValue {
+  std::string key{};
+  std::string value{};
+  bool operator==(const DiagnosticKeyValue&) const = default;
+};
+
+/// `diagnostic_msgs/msg/DiagnosticStatus`.
+struct DiagnosticStatusMessage {
+  std::uint8_t level = 0;  ///< OK 0, WARN 1, ERROR 2, STALE 3
+  std::string name{};
+  std::string message{};
+  std::string hardware_id{};
+  std::vector<DiagnosticKeyValue> values{};
+  bool operator==(const DiagnosticStatusMessage&) const = default;
+};
+
+/// `diagnostic_msgs/msg/DiagnosticArray`: its header (`std_msgs/msg/Header`: a
+/// `builtin_interfaces/msg/Time` stamp and a frame id) and its statuses. The one value both the
+/// JSON document and the ROS 2 output (vigil/export/ros2_diagnostics.hpp) are made from.
+struct DiagnosticArrayMessage {
+  std::int32_t sec = 0;       ///< header.stamp.sec
+  std::uint32_t nanosec = 0;  ///< header.stamp.nanosec
+  std::string frame_id{};     ///< header.frame_id ("" from vigil)
+  std::vector<DiagnosticStatusMessage> status{};
+  /// Not in the ROS 2 message: the names of the statuses that are root causes (the diagnosis
+  /// graph's; vigil/monitor/diagnosis.hpp), in the JSON document only.
+  std::vector<std::string> root_causes{};
+  bool operator==(const DiagnosticArrayMessage&) const = default;
+};
+
+/// The status of one report (see the file comment for the mapping).
+[[nodiscard]] DiagnosticStatusMessage to_diagnostic_status(const Report& report);
+
+/// The DiagnosticArray of `reports`, stamped `wall_time_ns` (Unix time in ns; the seconds are
+/// clamped to the range of `sec`).
+[[nodiscard]] DiagnosticArrayMessage to_diagnostic_array(const ReportSet& reports,
+                                                         std::int64_t wall_time_ns);
+
+/// `message` as JSON (the document of the file comment). `indent` as `JsonWriter` (0: one line).
+[[nodiscard]] std::string to_diagnostics_json(const DiagnosticArrayMessage& message,
+                                              int indent = 0);
 
 /// The DiagnosticArray of `reports`, stamped `wall_time_ns` (Unix time in ns). `indent` as
 /// `JsonWriter` (0: one line).
