@@ -2,9 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <array>
 #include <cctype>
-#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <iterator>
@@ -183,10 +183,11 @@ ProtocolOptions CanConfig::protocol_options() const {
 
 namespace {
 
-constexpr std::array<cfg::EnumName<BusProtocol>, 3> kProtocols{{
+constexpr std::array<cfg::EnumName<BusProtocol>, 4> kProtocols{{
     {"auto", BusProtocol::Auto},
     {"none", BusProtocol::None},
     {"canopen", BusProtocol::CanOpen},
+    {"dronecan", BusProtocol::DroneCan},
 }};
 
 constexpr std::array<cfg::EnumName<Stuffing>, 3> kStuffings{{
@@ -446,16 +447,16 @@ ThresholdOverrides load_thresholds(const cfg::Node& n) {
       if (hb.is_scalar() && hb.get<std::string>() == "learned") {
         t.canopen_heartbeat_ns = std::optional<Nanos>{};
       } else {
-        t.canopen_heartbeat_ns = std::optional<Nanos>{co.required_duration("heartbeat",
-                                                                           cfg::positive())};
+        t.canopen_heartbeat_ns =
+            std::optional<Nanos>{co.required_duration("heartbeat", cfg::positive())};
       }
     }
     if (const cfg::Node no = co["not_operational_after"]; no.defined()) {
       if (no.is_scalar() && no.get<std::string>() == "never") {
         t.canopen_not_operational_after_ns = std::optional<Nanos>{};
       } else {
-        t.canopen_not_operational_after_ns = std::optional<Nanos>{
-            co.required_duration("not_operational_after", cfg::positive())};
+        t.canopen_not_operational_after_ns =
+            std::optional<Nanos>{co.required_duration("not_operational_after", cfg::positive())};
       }
     }
     if (co.has("reset_window")) {

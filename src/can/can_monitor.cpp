@@ -323,7 +323,7 @@ void overall(CanReport& r, const CanMonitorOptions& options) {
   if (t.dropped > 0) {
     r.status.merge(StatusLevel::Ok,
                    fmt::format("timing sampled: {} of {} dropped by full ports (counts are exact)",
-                               plural(t.dropped, "record"), t.accepted));
+                               plural(t.dropped, "record"), t.accepted + t.error_frames));
   }
 }
 
@@ -541,18 +541,17 @@ void canopen_checks(NodeReport& n, const CanReport& r) {
       co->state != canopen::NmtState::Unknown && co->operational_left_ns >= 0) {
     const Nanos out = at - co->operational_left_ns;
     if (out > *t.canopen_not_operational_after_ns) {
-      n.status.merge(StatusLevel::Warn,
-                     fmt::format("not operational: {} for {} (limit {})",
-                                 canopen::to_string(co->state), duration(out),
-                                 config::format_duration(*t.canopen_not_operational_after_ns)));
+      n.status.merge(
+          StatusLevel::Warn,
+          fmt::format("not operational: {} for {} (limit {})", canopen::to_string(co->state),
+                      duration(out), config::format_duration(*t.canopen_not_operational_after_ns)));
     }
   }
   if (t.canopen_heartbeat_ns && co->last_heartbeat_ns >= 0 && t.not_responding_enabled) {
     const Nanos since = at - co->last_heartbeat_ns;
     if (since > *t.canopen_heartbeat_ns) {
       n.status.merge(t.not_responding_level,
-                     fmt::format("heartbeat lost: none for {} (consumer time {})",
-                                 duration(since),
+                     fmt::format("heartbeat lost: none for {} (consumer time {})", duration(since),
                                  config::format_duration(*t.canopen_heartbeat_ns)));
     }
   }
@@ -563,13 +562,41 @@ void canopen_checks(NodeReport& n, const CanReport& r) {
                                co->toggle_errors, co->guard_responses));
   }
   if (co->malformed_emergencies + co->malformed_heartbeats > 0) {
-    n.status.merge(StatusLevel::Ok,
-                   fmt::format("malformed CANopen payloads: {} emergenc{}, {} heartbeat{} "
-                               "(latest: {})",
-                               co->malformed_emergencies,
-                               co->malformed_emergencies == 1 ? "y" : "ies",
-                               co->malformed_heartbeats, co->malformed_heartbeats == 1 ? "" : "s",
-                               co->last_malformed));
+    n.status.merge(
+        StatusLevel::Ok,
+        fmt::format("malformed CANopen payloads: {} emergenc{}, {} heartbeat{} "
+                    "(latest: {})",
+                    co->malformed_emergencies, co->malformed_emergencies == 1 ? "y" : "ies",
+                    co->malformed_heartbeats, co->malformed_heartbeats == 1 ? "" : "s",
+                    co->last_malformed));
+  }
+}
+
+// DroneCAN NodeStatus: health WARNING is WARN, ERROR and CRITICAL are ERROR; a restart (uptime
+// went back) WARN for `canopen_reset_window_ns`.
+void dronecan_checks(NodeReport& n, const CanReport& r) {
+  if (r.node_map != NodeMapKind::DroneCan || !n.bus || n.node == 0 || n.node > 127) return;
+  const dronecan::NodeStats* dc = r.snapshot.protocol.find_dronecan(*n.bus, n.node);
+  if (dc == nullptr) return;
+  n.dronecan = *dc;
+  const Nanos at = r.observed_ns;
+  if (dc->statuses > 0 && dc->health != dronecan::Health::Ok) {
+    const StatusLevel level =
+        dc->health == dronecan::Health::Warning ? StatusLevel::Warn : StatusLevel::Error;
+    n.status.merge(level, fmt::format("NodeStatus health {} (mode {}, vendor status 0x{:04X})",
+                                      dronecan::to_string(dc->health),
+                                      dronecan::mode_name(dc->mode), dc->vendor_status));
+  }
+  const Nanos window = n.thresholds.canopen_reset_window_ns;
+  if (dc->restarts > 0 && window > 0 && at - dc->last_restart_ns <= window) {
+    n.status.merge(StatusLevel::Warn,
+                   fmt::format("node restart: its uptime went back {} ago ({} restart{} so far)",
+                               duration(std::max<Nanos>(0, at - dc->last_restart_ns)), dc->restarts,
+                               dc->restarts == 1 ? "" : "s"));
+  }
+  if (dc->malformed > 0) {
+    n.status.merge(StatusLevel::Ok, fmt::format("malformed NodeStatus: {} (latest: {})",
+                                                dc->malformed, dc->last_malformed));
   }
 }
 
@@ -590,9 +617,9 @@ void judge_buses(CanReport& r, const CanConfig& cfg) {
       }
     } else {
       const auto above = [&](StatusLevel level, double limit) {
-        b.status.merge(level, fmt::format("bus load {:.1f}% ({}, {} stuffing) above {:g}%",
-                                          b.judged_load, to_string(l.figure),
-                                          to_string(l.stuffing), limit));
+        b.status.merge(level,
+                       fmt::format("bus load {:.1f}% ({}, {} stuffing) above {:g}%", b.judged_load,
+                                   to_string(l.figure), to_string(l.stuffing), limit));
       };
       if (l.error && b.judged_load > *l.error) {
         above(StatusLevel::Error, *l.error);
@@ -603,7 +630,7 @@ void judge_buses(CanReport& r, const CanConfig& cfg) {
     const ControllerStats& c = s.controller;
     const auto since = [&] {
       return c.state_since_ns >= 0 ? duration(std::max<Nanos>(0, r.observed_ns - c.state_since_ns))
-                                    : std::string("?");
+                                   : std::string("?");
     };
     if (c.state == ControllerState::BusOff) {
       b.status.merge(StatusLevel::Error,
@@ -667,6 +694,7 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
     configure(n, *cfg, r.node_map);
     builtin_checks(n, r);
     canopen_checks(n, r);
+    dronecan_checks(n, r);
   }
   judge_buses(r, *cfg);
   custom_checks(checks, r);

@@ -208,9 +208,9 @@ std::string controller_status_names(std::uint8_t data1) {
 }
 
 std::string protocol_type_names(std::uint8_t data2) {
-  return bit_names(data2, {"bit", "form", "stuff", "unable to send dominant bit",
-                           "unable to send recessive bit", "overload", "active error announcement",
-                           "on transmission"});
+  return bit_names(
+      data2, {"bit", "form", "stuff", "unable to send dominant bit", "unable to send recessive bit",
+              "overload", "active error announcement", "on transmission"});
 }
 
 std::string protocol_location_name(std::uint8_t data3) {
@@ -478,9 +478,9 @@ std::string emergency_class(std::uint16_t code) {
 
 std::string error_register_names(std::uint8_t reg) {
   if (reg == 0) return "none";
-  constexpr std::array<std::string_view, 8> kNames{
-      "generic", "current",        "voltage",  "temperature",
-      "communication", "device profile", "bit 6", "manufacturer"};
+  constexpr std::array<std::string_view, 8> kNames{"generic",     "current",       "voltage",
+                                                   "temperature", "communication", "device profile",
+                                                   "bit 6",       "manufacturer"};
   std::string s;
   for (std::size_t i = 0; i < 8; ++i) {
     if ((reg & (1U << i)) == 0) continue;
@@ -504,6 +504,55 @@ std::string Emergency::describe() const {
 
 }  // namespace canopen
 
+namespace dronecan {
+
+std::string_view to_string(Health h) noexcept {
+  switch (h) {
+    case Health::Ok:
+      return "OK";
+    case Health::Warning:
+      return "WARNING";
+    case Health::Error:
+      return "ERROR";
+    case Health::Critical:
+      return "CRITICAL";
+    case Health::Unknown:
+      return "unknown";
+  }
+  return "?";
+}
+
+std::string mode_name(std::uint8_t mode) {
+  switch (mode) {
+    case 0:
+      return "operational";
+    case 1:
+      return "initialization";
+    case 2:
+      return "maintenance";
+    case 3:
+      return "software update";
+    case 7:
+      return "offline";
+    default:
+      return fmt::format("mode {}", mode);
+  }
+}
+
+std::optional<NodeStatus> decode_node_status(std::span<const std::uint8_t> p) noexcept {
+  if (p.size() < 7) return std::nullopt;
+  NodeStatus s;
+  s.uptime_s = static_cast<std::uint32_t>(p[0]) | static_cast<std::uint32_t>(p[1]) << 8 |
+               static_cast<std::uint32_t>(p[2]) << 16 | static_cast<std::uint32_t>(p[3]) << 24;
+  s.health = static_cast<Health>((p[4] >> 6) & 0x3U);
+  s.mode = static_cast<std::uint8_t>((p[4] >> 3) & 0x7U);
+  s.sub_mode = static_cast<std::uint8_t>(p[4] & 0x7U);
+  s.vendor_status = static_cast<std::uint16_t>(p[5] | (p[6] << 8));
+  return s;
+}
+
+}  // namespace dronecan
+
 // ---------------------------------------------------------------------------------------------
 // The tracker
 // ---------------------------------------------------------------------------------------------
@@ -516,6 +565,8 @@ std::string_view to_string(BusProtocol p) noexcept {
       return "none";
     case BusProtocol::CanOpen:
       return "canopen";
+    case BusProtocol::DroneCan:
+      return "dronecan";
   }
   return "?";
 }
@@ -538,6 +589,8 @@ std::string_view to_string(ProtocolEventKind k) noexcept {
       return "bus_off";
     case ProtocolEventKind::ErrorActive:
       return "error_active";
+    case ProtocolEventKind::NodeHealth:
+      return "node_health";
   }
   return "?";
 }
@@ -548,7 +601,9 @@ BusSettings ProtocolOptions::settings(std::uint8_t bus, NodeMapKind map) const n
     if (index == bus) s = b;
   }
   if (s.protocol == BusProtocol::Auto) {
-    s.protocol = map == NodeMapKind::CanOpen ? BusProtocol::CanOpen : BusProtocol::None;
+    s.protocol = map == NodeMapKind::CanOpen    ? BusProtocol::CanOpen
+                 : map == NodeMapKind::DroneCan ? BusProtocol::DroneCan
+                                                : BusProtocol::None;
   }
   return s;
 }
@@ -570,6 +625,14 @@ bool ProtocolOptions::canopen(std::uint8_t bus, std::uint32_t node,
 const BusProtocolStats* ProtocolSnapshot::find_bus(std::uint8_t bus) const noexcept {
   for (const auto& b : buses) {
     if (b.bus == bus) return &b;
+  }
+  return nullptr;
+}
+
+const dronecan::NodeStats* ProtocolSnapshot::find_dronecan(std::uint8_t bus,
+                                                           std::uint32_t node) const noexcept {
+  for (const auto& n : dronecan) {
+    if (n.bus == bus && n.node == node) return &n;
   }
   return nullptr;
 }
@@ -698,6 +761,8 @@ void ProtocolTracker::on(const FrameRecord& r, NodeMapKind map) {
   count_load(b, r);
   if (!r.extended && options_.canopen(r.bus, r.id == 0 ? 0 : (r.id & 0x7FU), map)) {
     on_canopen(b, r);
+  } else if (r.extended && b.stats.settings.protocol == BusProtocol::DroneCan) {
+    on_dronecan(r);
   }
 }
 
@@ -706,9 +771,8 @@ void ProtocolTracker::advance(Nanos t) {
   for (auto& [index, b] : buses_) close_windows(b, upto);
 }
 
-void ProtocolTracker::emit(ProtocolEventKind kind, std::uint8_t severity, Nanos t,
-                           std::uint8_t bus, std::uint32_t node, Direction d,
-                           std::string detail) {
+void ProtocolTracker::emit(ProtocolEventKind kind, std::uint8_t severity, Nanos t, std::uint8_t bus,
+                           std::uint32_t node, Direction d, std::string detail) {
   ProtocolEvent e;
   e.seq = ++seq_;
   e.kind = kind;
@@ -847,8 +911,8 @@ void ProtocolTracker::on_canopen(Bus& b, const FrameRecord& r) {
     canopen::NodeStats& s = n->stats;
     if (len < 8) {
       ++s.malformed_emergencies;
-      s.last_malformed = fmt::format("emergency of {} byte{} (8 expected)", len,
-                                     len == 1 ? "" : "s");
+      s.last_malformed =
+          fmt::format("emergency of {} byte{} (8 expected)", len, len == 1 ? "" : "s");
       if (len < 2) return;  // not even an error code
     }
     canopen::Emergency e;
@@ -886,8 +950,8 @@ void ProtocolTracker::on_canopen(Bus& b, const FrameRecord& r) {
   }
   if (!state) {
     ++s.malformed_heartbeats;
-    s.last_malformed = fmt::format(
-        "heartbeat state byte 0x{:02X} (CiA 301 defines 0x00, 0x04, 0x05, 0x7F)", byte);
+    s.last_malformed =
+        fmt::format("heartbeat state byte 0x{:02X} (CiA 301 defines 0x00, 0x04, 0x05, 0x7F)", byte);
     return;
   }
   if (n->guard_pending) {
@@ -933,6 +997,64 @@ void ProtocolTracker::on_canopen(Bus& b, const FrameRecord& r) {
        r.direction, fmt::format("{} -> {}", canopen::to_string(was), canopen::to_string(*state)));
 }
 
+void ProtocolTracker::on_dronecan(const FrameRecord& r) {
+  // DroneCAN "CAN bus transport layer": a message frame (bit 7 clear) of NodeStatus (type ID in
+  // bits 8-23) from a node (source in bits 0-6, not 0). NodeStatus (7 bytes) always travels in
+  // a single-frame transfer: its tail byte (the last) has the start and end bits (7, 6) set.
+  if (r.rtr || (r.id & 0x80U) != 0) return;
+  const std::uint32_t node = r.id & 0x7FU;
+  if (node == 0 || ((r.id >> 8) & 0xFFFFU) != dronecan::kNodeStatus) return;
+  const auto key = std::pair{r.bus, node};
+  auto it = dc_nodes_.find(key);
+  if (it == dc_nodes_.end()) {
+    if (dc_nodes_.size() >= options_.max_nodes) {
+      ++untracked_nodes_;
+      return;
+    }
+    it = dc_nodes_.emplace(key, dronecan::NodeStats{}).first;
+    it->second.bus = r.bus;
+    it->second.node = static_cast<std::uint8_t>(node);
+  }
+  dronecan::NodeStats& s = it->second;
+  const std::size_t len = std::min<std::size_t>(r.length, 8);
+  const bool single = len >= 1 && (r.data[len - 1] & 0xC0U) == 0xC0U;
+  if (len != 8 || !single) {
+    ++s.malformed;
+    s.last_malformed =
+        len != 8 ? fmt::format("NodeStatus frame of {} bytes (7 and a tail byte expected)", len)
+                 : std::string("NodeStatus frame that is not a single-frame transfer");
+    return;
+  }
+  const auto st = dronecan::decode_node_status(std::span<const std::uint8_t>(r.data.data(), 7));
+  if (!st) return;
+  const Nanos t = r.time_ns;
+  if (s.statuses > 0 && st->uptime_s < s.uptime_s) {
+    ++s.restarts;
+    s.last_restart_ns = t;
+    emit(ProtocolEventKind::NodeReset, 1, t, r.bus, node, r.direction,
+         fmt::format("uptime went back from {} s to {} s: node restart ({} so far)", s.uptime_s,
+                     st->uptime_s, s.restarts));
+  }
+  const dronecan::Health was = s.health;
+  ++s.statuses;
+  s.last_status_ns = t;
+  s.uptime_s = st->uptime_s;
+  s.health = st->health;
+  s.mode = st->mode;
+  s.sub_mode = st->sub_mode;
+  s.vendor_status = st->vendor_status;
+  // A change of health, and a first status that is not OK.
+  const bool first_ok = was == dronecan::Health::Unknown && st->health == dronecan::Health::Ok;
+  if (st->health != was && !first_ok) {
+    const std::uint8_t severity = st->health == dronecan::Health::Ok        ? 0
+                                  : st->health == dronecan::Health::Warning ? 1
+                                                                            : 2;
+    emit(ProtocolEventKind::NodeHealth, severity, t, r.bus, node, r.direction,
+         fmt::format("health {} -> {} (mode {})", dronecan::to_string(was),
+                     dronecan::to_string(st->health), dronecan::mode_name(st->mode)));
+  }
+}
+
 ProtocolSnapshot ProtocolTracker::snapshot() const {
   ProtocolSnapshot out;
   out.buses.reserve(buses_.size());
@@ -948,13 +1070,12 @@ ProtocolSnapshot ProtocolTracker::snapshot() const {
         l.last_second_bits = st.last_nominal + st.last_data;
         l.known = set.bitrate != 0;
         if (!l.known) continue;
-        l.last_second = percent(static_cast<double>(st.last_nominal),
-                                static_cast<double>(st.last_data), set);
+        l.last_second =
+            percent(static_cast<double>(st.last_nominal), static_cast<double>(st.last_data), set);
         l.avg_1m = percent(st.ewma_nominal[0], st.ewma_data[0], set);
         l.avg_5m = percent(st.ewma_nominal[1], st.ewma_data[1], set);
         l.avg_15m = percent(st.ewma_nominal[2], st.ewma_data[2], set);
-        l.peak = st.peak > 0 ? st.peak
-                             : percent(static_cast<double>(st.peak_bits), 0, set);
+        l.peak = st.peak > 0 ? st.peak : percent(static_cast<double>(st.peak_bits), 0, set);
         // The whole history: its bits over the seconds closed (the second under way excluded).
         if (b.seconds_closed > 0) {
           l.mean = percent(static_cast<double>(st.closed_nominal),
@@ -967,6 +1088,8 @@ ProtocolSnapshot ProtocolTracker::snapshot() const {
   }
   out.canopen.reserve(nodes_.size());
   for (const auto& [key, n] : nodes_) out.canopen.push_back(n.stats);
+  out.dronecan.reserve(dc_nodes_.size());
+  for (const auto& [key, n] : dc_nodes_) out.dronecan.push_back(n);
   out.untracked_nodes = untracked_nodes_;
   out.events = seq_;
   out.events_dropped = events_dropped_;

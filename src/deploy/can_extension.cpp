@@ -124,6 +124,14 @@ Report node_report(const can::CanReport& r, const can::NodeReport& n) {
           Field::of_count("malformed", co.malformed_emergencies + co.malformed_heartbeats));
     }
   }
+  if (n.dronecan) {  // DroneCAN NodeStatus
+    const can::dronecan::NodeStats& dc = *n.dronecan;
+    rep.add_field(Field::of_text("health", std::string(can::dronecan::to_string(dc.health))));
+    rep.add_field(Field::of_text("mode", can::dronecan::mode_name(dc.mode)));
+    rep.add_field(Field::of_duration("uptime", Nanos{dc.uptime_s} * kNanosPerSecond));
+    rep.add_field(Field::of_count("restarts", dc.restarts));
+    if (dc.malformed > 0) rep.add_field(Field::of_count("malformed", dc.malformed));
+  }
   return rep;
 }
 
@@ -237,8 +245,7 @@ void CanExtension::add_reports(ReportSet& reports,
       if (st == can::ControllerState::BusOff) {
         t.status.merge(StatusLevel::Error, fmt::format("can bus {}: controller bus off", bus));
       } else if (st == can::ControllerState::ErrorPassive) {
-        t.status.merge(StatusLevel::Warn,
-                       fmt::format("can bus {}: controller error passive", bus));
+        t.status.merge(StatusLevel::Warn, fmt::format("can bus {}: controller error passive", bus));
       }
     }
     reports.components.push_back(group_report(name, t));
@@ -336,20 +343,22 @@ void CanExtension::publish_protocol_events(const can::CanReport& r) {
       case can::ProtocolEventKind::ErrorActive:
         e.kind = supervisor::EventKind::ErrorActive;
         break;
+      case can::ProtocolEventKind::NodeHealth:
+        e.kind = supervisor::EventKind::NodeHealth;
+        break;
     }
     e.severity = pe.severity == 2   ? supervisor::EventSeverity::Error
                  : pe.severity == 1 ? supervisor::EventSeverity::Warn
                                     : supervisor::EventSeverity::Info;
     // A node's events name it as its report does; an NMT command names its target node.
-    const bool bus_event = pe.node == can::kNoNode ||
-                           pe.kind == can::ProtocolEventKind::NmtCommand;
+    const bool bus_event = pe.node == can::kNoNode || pe.kind == can::ProtocolEventKind::NmtCommand;
     if (bus_event) {
       e.component = fmt::format("can bus {}", pe.bus);
     } else {
       const can::NodeReport* n = r.find(pe.bus, pe.node);
       const can::NodeConfig* named = config_.find_node(pe.bus, pe.node);
       e.component = fmt::format("can{}/{}", pe.bus,
-                                n != nullptr    ? n->name
+                                n != nullptr       ? n->name
                                 : named != nullptr ? named->name
                                                    : can::format_node(r.node_map, pe.node));
     }

@@ -234,10 +234,10 @@ std::string bitrate_text(const BusSettings& s) {
 
 // Bus load per bus, stuffing mode and direction (as canbusload), and the bus's verdict.
 std::string buses_table(const CanReport& r, const CanTextOptions& options) {
-  TextTable t({"STATUS", "BUS", "BITRATE", "STUFFING", "DIR", "FRAMES", "BITS", "LAST %",
-               "1MIN %", "5MIN %", "15MIN %", "PEAK %", "MEAN %", "MESSAGES"},
-              {false, false, true, false, false, true, true, true, true, true, true, true, true,
-               false});
+  TextTable t(
+      {"STATUS", "BUS", "BITRATE", "STUFFING", "DIR", "FRAMES", "BITS", "LAST %", "1MIN %",
+       "5MIN %", "15MIN %", "PEAK %", "MEAN %", "MESSAGES"},
+      {false, false, true, false, false, true, true, true, true, true, true, true, true, false});
   for (const BusReport& b : r.buses) {
     bool first = true;
     for (std::size_t m = 0; m < kStuffingModes; ++m) {
@@ -248,8 +248,8 @@ std::string buses_table(const CanReport& r, const CanTextOptions& options) {
                bus_name(b.bus, options.bus_names), bitrate_text(b.stats.settings),
                std::string(to_string(static_cast<Stuffing>(m))),
                k == 0 ? "Rx" : (k == 1 ? "Tx" : "all"), fmt::format("{}", l.frames),
-               fmt::format("{}", l.bits), pct(l, l.last_second), pct(l, l.avg_1m),
-               pct(l, l.avg_5m), pct(l, l.avg_15m), pct(l, l.peak), pct(l, l.mean),
+               fmt::format("{}", l.bits), pct(l, l.last_second), pct(l, l.avg_1m), pct(l, l.avg_5m),
+               pct(l, l.avg_15m), pct(l, l.peak), pct(l, l.mean),
                first ? messages_of(b.status) : ""});
         first = false;
       }
@@ -262,8 +262,9 @@ std::string buses_table(const CanReport& r, const CanTextOptions& options) {
   }
   if (std::any_of(r.buses.begin(), r.buses.end(),
                   [](const BusReport& b) { return b.stats.fd_estimated > 0; })) {
-    out += "(exact: CAN FD frames are counted with the worst case, as canbusload has no exact "
-           "CAN FD count)\n";
+    out +=
+        "(exact: CAN FD frames are counted with the worst case, as canbusload has no exact "
+        "CAN FD count)\n";
   }
   return out;
 }
@@ -295,8 +296,8 @@ std::string controllers_table(const CanReport& r, const CanTextOptions& options)
 std::string canopen_table(const CanReport& r, const CanTextOptions& options) {
   const auto& nodes = r.snapshot.protocol.canopen;
   if (nodes.empty()) return {};
-  TextTable t({"BUS", "NODE", "NAME", "NMT", "HEARTBEATS", "BOOT-UPS", "RESETS", "EMCY",
-               "GUARDING", "TOGGLE ERR", "MALFORMED", "LAST EMERGENCY"},
+  TextTable t({"BUS", "NODE", "NAME", "NMT", "HEARTBEATS", "BOOT-UPS", "RESETS", "EMCY", "GUARDING",
+               "TOGGLE ERR", "MALFORMED", "LAST EMERGENCY"},
               {false, true, false, false, true, true, true, true, true, true, true, false});
   for (const canopen::NodeStats& n : nodes) {
     const NodeReport* rep = r.find(n.bus, n.node);
@@ -307,6 +308,25 @@ std::string canopen_table(const CanReport& r, const CanTextOptions& options) {
            fmt::format("{}", n.guard_responses), fmt::format("{}", n.toggle_errors),
            fmt::format("{}", n.malformed_emergencies + n.malformed_heartbeats),
            n.last_emergency ? n.last_emergency->describe() : "-"});
+  }
+  return t.str();
+}
+
+// Every DroneCAN node whose NodeStatus was decoded.
+std::string dronecan_table(const CanReport& r, const CanTextOptions& options) {
+  const auto& nodes = r.snapshot.protocol.dronecan;
+  if (nodes.empty()) return {};
+  TextTable t({"BUS", "NODE", "NAME", "HEALTH", "MODE", "SUB", "UPTIME s", "VENDOR", "STATUSES",
+               "RESTARTS", "MALFORMED"},
+              {false, true, false, false, false, true, true, false, true, true, true});
+  for (const dronecan::NodeStats& n : nodes) {
+    const NodeReport* rep = r.find(n.bus, n.node);
+    t.add({bus_name(n.bus, options.bus_names), fmt::format("{}", n.node),
+           rep != nullptr && rep->named ? rep->name : "-",
+           std::string(dronecan::to_string(n.health)), dronecan::mode_name(n.mode),
+           fmt::format("{}", n.sub_mode), fmt::format("{}", n.uptime_s),
+           fmt::format("0x{:04X}", n.vendor_status), fmt::format("{}", n.statuses),
+           fmt::format("{}", n.restarts), fmt::format("{}", n.malformed)});
   }
   return t.str();
 }
@@ -355,6 +375,7 @@ std::string format_can_report(const CanReport& r, const CanTextOptions& options)
     out += "\nControllers (error frames)\n" + c;
   }
   if (const std::string c = canopen_table(r, options); !c.empty()) out += "\nCANopen\n" + c;
+  if (const std::string c = dronecan_table(r, options); !c.empty()) out += "\nDroneCAN\n" + c;
   out += events_list(r, options);
   if (options.ids) {
     out += "\nIds\n";
@@ -636,8 +657,8 @@ void write_bus(exporter::JsonWriter& w, const BusReport& b,
   w.field("restarts", c.restarts).field("rx_overflows", c.rx_overflows);
   w.field("tx_overflows", c.tx_overflows);
   w.key("protocol_types").begin_object();
-  constexpr std::array<std::string_view, 8> kTypes{
-      "bit", "form", "stuff", "bit0", "bit1", "overload", "active", "tx"};
+  constexpr std::array<std::string_view, 8> kTypes{"bit",  "form",     "stuff",  "bit0",
+                                                   "bit1", "overload", "active", "tx"};
   for (std::size_t i = 0; i < 8; ++i) w.field(kTypes[i], c.protocol_types[i]);
   w.end_object();
   w.key("protocol_locations").begin_array();
@@ -675,9 +696,9 @@ void write_emergency(exporter::JsonWriter& w, const canopen::Emergency& e) {
   w.field("code", fmt::format("0x{:04X}", e.code)).field("class", canopen::emergency_class(e.code));
   w.field("error_register", e.error_register)
       .field("error_register_bits", canopen::error_register_names(e.error_register));
-  w.field("manufacturer", fmt::format("{:02X} {:02X} {:02X} {:02X} {:02X}", e.manufacturer[0],
-                                      e.manufacturer[1], e.manufacturer[2], e.manufacturer[3],
-                                      e.manufacturer[4]));
+  w.field("manufacturer",
+          fmt::format("{:02X} {:02X} {:02X} {:02X} {:02X}", e.manufacturer[0], e.manufacturer[1],
+                      e.manufacturer[2], e.manufacturer[3], e.manufacturer[4]));
   w.field("length", e.length).field("time_ns", e.time_ns).field("text", e.describe());
   w.end_object();
 }
@@ -711,6 +732,27 @@ void write_canopen(exporter::JsonWriter& w, const CanReport& r, const canopen::N
   w.field("malformed_emergencies", n.malformed_emergencies);
   w.field("malformed_heartbeats", n.malformed_heartbeats);
   w.field("last_malformed", n.last_malformed);
+  w.end_object();
+}
+
+void write_dronecan(exporter::JsonWriter& w, const CanReport& r, const dronecan::NodeStats& n,
+                    const std::vector<std::string>& bus_names) {
+  w.begin_object();
+  w.field("bus", n.bus).field("bus_name", bus_name(n.bus, bus_names)).field("node", n.node);
+  const NodeReport* rep = r.find(n.bus, n.node);
+  w.key("name");
+  if (rep != nullptr && rep->named) {
+    w.value(rep->name);
+  } else {
+    w.null();
+  }
+  w.field("health", dronecan::to_string(n.health)).field("mode", dronecan::mode_name(n.mode));
+  w.field("sub_mode", n.sub_mode).field("vendor_status", n.vendor_status);
+  w.field("uptime_s", n.uptime_s);
+  optional_ns(w, "last_status_ns", n.last_status_ns);
+  w.field("statuses", n.statuses).field("restarts", n.restarts);
+  optional_ns(w, "last_restart_ns", n.last_restart_ns);
+  w.field("malformed", n.malformed).field("last_malformed", n.last_malformed);
   w.end_object();
 }
 
@@ -768,6 +810,11 @@ void write_can_report_members(exporter::JsonWriter& w, const CanReport& r,
     write_canopen(w, r, n, bus_names);
   }
   w.end_array();
+  w.key("dronecan").begin_array();
+  for (const dronecan::NodeStats& n : r.snapshot.protocol.dronecan) {
+    write_dronecan(w, r, n, bus_names);
+  }
+  w.end_array();
   const ProtocolSnapshot& p = r.snapshot.protocol;
   w.key("protocol").begin_object();
   w.field("error_records", r.snapshot.error_records);
@@ -779,6 +826,7 @@ void write_can_report_members(exporter::JsonWriter& w, const CanReport& r,
     resets += n.resets;
     emergencies += n.emergencies;
   }
+  for (const dronecan::NodeStats& n : p.dronecan) resets += n.restarts;
   w.field("resets", resets).field("emergencies", emergencies);
   w.key("recent_events").begin_array();
   for (const ProtocolEvent& e : p.recent_events) write_event(w, e, bus_names);
@@ -867,17 +915,28 @@ std::string format_can_replay(const LogReplay& replay, const CanReport& report,
                      : fmt::format("{} {} bits (no bitrate)", bus_name(b.bus, replay.bus_names()),
                                    l.bits);
   }
+  std::string dronecan;
+  if (!p.dronecan.empty()) {
+    std::uint64_t restarts = 0;
+    std::size_t unhealthy = 0;
+    for (const dronecan::NodeStats& n : p.dronecan) {
+      restarts += n.restarts;
+      if (n.health != dronecan::Health::Ok) ++unhealthy;
+    }
+    dronecan = fmt::format("{} DroneCAN node{} ({} not OK, {} restart{}), ", p.dronecan.size(),
+                           p.dronecan.size() == 1 ? "" : "s", unhealthy, restarts,
+                           restarts == 1 ? "" : "s");
+  }
   out += fmt::format(
-      "  findings: {} CANopen node{}, {} reset{}, {} emergenc{}, {} error passive, {} bus off; "
+      "  findings: {} CANopen node{}, {} reset{}, {} emergenc{}, {}{} error passive, {} bus off; "
       "load ({} stuffing): {}\n",
       p.canopen.size(), p.canopen.size() == 1 ? "" : "s", resets, resets == 1 ? "" : "s",
-      emergencies, emergencies == 1 ? "y" : "ies", passives, bus_offs,
+      emergencies, emergencies == 1 ? "y" : "ies", dronecan, passives, bus_offs,
       report.buses.empty() ? "exact" : to_string(report.buses.front().config.load.stuffing),
       loads.empty() ? "-" : loads);
   out += '\n';
-  out += format_can_report(report, {.ids = options.ids,
-                                    .bus_names = replay.bus_names(),
-                                    .max_events = -1});
+  out += format_can_report(report,
+                           {.ids = options.ids, .bus_names = replay.bus_names(), .max_events = -1});
   return out;
 }
 

@@ -71,6 +71,8 @@ const char* to_string(EventKind k) noexcept {
       return "bus_off";
     case EventKind::ErrorActive:
       return "error_active";
+    case EventKind::NodeHealth:
+      return "node_health";
   }
   return "?";
 }

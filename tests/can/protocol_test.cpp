@@ -102,8 +102,8 @@ TEST_CASE("CRC-15 matches the reference values of ISO 11898-1's generator", "[ca
   // A message followed by its CRC divides evenly: its CRC is 0.
   std::array<std::uint8_t, 128> bits{};
   const Frame f = Frame::classic(0x123, {0xDE, 0xAD, 0xBE, 0xEF});
-  const std::size_t n = classic_frame_bits(
-      FrameShape{.id = f.id, .length = f.length, .data = f.payload()}, bits);
+  const std::size_t n =
+      classic_frame_bits(FrameShape{.id = f.id, .length = f.length, .data = f.payload()}, bits);
   REQUIRE(n == 1 + 11 + 3 + 4 + 32 + 15);
   CHECK(can_crc15(std::span<const std::uint8_t>(bits.data(), n)) == 0);
 }
@@ -229,10 +229,10 @@ TEST_CASE("Error frames: classes decoded and counted, controller state and its e
   REQUIRE(s.buses.size() == 1);
   const ControllerStats& c = s.buses[0].controller;
   CHECK(c.error_frames == 7);
-  CHECK(c.by_class[2] == 2);  // controller
-  CHECK(c.by_class[3] == 1);  // protocol
-  CHECK(c.by_class[5] == 1);  // no ack
-  CHECK(c.by_class[6] == 1);  // bus off
+  CHECK(c.by_class[2] == 2);        // controller
+  CHECK(c.by_class[3] == 1);        // protocol
+  CHECK(c.by_class[5] == 1);        // no ack
+  CHECK(c.by_class[6] == 1);        // bus off
   CHECK(c.protocol_types[2] == 1);  // stuff
   REQUIRE(c.protocol_locations.size() == 1);
   CHECK(protocol_location_name(c.protocol_locations[0].first) == "data section");
@@ -304,12 +304,12 @@ TEST_CASE("Bus load thresholds from the configuration", "[can][protocol][monitor
   REQUIRE(r.buses.size() == 2);
   CHECK(r.buses[0].judged_load == Approx(62.16));
   CHECK(r.buses[0].status.level() == StatusLevel::Warn);
-  CHECK(r.buses[0].status.summary() ==
-        "bus load 62.2% (last_second, none stuffing) above 50%");
+  CHECK(r.buses[0].status.summary() == "bus load 62.2% (last_second, none stuffing) above 50%");
   CHECK(r.buses[1].status.level() == StatusLevel::Ok);
   // Errors of the file are reported with their place.
   const auto bad = load_can_config_string(
-      "buses:\n  x: {bitrate: 125k}\n  0: {bitrate: fast, load: {warn: 90, error: 80}}\n", "b.yaml");
+      "buses:\n  x: {bitrate: 125k}\n  0: {bitrate: fast, load: {warn: 90, error: 80}}\n",
+      "b.yaml");
   REQUIRE_FALSE(bad.has_value());
   const std::string text = vigil::config::to_string(bad.error());
   CHECK(text.find("'x': a bus is 'all' or a bus index 0-255") != std::string::npos);
@@ -332,16 +332,16 @@ TEST_CASE("CANopen: NMT states from heartbeats, resets, emergencies, NMT command
     std::copy_n(f.data.begin(), 8, r.data.begin());
     t.on(r, map);
   };
-  feed(Frame::classic(0x705, {0x00}));  // boot-up
-  feed(Frame::classic(0x705, {0x7F}));  // pre-operational
-  feed(Frame::classic(0x000, {0x01, 0x05}));  // NMT start node 5
-  feed(Frame::classic(0x705, {0x05}));  // operational
-  feed(Frame::classic(0x705, {0x05}));  // no change
+  feed(Frame::classic(0x705, {0x00}));                             // boot-up
+  feed(Frame::classic(0x705, {0x7F}));                             // pre-operational
+  feed(Frame::classic(0x000, {0x01, 0x05}));                       // NMT start node 5
+  feed(Frame::classic(0x705, {0x05}));                             // operational
+  feed(Frame::classic(0x705, {0x05}));                             // no change
   feed(Frame::classic(0x085, {0x30, 0x81, 0x11, 1, 2, 3, 4, 5}));  // EMCY 0x8130
-  feed(Frame::classic(0x705, {0x00}));  // boot-up while operational: a reset
+  feed(Frame::classic(0x705, {0x00}));              // boot-up while operational: a reset
   feed(Frame::classic(0x085, {0x00, 0x10, 0x01}));  // EMCY of 3 bytes: malformed, decoded
-  feed(Frame::classic(0x705, {0x12}));  // unknown state byte: malformed
-  feed(Frame::classic(0x705, {}));  // no state byte: malformed
+  feed(Frame::classic(0x705, {0x12}));              // unknown state byte: malformed
+  feed(Frame::classic(0x705, {}));                  // no state byte: malformed
   // Node guarding of node 6: the toggle bit alternates 0, 1, then 1 again (an error).
   for (const std::uint8_t b : {0x05, 0x85, 0x85}) {
     feed(Frame::remote(0x706, 1));
@@ -653,4 +653,87 @@ TEST_CASE("Protocol memory is bounded: events and CANopen nodes", "[can][protoco
   CHECK(s2.recent_events.size() == 4);
   CHECK(s2.events_dropped == 8);
   CHECK(t.events_after(10).size() == 2);
+}
+
+namespace {
+
+// A DroneCAN NodeStatus frame from `node`: uptime, health, mode, vendor status, then the tail
+// byte of a single-frame transfer (start, end, toggle 0, transfer ID `tid`).
+Frame node_status(std::uint8_t node, std::uint32_t uptime, std::uint8_t health, std::uint8_t mode,
+                  std::uint16_t vendor = 0, std::uint8_t tid = 0) {
+  return Frame::classic(
+      dronecan::message_id(16, dronecan::kNodeStatus, node),
+      {static_cast<std::uint8_t>(uptime), static_cast<std::uint8_t>(uptime >> 8),
+       static_cast<std::uint8_t>(uptime >> 16), static_cast<std::uint8_t>(uptime >> 24),
+       static_cast<std::uint8_t>(health << 6 | mode << 3), static_cast<std::uint8_t>(vendor),
+       static_cast<std::uint8_t>(vendor >> 8), static_cast<std::uint8_t>(0xC0 | (tid & 0x1F))},
+      IdFormat::Extended);
+}
+
+}  // namespace
+
+TEST_CASE("DroneCAN NodeStatus: health, mode, uptime; a restart when the uptime goes back",
+          "[can][protocol][dronecan]") {
+  // The payload as a receiver logged it (uptime 28 s, all else 0, tail byte C0).
+  const std::vector<std::uint8_t> logged{0x1C, 0, 0, 0, 0, 0, 0, 0xC0};
+  const auto st = dronecan::decode_node_status(logged);
+  REQUIRE(st.has_value());
+  CHECK(st->uptime_s == 28);
+  CHECK(st->health == dronecan::Health::Ok);
+  // Health 2 bits from the top of byte 4, mode 3 bits, sub-mode 3 bits.
+  const auto b =
+      dronecan::decode_node_status(std::vector<std::uint8_t>{0, 0, 0, 0, 0xCD, 0x34, 0x12});
+  REQUIRE(b.has_value());
+  CHECK(b->health == dronecan::Health::Critical);  // 0xCD = 11 001 101
+  CHECK(b->mode == 1);
+  CHECK(b->sub_mode == 5);
+  CHECK(b->vendor_status == 0x1234);
+  CHECK_FALSE(dronecan::decode_node_status(std::vector<std::uint8_t>{1, 2, 3}).has_value());
+
+  const auto cfg = load_can_config_string("node_map: dronecan\nnodes: {esc: {node: 20}}\n");
+  REQUIRE(cfg.has_value());
+  test::Pipeline<> p({.node_map = NodeMap::dronecan()});
+  Nanos t = 0;
+  const auto send = [&](const Frame& f) { p.read(at(f, t += kNanosPerSecond)); };
+  send(node_status(20, 100, 0, 0));
+  send(node_status(20, 101, 1, 0, 0x00AB));  // WARNING
+  send(node_status(20, 102, 1, 0, 0x00AB));
+  send(node_status(20, 3, 0, 1));   // uptime back: restart, OK, initialization
+  send(node_status(21, 50, 2, 0));  // ERROR from its first status
+  Frame short_frame = node_status(21, 51, 2, 0);
+  short_frame.length = 5;
+  send(short_frame);
+  send(node_status(22, 10, 0, 0) /* healthy */);
+  CanMonitor monitor(*cfg);
+  const CanReport r = monitor.evaluate(p.step(), t);
+  const ProtocolSnapshot& s = r.snapshot.protocol;
+  const dronecan::NodeStats* esc = s.find_dronecan(0, 20);
+  REQUIRE(esc != nullptr);
+  CHECK(esc->statuses == 4);
+  CHECK(esc->restarts == 1);
+  CHECK(esc->uptime_s == 3);
+  CHECK(esc->mode == 1);
+  CHECK(s.find_dronecan(0, 21)->malformed == 1);
+  std::vector<std::string> seen;
+  for (const ProtocolEvent& e : s.recent_events) {
+    seen.push_back(std::string(to_string(e.kind)) + " " + std::to_string(e.node) + ": " + e.detail);
+  }
+  CHECK(seen == std::vector<std::string>{
+                    "node_health 20: health OK -> WARNING (mode operational)",
+                    "node_reset 20: uptime went back from 102 s to 3 s: node restart (1 so far)",
+                    "node_health 20: health WARNING -> OK (mode initialization)",
+                    "node_health 21: health unknown -> ERROR (mode operational)",
+                });
+  const NodeReport* n20 = r.find("esc");
+  REQUIRE(n20 != nullptr);
+  REQUIRE(n20->dronecan.has_value());
+  CHECK(n20->status.level() == StatusLevel::Warn);
+  CHECK(n20->status.summary().find("node restart: its uptime went back") != std::string::npos);
+  CHECK(r.find(0, 21)->status.level() == StatusLevel::Error);
+  CHECK(r.find(0, 21)->status.summary().find("NodeStatus health ERROR") != std::string::npos);
+  CHECK(r.find(0, 22)->status.level() == StatusLevel::Ok);
+  const std::string text = vigil::exporter::format_can_report(r);
+  CHECK(text.find("\nDroneCAN\n") != std::string::npos);
+  CHECK(vigil::exporter::can_report_json(r).find("\"health\":\"ERROR\"") != std::string::npos);
+  CHECK(std::string(to_string(vigil::supervisor::EventKind::NodeHealth)) == "node_health");
 }

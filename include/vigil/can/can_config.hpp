@@ -174,22 +174,22 @@ struct GroupConfig {
 
 /// Bus load thresholds: percent of the bitrate (worst-case stuffing can exceed 100).
 struct LoadLimit {
-  std::optional<double> warn;
-  std::optional<double> error;
-  Stuffing stuffing = Stuffing::Exact;     ///< which count is judged
+  std::optional<double> warn{};
+  std::optional<double> error{};
+  Stuffing stuffing = Stuffing::Exact;    ///< which count is judged
   LoadFigure figure = LoadFigure::Avg1m;  ///< which figure is judged
 };
 
 /// One entry of `buses:` (its keys, as given; `CanConfig::bus_config` layers them).
 struct BusConfig {
-  std::optional<std::uint8_t> bus;  ///< empty: `all`
-  std::optional<std::uint32_t> bitrate;
-  std::optional<std::uint32_t> data_bitrate;
-  std::optional<BusProtocol> protocol;
-  std::optional<double> load_warn;
-  std::optional<double> load_error;
-  std::optional<Stuffing> load_stuffing;
-  std::optional<LoadFigure> load_figure;
+  std::optional<std::uint8_t> bus{};  ///< empty: `all`
+  std::optional<std::uint32_t> bitrate{};
+  std::optional<std::uint32_t> data_bitrate{};
+  std::optional<BusProtocol> protocol{};
+  std::optional<double> load_warn{};
+  std::optional<double> load_error{};
+  std::optional<Stuffing> load_stuffing{};
+  std::optional<LoadFigure> load_figure{};
 };
 
 /// A bus's settings after layering (`all`, then its own entry).

@@ -126,6 +126,8 @@ struct NodeReport {
   NodeThresholds thresholds;  ///< as resolved for this node
   /// What its CANopen messages said (node map `canopen`, and its bus or group decodes CANopen).
   std::optional<canopen::NodeStats> canopen;
+  /// What its DroneCAN NodeStatus said (node map `dronecan`, a bus decoding DroneCAN).
+  std::optional<dronecan::NodeStats> dronecan;
   Status status;
 
   /// A node of the mapping (not the frames of no node).

@@ -3,7 +3,7 @@
 /// What CAN supervision reads in the frames themselves, besides their timing: the bus load
 /// (how many bits each frame occupies on the wire, as can-utils' `canbusload` counts them), the
 /// controller state from SocketCAN error frames (Linux `include/uapi/linux/can/error.h`), and
-/// CANopen (CiA 301) NMT, heartbeat, node guarding and emergency messages.
+/// CANopen (CiA 301) NMT, heartbeat, node guarding and emergency messages, DroneCAN NodeStatus.
 ///
 /// The decoders are plain functions (constexpr where they can be); `ProtocolTracker` applies
 /// them to a stream of `FrameRecord`s on the CAN supervisor's thread (the CAN aggregator owns
@@ -98,16 +98,16 @@ std::size_t classic_frame_bits(const FrameShape& f, std::span<std::uint8_t> out)
 /// bitrate is not known. canbusload computes the same once a second, and its 1/5/15-minute
 /// loads with the kernel's load-average damping (e^(-1/60), e^(-1/300), e^(-1/900) per second).
 struct BusLoad {
-  std::uint64_t frames = 0;  ///< frames counted since the start
-  std::uint64_t bits = 0;    ///< their bits (nominal + data phase) since the start
+  std::uint64_t frames = 0;            ///< frames counted since the start
+  std::uint64_t bits = 0;              ///< their bits (nominal + data phase) since the start
   std::uint64_t last_second_bits = 0;  ///< bits in the latest complete second
   double last_second = 0;              ///< percent, the latest complete second
   double avg_1m = 0;                   ///< percent, exponential average over 1 minute
   double avg_5m = 0;
   double avg_15m = 0;
-  double peak = 0;       ///< percent, the busiest complete second so far
-  bool known = false;    ///< the bitrate is known: the percentages mean something
-  double mean = 0;       ///< percent, bits / (bitrate x seconds observed): the whole history
+  double peak = 0;     ///< percent, the busiest complete second so far
+  bool known = false;  ///< the bitrate is known: the percentages mean something
+  double mean = 0;     ///< percent, bits / (bitrate x seconds observed): the whole history
 };
 
 /// Which figure of a `BusLoad` a threshold compares.
@@ -168,12 +168,12 @@ struct ControllerStats {
   std::uint64_t error_frames = 0;
   /// Error frames with each class bit (index = bit number, `error_class_name`).
   std::array<std::uint64_t, error_class::kCount> by_class{};
-  std::uint64_t warnings = 0;       ///< entries into error warning
-  std::uint64_t passives = 0;       ///< entries into error passive
-  std::uint64_t bus_offs = 0;       ///< entries into bus off
-  std::uint64_t restarts = 0;       ///< restarted (CAN_ERR_RESTARTED) or recovered to active
-  std::uint64_t rx_overflows = 0;   ///< controller rx buffer overflows (CRTL)
-  std::uint64_t tx_overflows = 0;   ///< controller tx buffer overflows (CRTL)
+  std::uint64_t warnings = 0;      ///< entries into error warning
+  std::uint64_t passives = 0;      ///< entries into error passive
+  std::uint64_t bus_offs = 0;      ///< entries into bus off
+  std::uint64_t restarts = 0;      ///< restarted (CAN_ERR_RESTARTED) or recovered to active
+  std::uint64_t rx_overflows = 0;  ///< controller rx buffer overflows (CRTL)
+  std::uint64_t tx_overflows = 0;  ///< controller tx buffer overflows (CRTL)
   /// Protocol violations by type bit (data[2]: bit, form, stuff, bit0, bit1, overload, active,
   /// tx) and by location (data[3], at most 32 distinct locations kept; more are counted in
   /// `other_locations`).
@@ -242,11 +242,11 @@ struct NodeStats {
   std::uint8_t bus = 0;
   std::uint8_t node = 0;  ///< node-ID 1-127
   NmtState state = NmtState::Unknown;
-  Nanos state_since_ns = -1;     ///< the heartbeat that set it
-  Nanos last_heartbeat_ns = -1;  ///< latest heartbeat or guarding response
+  Nanos state_since_ns = -1;       ///< the heartbeat that set it
+  Nanos last_heartbeat_ns = -1;    ///< latest heartbeat or guarding response
   Nanos operational_left_ns = -1;  ///< when it last left (or, never operational, first seen)
-  bool ever_running = false;     ///< reported a state other than boot-up
-  std::uint64_t heartbeats = 0;  ///< heartbeats (and guarding responses)
+  bool ever_running = false;       ///< reported a state other than boot-up
+  std::uint64_t heartbeats = 0;    ///< heartbeats (and guarding responses)
   std::uint64_t boot_ups = 0;
   std::uint64_t resets = 0;  ///< boot-ups of a node that was running
   Nanos last_reset_ns = -1;
@@ -266,16 +266,67 @@ struct NodeStats {
 }  // namespace canopen
 
 // ---------------------------------------------------------------------------------------------
+// DroneCAN (UAVCAN v0): uavcan.protocol.NodeStatus, data type ID 341
+// ---------------------------------------------------------------------------------------------
+
+namespace dronecan {
+
+/// NodeStatus's data type ID.
+inline constexpr std::uint16_t kNodeStatus = 341;
+
+/// NodeStatus.health (2 bits).
+enum class Health : std::uint8_t { Ok = 0, Warning = 1, Error = 2, Critical = 3, Unknown = 0xFF };
+/// "OK", "WARNING", "ERROR", "CRITICAL", "unknown".
+[[nodiscard]] std::string_view to_string(Health h) noexcept;
+/// NodeStatus.mode (3 bits): "operational", "initialization", "maintenance", "software update",
+/// "offline", or "mode N" for the values the standard reserves.
+[[nodiscard]] std::string mode_name(std::uint8_t mode);
+
+/// One NodeStatus payload (7 bytes: uptime_sec uint32, health uint2, mode uint3, sub_mode uint3,
+/// vendor_specific_status_code uint16; little-endian, bit fields from the most significant bit
+/// of their byte).
+struct NodeStatus {
+  std::uint32_t uptime_s = 0;
+  Health health = Health::Ok;
+  std::uint8_t mode = 0;
+  std::uint8_t sub_mode = 0;
+  std::uint16_t vendor_status = 0;
+};
+/// The NodeStatus in `payload`, or empty when it is shorter than 7 bytes.
+[[nodiscard]] std::optional<NodeStatus> decode_node_status(
+    std::span<const std::uint8_t> payload) noexcept;
+
+/// What the DroneCAN decoder knows of one node.
+struct NodeStats {
+  std::uint8_t bus = 0;
+  std::uint8_t node = 0;  ///< node ID 1-127
+  Health health = Health::Unknown;
+  std::uint8_t mode = 0;
+  std::uint8_t sub_mode = 0;
+  std::uint16_t vendor_status = 0;
+  std::uint32_t uptime_s = 0;  ///< as of its latest NodeStatus
+  Nanos last_status_ns = -1;
+  std::uint64_t statuses = 0;  ///< NodeStatus messages
+  std::uint64_t restarts = 0;  ///< its uptime went back
+  Nanos last_restart_ns = -1;
+  std::uint64_t malformed = 0;  ///< NodeStatus frames that are not a 7-byte single-frame transfer
+  std::string last_malformed;
+};
+
+}  // namespace dronecan
+
+// ---------------------------------------------------------------------------------------------
 // The tracker
 // ---------------------------------------------------------------------------------------------
 
 /// Which protocol a bus (or a group of nodes) speaks.
 enum class BusProtocol : std::uint8_t {
-  Auto,     ///< the node mapping's: CANopen for `node_map: canopen`, else none
-  None,     ///< no protocol decoding
-  CanOpen,  ///< CiA 301: NMT, heartbeat, node guarding, emergency
+  Auto,      ///< the node mapping's: CANopen or DroneCAN for those node maps, else none
+  None,      ///< no protocol decoding
+  CanOpen,   ///< CiA 301: NMT, heartbeat, node guarding, emergency
+  DroneCan,  ///< DroneCAN NodeStatus (health, mode, uptime)
 };
-/// "auto", "none", "canopen".
+/// "auto", "none", "canopen", "dronecan".
 [[nodiscard]] std::string_view to_string(BusProtocol p) noexcept;
 
 /// What the tracker is told about one bus.
@@ -288,7 +339,7 @@ struct BusSettings {
 /// The tracker's configuration (built from a `CanConfig`: `CanConfig::protocol_options()`).
 /// `BusProtocol::Auto` follows the node mapping of the sniffer a frame came from.
 struct ProtocolOptions {
-  BusSettings all_buses{};  ///< every bus without its own entry
+  BusSettings all_buses{};                                    ///< every bus without its own entry
   std::vector<std::pair<std::uint8_t, BusSettings>> buses{};  ///< per bus index
   /// CANopen node-IDs (bit n = node n) decoded on each bus besides the bus's own protocol
   /// (groups with `protocol: canopen`); index 256 holds the groups without a bus.
@@ -303,23 +354,23 @@ struct ProtocolOptions {
   /// Whether CANopen frames of node-ID `node` on bus `bus`, from a sniffer with node mapping
   /// `map`, are decoded (`node` 0: the bus's network messages, NMT commands, decoded when any
   /// node of the bus is).
-  [[nodiscard]] bool canopen(std::uint8_t bus, std::uint32_t node,
-                             NodeMapKind map) const noexcept;
+  [[nodiscard]] bool canopen(std::uint8_t bus, std::uint32_t node, NodeMapKind map) const noexcept;
 };
 
 /// What a protocol event is about.
 enum class ProtocolEventKind : std::uint8_t {
   NmtState,      ///< a CANopen node's NMT state changed (heartbeat)
-  NodeReset,     ///< a CANopen node that was running booted again
+  NodeReset,     ///< a node restarted: CANopen boot-up while running, DroneCAN uptime back
   Emergency,     ///< a CANopen emergency message
   NmtCommand,    ///< an NMT command seen on the bus
   ErrorWarning,  ///< the controller reached error warning
   ErrorPassive,  ///< the controller went error passive
   BusOff,        ///< the controller went bus off
   ErrorActive,   ///< the controller is error active again (restarted, recovered)
+  NodeHealth,    ///< a DroneCAN node's NodeStatus health changed
 };
 /// "nmt_state", "node_reset", "emergency", "nmt_command", "error_warning", "error_passive",
-/// "bus_off", "error_active".
+/// "bus_off", "error_active", "node_health".
 [[nodiscard]] std::string_view to_string(ProtocolEventKind k) noexcept;
 
 /// One protocol event, on the frames' clock.
@@ -351,16 +402,19 @@ struct BusProtocolStats {
 
 /// Everything the tracker knows at one moment.
 struct ProtocolSnapshot {
-  std::vector<BusProtocolStats> buses;         ///< by bus index
-  std::vector<canopen::NodeStats> canopen;     ///< by bus, node-ID
-  std::uint64_t untracked_nodes = 0;           ///< CANopen frames of nodes beyond `max_nodes`
-  std::uint64_t events = 0;                    ///< events raised so far (the last seq)
-  std::uint64_t events_dropped = 0;            ///< events dropped from the kept window
-  std::vector<ProtocolEvent> recent_events;    ///< the kept events, oldest first
+  std::vector<BusProtocolStats> buses;        ///< by bus index
+  std::vector<canopen::NodeStats> canopen;    ///< by bus, node-ID
+  std::vector<dronecan::NodeStats> dronecan;  ///< by bus, node ID
+  std::uint64_t untracked_nodes = 0;          ///< CANopen frames of nodes beyond `max_nodes`
+  std::uint64_t events = 0;                   ///< events raised so far (the last seq)
+  std::uint64_t events_dropped = 0;           ///< events dropped from the kept window
+  std::vector<ProtocolEvent> recent_events;   ///< the kept events, oldest first
 
   [[nodiscard]] const BusProtocolStats* find_bus(std::uint8_t bus) const noexcept;
   [[nodiscard]] const canopen::NodeStats* find_canopen(std::uint8_t bus,
                                                        std::uint32_t node) const noexcept;
+  [[nodiscard]] const dronecan::NodeStats* find_dronecan(std::uint8_t bus,
+                                                         std::uint32_t node) const noexcept;
 };
 
 /**
@@ -418,6 +472,7 @@ class ProtocolTracker {
   void count_load(Bus& b, const FrameRecord& r);
   void on_error(Bus& b, const FrameRecord& r);
   void on_canopen(Bus& b, const FrameRecord& r);
+  void on_dronecan(const FrameRecord& r);
   void emit(ProtocolEventKind kind, std::uint8_t severity, Nanos t, std::uint8_t bus,
             std::uint32_t node, Direction d, std::string detail);
   CoNode* co_node(std::uint8_t bus, std::uint32_t node);
@@ -425,6 +480,7 @@ class ProtocolTracker {
   ProtocolOptions options_;
   std::map<std::uint8_t, Bus> buses_;
   std::map<std::pair<std::uint8_t, std::uint32_t>, CoNode> nodes_;
+  std::map<std::pair<std::uint8_t, std::uint32_t>, dronecan::NodeStats> dc_nodes_;
   std::uint64_t untracked_nodes_ = 0;
   std::deque<ProtocolEvent> events_;
   std::uint64_t seq_ = 0;

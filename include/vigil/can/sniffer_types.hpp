@@ -32,13 +32,13 @@ struct FrameRecord {
   std::uint32_t function = 0;   ///< mapped function
   std::uint8_t bus = 0;         ///< bus index
   Direction direction = Direction::Rx;
-  std::uint8_t length = 0;             ///< DLC or CAN FD length, as in `Frame`
-  bool extended : 1 = false;           ///< 29-bit identifier
-  bool rtr : 1 = false;                ///< remote frame
-  bool fd : 1 = false;                 ///< CAN FD frame
-  bool id_untracked : 1 = false;       ///< the id table had no room for its key
-  bool node_untracked : 1 = false;     ///< the node table had no room for its key
-  bool brs : 1 = false;                ///< CAN FD bit rate switch (bus load: data bitrate)
+  std::uint8_t length = 0;          ///< DLC or CAN FD length, as in `Frame`
+  bool extended : 1 = false;        ///< 29-bit identifier
+  bool rtr : 1 = false;             ///< remote frame
+  bool fd : 1 = false;              ///< CAN FD frame
+  bool id_untracked : 1 = false;    ///< the id table had no room for its key
+  bool node_untracked : 1 = false;  ///< the node table had no room for its key
+  bool brs : 1 = false;             ///< CAN FD bit rate switch (bus load: data bitrate)
   /// An error frame (SocketCAN's CAN_ERR_FLAG): `id` is its error class, `data` its details;
   /// no node, no timing (the CAN aggregator hands it to the protocol tracker only).
   bool error : 1 = false;

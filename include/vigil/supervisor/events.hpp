@@ -67,6 +67,7 @@ enum class EventKind : std::uint8_t {
   ErrorPassive,  ///< a CAN controller went error passive (Warn)
   BusOff,        ///< a CAN controller went bus off (Error)
   ErrorActive,   ///< a CAN controller is error active again (Info)
+  NodeHealth,    ///< a DroneCAN node's NodeStatus health changed (by the new health)
 };
 /// Lower-case name of a kind ("exception", "overrun_limit", ...), as written in JSON.
 [[nodiscard]] const char* to_string(EventKind k) noexcept;
