@@ -32,7 +32,12 @@ int run_can_stats(const CanStatsOptions& options, std::ostream& out, std::ostrea
   can::LogReplay replay({.node_map = can::NodeMap::of(config.node_map),
                          .filter = config.filter,
                          .default_direction = options.default_direction,
-                         .exact_percentiles = true});
+                         .exact_percentiles = true,
+                         .protocol = [&] {
+                           can::ProtocolOptions p = config.protocol_options();
+                           p.max_events = 65536;
+                           return p;
+                         }()});
   const auto fed = replay.feed_files(options.files, options.format);
   err << exporter::format_replay_warnings(replay, "vigil can-stats: ");
   if (!fed) {

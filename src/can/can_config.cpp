@@ -2,9 +2,12 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <array>
 #include <cctype>
 #include <cmath>
+#include <cstdlib>
+#include <iterator>
 #include <utility>
 
 #include "vigil/config/load.hpp"
@@ -80,6 +83,12 @@ void ThresholdOverrides::apply_to(NodeThresholds& t) const {
   if (learn_min_gaps) t.learn.min_gaps = *learn_min_gaps;
   if (answer_within_ns) t.answer_within_ns = *answer_within_ns;
   if (not_responding_level) t.not_responding_level = *not_responding_level;
+  if (canopen_heartbeat_ns) t.canopen_heartbeat_ns = *canopen_heartbeat_ns;
+  if (canopen_not_operational_after_ns) {
+    t.canopen_not_operational_after_ns = *canopen_not_operational_after_ns;
+  }
+  if (canopen_reset_window_ns) t.canopen_reset_window_ns = *canopen_reset_window_ns;
+  if (canopen_emergency_level) t.canopen_emergency_level = *canopen_emergency_level;
   read_time.apply_to(t.read_time);
   write_time.apply_to(t.write_time);
   rx_gap.apply_to(t.rx_gap);
@@ -116,7 +125,136 @@ const NodeConfig* CanConfig::find_node(std::uint8_t bus, std::uint32_t node) con
   return any;
 }
 
+ResolvedBus CanConfig::bus_config(std::uint8_t bus) const {
+  ResolvedBus r;
+  const auto apply = [&](const BusConfig& b) {
+    if (b.bitrate) r.settings.bitrate = *b.bitrate;
+    if (b.data_bitrate) r.settings.data_bitrate = *b.data_bitrate;
+    if (b.protocol) r.settings.protocol = *b.protocol;
+    if (b.load_warn) r.load.warn = b.load_warn;
+    if (b.load_error) r.load.error = b.load_error;
+    if (b.load_stuffing) r.load.stuffing = *b.load_stuffing;
+    if (b.load_figure) r.load.figure = *b.load_figure;
+  };
+  for (const BusConfig& b : buses) {
+    if (!b.bus) apply(b);
+  }
+  for (const BusConfig& b : buses) {
+    if (b.bus && *b.bus == bus) apply(b);
+  }
+  return r;
+}
+
+ProtocolOptions CanConfig::protocol_options() const {
+  ProtocolOptions o;
+  for (const BusConfig& b : buses) {
+    if (!b.bus) continue;
+    if (std::none_of(o.buses.begin(), o.buses.end(),
+                     [&](const auto& e) { return e.first == *b.bus; })) {
+      o.buses.emplace_back(*b.bus, bus_config(*b.bus).settings);
+    }
+  }
+  // `all` alone is what a bus without an entry gets.
+  ResolvedBus all;
+  for (const BusConfig& b : buses) {
+    if (b.bus) continue;
+    if (b.bitrate) all.settings.bitrate = *b.bitrate;
+    if (b.data_bitrate) all.settings.data_bitrate = *b.data_bitrate;
+    if (b.protocol) all.settings.protocol = *b.protocol;
+  }
+  o.all_buses = all.settings;
+  for (const GroupConfig& g : groups) {
+    if (g.protocol != BusProtocol::CanOpen) continue;
+    const std::uint16_t index = g.members.bus ? *g.members.bus : 256;
+    auto it = std::find_if(o.canopen_nodes.begin(), o.canopen_nodes.end(),
+                           [&](const auto& e) { return e.first == index; });
+    if (it == o.canopen_nodes.end()) {
+      o.canopen_nodes.emplace_back(index, std::array<std::uint64_t, 2>{});
+      it = std::prev(o.canopen_nodes.end());
+    }
+    for (std::uint32_t n = 1; n < 128; ++n) {
+      if (g.members.contains(g.members.bus.value_or(0), n)) {
+        it->second[n / 64] |= std::uint64_t{1} << (n % 64);
+      }
+    }
+  }
+  return o;
+}
+
 namespace {
+
+constexpr std::array<cfg::EnumName<BusProtocol>, 4> kProtocols{{
+    {"auto", BusProtocol::Auto},
+    {"none", BusProtocol::None},
+    {"canopen", BusProtocol::CanOpen},
+    {"dronecan", BusProtocol::DroneCan},
+}};
+
+constexpr std::array<cfg::EnumName<Stuffing>, 3> kStuffings{{
+    {"none", Stuffing::None},
+    {"worst", Stuffing::WorstCase},
+    {"exact", Stuffing::Exact},
+}};
+
+constexpr std::array<cfg::EnumName<LoadFigure>, 6> kFigures{{
+    {"last_second", LoadFigure::LastSecond},
+    {"1min", LoadFigure::Avg1m},
+    {"5min", LoadFigure::Avg5m},
+    {"15min", LoadFigure::Avg15m},
+    {"peak", LoadFigure::Peak},
+    {"mean", LoadFigure::Mean},
+}};
+
+// A bitrate: an integer (bit/s) or one with a k or M suffix ("500k", "1M", "2.5M").
+std::optional<std::uint32_t> bitrate_of(const cfg::Node& n) {
+  if (!n.is_scalar()) {
+    n.error("expected a bitrate such as 500000, '500k' or '1M'");
+    return std::nullopt;
+  }
+  const std::string text = n.get<std::string>();
+  double scale = 1;
+  std::string digits = text;
+  if (!digits.empty() && (digits.back() == 'k' || digits.back() == 'K')) {
+    scale = 1e3;
+    digits.pop_back();
+  } else if (!digits.empty() && digits.back() == 'M') {
+    scale = 1e6;
+    digits.pop_back();
+  }
+  char* end = nullptr;
+  const double v = digits.empty() ? -1 : std::strtod(digits.c_str(), &end);
+  if (digits.empty() || end == nullptr || *end != '\0' || !(v > 0)) {
+    n.error(fmt::format("expected a bitrate such as 500000, '500k' or '1M', got '{}'", text));
+    return std::nullopt;
+  }
+  const double bps = v * scale;
+  if (bps < 1000 || bps > 100e6 || bps != std::floor(bps)) {
+    n.error(fmt::format("must be a whole number of bit/s between 1000 and 100M, got '{}'", text));
+    return std::nullopt;
+  }
+  return static_cast<std::uint32_t>(bps);
+}
+
+BusConfig load_bus(const cfg::Node& n, std::optional<std::uint8_t> bus) {
+  BusConfig b;
+  b.bus = bus;
+  n.reject_unknown_keys({"bitrate", "data_bitrate", "protocol", "load"});
+  if (n.has("bitrate")) b.bitrate = bitrate_of(n["bitrate"]);
+  if (n.has("data_bitrate")) b.data_bitrate = bitrate_of(n["data_bitrate"]);
+  if (n.has("protocol")) b.protocol = n.required_enum("protocol", kProtocols);
+  if (const cfg::Node l = n["load"]; l.defined()) {
+    l.reject_unknown_keys({"warn", "error", "stuffing", "figure"});
+    const auto pct = cfg::in_range(0.0, 1000.0);
+    if (l.has("warn")) b.load_warn = l.required<double>("warn", pct);
+    if (l.has("error")) b.load_error = l.required<double>("error", pct);
+    if (l.has("stuffing")) b.load_stuffing = l.required_enum("stuffing", kStuffings);
+    if (l.has("figure")) b.load_figure = l.required_enum("figure", kFigures);
+    if (b.load_warn && b.load_error && *b.load_warn > *b.load_error) {
+      l["warn"].error(fmt::format("must not be above error ({})", *b.load_error));
+    }
+  }
+  return b;
+}
 
 constexpr std::array<cfg::EnumName<NodeMapKind>, 4> kNodeMaps{{
     {"identity", NodeMapKind::Identity},
@@ -301,7 +439,33 @@ ThresholdOverrides load_thresholds(const cfg::Node& n) {
   ThresholdOverrides t;
   if (!n.defined()) return t;
   n.reject_unknown_keys(
-      {"never_seen", "not_responding", "read_time", "write_time", "rx_gap", "tx_gap"});
+      {"never_seen", "not_responding", "read_time", "write_time", "rx_gap", "tx_gap", "canopen"});
+  if (const cfg::Node co = n["canopen"]; co.defined()) {
+    co.reject_unknown_keys(
+        {"heartbeat", "not_operational_after", "reset_window", "emergency_level"});
+    if (const cfg::Node hb = co["heartbeat"]; hb.defined()) {
+      if (hb.is_scalar() && hb.get<std::string>() == "learned") {
+        t.canopen_heartbeat_ns = std::optional<Nanos>{};
+      } else {
+        t.canopen_heartbeat_ns =
+            std::optional<Nanos>{co.required_duration("heartbeat", cfg::positive())};
+      }
+    }
+    if (const cfg::Node no = co["not_operational_after"]; no.defined()) {
+      if (no.is_scalar() && no.get<std::string>() == "never") {
+        t.canopen_not_operational_after_ns = std::optional<Nanos>{};
+      } else {
+        t.canopen_not_operational_after_ns =
+            std::optional<Nanos>{co.required_duration("not_operational_after", cfg::positive())};
+      }
+    }
+    if (co.has("reset_window")) {
+      t.canopen_reset_window_ns = co.required_duration("reset_window", cfg::non_negative());
+    }
+    if (co.has("emergency_level")) {
+      t.canopen_emergency_level = co.required_enum("emergency_level", kLevels);
+    }
+  }
   if (const cfg::Node ns = n["never_seen"]; ns.defined()) {
     ns.reject_unknown_keys({"enabled", "level"});
     if (ns.has("enabled")) t.never_seen_enabled = ns.required<bool>("enabled");
@@ -345,7 +509,7 @@ ThresholdOverrides load_thresholds(const cfg::Node& n) {
 
 CanConfig load_can_config(const cfg::Node& root) {
   CanConfig c;
-  root.reject_unknown_keys({"node_map", "filter", "defaults", "nodes", "groups"});
+  root.reject_unknown_keys({"node_map", "filter", "defaults", "nodes", "groups", "buses"});
   c.node_map = root.optional_enum("node_map", NodeMapKind::Identity, kNodeMaps);
   c.filter = load_filter(root["filter"]);
   // Compile now, so that a filter the sniffer would refuse fails the load, not the reload. Its
@@ -369,7 +533,7 @@ CanConfig load_can_config(const cfg::Node& root) {
     c.nodes.push_back(std::move(nc));
   }
   for (const auto& [name, g] : root["groups"].entries()) {
-    g.reject_unknown_keys({"nodes", "node_range", "bus", "expected", "thresholds"});
+    g.reject_unknown_keys({"nodes", "node_range", "bus", "expected", "thresholds", "protocol"});
     GroupConfig gc;
     gc.members.name = name;
     if (g.has("nodes")) gc.members.nodes = u32_list(g["nodes"], at_most_hex(0xFFFFFFFFU));
@@ -386,7 +550,21 @@ CanConfig load_can_config(const cfg::Node& root) {
     }
     gc.expected = g.optional("expected", true);
     gc.thresholds = load_thresholds(g["thresholds"]);
+    if (g.has("protocol")) gc.protocol = g.required_enum("protocol", kProtocols);
     c.groups.push_back(std::move(gc));
+  }
+  for (const auto& [key, b] : root["buses"].entries()) {
+    std::optional<std::uint8_t> bus;
+    if (key != "all") {
+      char* end = nullptr;
+      const long v = std::strtol(key.c_str(), &end, 0);
+      if (key.empty() || end == nullptr || *end != '\0' || v < 0 || v > 255) {
+        b.error(fmt::format("'{}': a bus is 'all' or a bus index 0-255", key));
+        continue;
+      }
+      bus = static_cast<std::uint8_t>(v);
+    }
+    c.buses.push_back(load_bus(b, bus));
   }
   return c;
 }

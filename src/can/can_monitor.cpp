@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <set>
 #include <tuple>
@@ -284,6 +285,10 @@ void overall(CanReport& r, const CanMonitorOptions& options) {
     r.status.merge(level,
                    fmt::format("{} {}: {}", plural(names.size(), "node"), to_string(level), list));
   }
+  for (const BusReport& b : r.buses) {
+    if (b.status.level() == StatusLevel::Ok) continue;
+    r.status.merge(b.status.level(), fmt::format("bus {}: {}", b.bus, b.status.summary()));
+  }
   if (const std::size_t learning = r.learning_count(); learning > 0) {
     r.status.merge(StatusLevel::Ok,
                    fmt::format("{} still learning {} period (not judged yet)",
@@ -318,7 +323,7 @@ void overall(CanReport& r, const CanMonitorOptions& options) {
   if (t.dropped > 0) {
     r.status.merge(StatusLevel::Ok,
                    fmt::format("timing sampled: {} of {} dropped by full ports (counts are exact)",
-                               plural(t.dropped, "record"), t.accepted));
+                               plural(t.dropped, "record"), t.accepted + t.error_frames));
   }
 }
 
@@ -385,6 +390,13 @@ std::size_t CanReport::learning_count() const noexcept {
 const NodeReport* CanReport::find(std::uint8_t bus, std::uint32_t node) const noexcept {
   for (const NodeReport& n : nodes) {
     if (n.bus && *n.bus == bus && n.node == node) return &n;
+  }
+  return nullptr;
+}
+
+const BusReport* CanReport::find_bus(std::uint8_t bus) const noexcept {
+  for (const BusReport& b : buses) {
+    if (b.bus == bus) return &b;
   }
   return nullptr;
 }
@@ -505,6 +517,134 @@ void configure(NodeReport& n, const CanConfig& cfg, NodeMapKind node_map) {
   n.thresholds = resolve(cfg, n.bus, n.node);
 }
 
+// CANopen (CiA 301): resets, emergencies, time outside operational, heartbeat consumer,
+// node-guarding toggle bit, malformed payloads.
+void canopen_checks(NodeReport& n, const CanReport& r) {
+  if (r.node_map != NodeMapKind::CanOpen || !n.bus || n.node == 0 || n.node > 127) return;
+  const canopen::NodeStats* co = r.snapshot.protocol.find_canopen(*n.bus, n.node);
+  if (co == nullptr) return;
+  n.canopen = *co;
+  const NodeThresholds& t = n.thresholds;
+  const Nanos at = r.observed_ns;
+  if (co->resets > 0 && t.canopen_reset_window_ns > 0 &&
+      at - co->last_reset_ns <= t.canopen_reset_window_ns) {
+    n.status.merge(StatusLevel::Warn,
+                   fmt::format("node reset: boot-up of a running node {} ago ({} reset{} so far)",
+                               duration(std::max<Nanos>(0, at - co->last_reset_ns)), co->resets,
+                               co->resets == 1 ? "" : "s"));
+  }
+  if (co->last_emergency && co->last_emergency->code != 0) {
+    n.status.merge(t.canopen_emergency_level,
+                   fmt::format("emergency {}", co->last_emergency->describe()));
+  }
+  if (t.canopen_not_operational_after_ns && co->state != canopen::NmtState::Operational &&
+      co->state != canopen::NmtState::Unknown && co->operational_left_ns >= 0) {
+    const Nanos out = at - co->operational_left_ns;
+    if (out > *t.canopen_not_operational_after_ns) {
+      n.status.merge(
+          StatusLevel::Warn,
+          fmt::format("not operational: {} for {} (limit {})", canopen::to_string(co->state),
+                      duration(out), config::format_duration(*t.canopen_not_operational_after_ns)));
+    }
+  }
+  if (t.canopen_heartbeat_ns && co->last_heartbeat_ns >= 0 && t.not_responding_enabled) {
+    const Nanos since = at - co->last_heartbeat_ns;
+    if (since > *t.canopen_heartbeat_ns) {
+      n.status.merge(t.not_responding_level,
+                     fmt::format("heartbeat lost: none for {} (consumer time {})", duration(since),
+                                 config::format_duration(*t.canopen_heartbeat_ns)));
+    }
+  }
+  if (co->toggle_errors > 0) {
+    n.status.merge(StatusLevel::Warn,
+                   fmt::format("node guarding: toggle bit did not alternate in {} of {} "
+                               "responses",
+                               co->toggle_errors, co->guard_responses));
+  }
+  if (co->malformed_emergencies + co->malformed_heartbeats > 0) {
+    n.status.merge(
+        StatusLevel::Ok,
+        fmt::format("malformed CANopen payloads: {} emergenc{}, {} heartbeat{} "
+                    "(latest: {})",
+                    co->malformed_emergencies, co->malformed_emergencies == 1 ? "y" : "ies",
+                    co->malformed_heartbeats, co->malformed_heartbeats == 1 ? "" : "s",
+                    co->last_malformed));
+  }
+}
+
+// DroneCAN NodeStatus: health WARNING is WARN, ERROR and CRITICAL are ERROR; a restart (uptime
+// went back) WARN for `canopen_reset_window_ns`.
+void dronecan_checks(NodeReport& n, const CanReport& r) {
+  if (r.node_map != NodeMapKind::DroneCan || !n.bus || n.node == 0 || n.node > 127) return;
+  const dronecan::NodeStats* dc = r.snapshot.protocol.find_dronecan(*n.bus, n.node);
+  if (dc == nullptr) return;
+  n.dronecan = *dc;
+  const Nanos at = r.observed_ns;
+  if (dc->statuses > 0 && dc->health != dronecan::Health::Ok) {
+    const StatusLevel level =
+        dc->health == dronecan::Health::Warning ? StatusLevel::Warn : StatusLevel::Error;
+    n.status.merge(level, fmt::format("NodeStatus health {} (mode {}, vendor status 0x{:04X})",
+                                      dronecan::to_string(dc->health),
+                                      dronecan::mode_name(dc->mode), dc->vendor_status));
+  }
+  const Nanos window = n.thresholds.canopen_reset_window_ns;
+  if (dc->restarts > 0 && window > 0 && at - dc->last_restart_ns <= window) {
+    n.status.merge(StatusLevel::Warn,
+                   fmt::format("node restart: its uptime went back {} ago ({} restart{} so far)",
+                               duration(std::max<Nanos>(0, at - dc->last_restart_ns)), dc->restarts,
+                               dc->restarts == 1 ? "" : "s"));
+  }
+  if (dc->malformed > 0) {
+    n.status.merge(StatusLevel::Ok, fmt::format("malformed NodeStatus: {} (latest: {})",
+                                                dc->malformed, dc->last_malformed));
+  }
+}
+
+// Every bus the protocol tracker saw: its load against its thresholds, its controller state.
+void judge_buses(CanReport& r, const CanConfig& cfg) {
+  for (const BusProtocolStats& s : r.snapshot.protocol.buses) {
+    BusReport b;
+    b.bus = s.bus;
+    b.config = cfg.bus_config(s.bus);
+    b.stats = s;
+    const LoadLimit& l = b.config.load;
+    const BusLoad& load = s.load[static_cast<std::size_t>(l.stuffing)][2];
+    b.judged_load = load.known ? load_value(load, l.figure) : std::nan("");
+    if (!load.known) {
+      if (l.warn || l.error) {
+        b.status.merge(StatusLevel::Warn,
+                       "load thresholds set but no bitrate: configure buses.<bus>.bitrate");
+      }
+    } else {
+      const auto above = [&](StatusLevel level, double limit) {
+        b.status.merge(level,
+                       fmt::format("bus load {:.1f}% ({}, {} stuffing) above {:g}%", b.judged_load,
+                                   to_string(l.figure), to_string(l.stuffing), limit));
+      };
+      if (l.error && b.judged_load > *l.error) {
+        above(StatusLevel::Error, *l.error);
+      } else if (l.warn && b.judged_load > *l.warn) {
+        above(StatusLevel::Warn, *l.warn);
+      }
+    }
+    const ControllerStats& c = s.controller;
+    const auto since = [&] {
+      return c.state_since_ns >= 0 ? duration(std::max<Nanos>(0, r.observed_ns - c.state_since_ns))
+                                   : std::string("?");
+    };
+    if (c.state == ControllerState::BusOff) {
+      b.status.merge(StatusLevel::Error,
+                     fmt::format("controller bus off for {} ({} bus-off{})", since(), c.bus_offs,
+                                 c.bus_offs == 1 ? "" : "s"));
+    } else if (c.state == ControllerState::ErrorPassive) {
+      b.status.merge(StatusLevel::Warn, fmt::format("controller error passive for {}", since()));
+    } else if (c.state == ControllerState::ErrorWarning) {
+      b.status.merge(StatusLevel::Ok, fmt::format("controller error warning for {}", since()));
+    }
+    r.buses.push_back(std::move(b));
+  }
+}
+
 // The checks added with add_check, each on every node; one that throws is the node's error.
 void custom_checks(const std::vector<std::pair<std::string, CanNodeCheck>>& checks, CanReport& r) {
   for (const auto& [name, check] : checks) {
@@ -553,7 +693,10 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
     }
     configure(n, *cfg, r.node_map);
     builtin_checks(n, r);
+    canopen_checks(n, r);
+    dronecan_checks(n, r);
   }
+  judge_buses(r, *cfg);
   custom_checks(checks, r);
   overall(r, options_);
   return r;

@@ -197,6 +197,7 @@ struct NodeAccumulator {
 struct SnifferSlot {
   SnifferInfo info;
   std::shared_ptr<detail::SnifferState> state;
+  NodeMapKind node_map = NodeMapKind::Identity;  // its mapping, for the protocol tracker
 };
 
 bool is_tx(Direction d) { return d == Direction::Tx; }
@@ -270,6 +271,8 @@ struct CanAggregator::Impl {
   std::uint64_t unaggregated_id_records = 0;
   std::uint64_t unaggregated_node_records = 0;
   std::uint64_t cycles = 0;
+  std::uint64_t error_records = 0;
+  ProtocolTracker protocol;
 
   // Supervisor thread only.
   SnifferSlot* current = nullptr;
@@ -277,7 +280,7 @@ struct CanAggregator::Impl {
   std::vector<NodeEntry> node_scratch;
 
   Impl(CanRegistry& r, CanAggregatorOptions o)
-      : registry(r), options(o), ids(o.max_ids), nodes(o.max_nodes) {}
+      : registry(r), options(o), ids(o.max_ids), nodes(o.max_nodes), protocol(o.protocol) {}
 
   SnifferSlot* slot_of(std::uint32_t port) {
     for (SnifferSlot& s : sniffers) {
@@ -392,10 +395,20 @@ void CanAggregator::on_leave(const Entry& e) {
 void CanAggregator::begin(const Entry& e) {
   impl_->mutex.lock();  // held until end(): one port's batch is applied atomically for readers
   impl_->current = impl_->slot_of(e.id);
+  if (SnifferSlot* s = impl_->current; s != nullptr) {
+    if (!s->state) s->state = impl_->registry.find(s->info.port_id);
+    if (s->state) s->node_map = s->state->node_map().kind();
+  }
 }
 
 void CanAggregator::on(const Entry& /*e*/, const FrameRecord& r) {
   Impl& m = *impl_;
+  // Bus load, controller state, CANopen: decoded here, off the sniffer's real-time path.
+  m.protocol.on(r, m.current != nullptr ? m.current->node_map : NodeMapKind::Identity);
+  if (r.error) {
+    ++m.error_records;  // no node, no timing: counted per error class in the id table
+    return;
+  }
   ++m.records;
   // Only keys the sniffer tracks are aggregated: memory stays bounded by its tables (and ours).
   IdAccumulator* id = nullptr;
@@ -428,7 +441,10 @@ void CanAggregator::end(const Entry& /*e*/, const supervisor::PortDrain& d) {
     m.read_tables(*m.current);
     // The tables were read after the cycle began: every frame handled before then is counted.
     m.current->info.observed_ns = d.cycle_ns;
-    if (d.emptied) m.current->info.drained_ns = d.cycle_ns;
+    if (d.emptied) {
+      m.current->info.drained_ns = d.cycle_ns;
+      m.protocol.advance(d.cycle_ns);  // every record before then was seen: close its seconds
+    }
   }
   m.current = nullptr;
   m.mutex.unlock();
@@ -679,7 +695,19 @@ CanSnapshot CanAggregator::snapshot(std::span<const GroupSpec> groups) const {
   std::vector<NodeAccumulator*> members;
   snap.nodes = m.node_stats(snap.ids, members);
   snap.categories = m.categories(members, groups);
+  snap.protocol = m.protocol.snapshot();
+  snap.error_records = m.error_records;
   return snap;
+}
+
+void CanAggregator::set_protocol_options(ProtocolOptions options) {
+  std::lock_guard lock(impl_->mutex);
+  impl_->protocol.set_options(std::move(options));
+}
+
+std::vector<ProtocolEvent> CanAggregator::protocol_events_after(std::uint64_t after) const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->protocol.events_after(after);
 }
 
 }  // namespace vigil::can

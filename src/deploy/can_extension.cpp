@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <map>
+#include <set>
 #include <string>
 #include <utility>
 
@@ -13,7 +14,8 @@ namespace vigil::deploy {
 
 CanExtension::CanExtension(can::CanConfig config, supervisor::EventHub* events)
     : config_(std::move(config)), events_(events) {
-  statistics_ = std::make_unique<can::CanAggregator>(registry_);
+  statistics_ = std::make_unique<can::CanAggregator>(
+      registry_, can::CanAggregatorOptions{.protocol = config_.protocol_options()});
   // Its clock is the frames' (platform::now_ns, as the sniffers' callers and SocketCan stamp
   // them, even when supervision reads the TSC): the start of its cycles is the time node
   // silences are judged up to.
@@ -81,6 +83,7 @@ struct GroupTally {
   std::uint64_t nodes = 0;
   std::uint64_t responding = 0;
   Status status;
+  std::set<std::uint8_t> buses;  // of its nodes: their controllers' state is the group's too
 };
 
 // A CAN node's report: its liveness, frames and gaps under CAN names.
@@ -106,6 +109,77 @@ Report node_report(const can::CanReport& r, const can::NodeReport& n) {
   if (n.limit_id >= 0 && static_cast<std::size_t>(n.limit_id) < r.ids.size()) {
     const Nanos period = r.ids[static_cast<std::size_t>(n.limit_id)].period_ns;
     if (period >= 0) rep.add_field(Field::of_duration("period_learned", period));
+  }
+  if (n.canopen) {  // CiA 301: NMT state, resets, emergencies
+    const can::canopen::NodeStats& co = *n.canopen;
+    rep.add_field(Field::of_text("nmt_state", std::string(can::canopen::to_string(co.state))));
+    rep.add_field(Field::of_count("heartbeats", co.heartbeats));
+    rep.add_field(Field::of_count("resets", co.resets));
+    rep.add_field(Field::of_count("emergencies", co.emergencies));
+    if (co.last_emergency) {
+      rep.add_field(Field::of_text("last_emergency", co.last_emergency->describe()));
+    }
+    if (co.guard_responses > 0) rep.add_field(Field::of_count("toggle_errors", co.toggle_errors));
+    if (co.malformed_emergencies + co.malformed_heartbeats > 0) {
+      rep.add_field(
+          Field::of_count("malformed", co.malformed_emergencies + co.malformed_heartbeats));
+    }
+  }
+  if (n.dronecan) {  // DroneCAN NodeStatus
+    const can::dronecan::NodeStats& dc = *n.dronecan;
+    rep.add_field(Field::of_text("health", std::string(can::dronecan::to_string(dc.health))));
+    rep.add_field(Field::of_text("mode", can::dronecan::mode_name(dc.mode)));
+    rep.add_field(Field::of_duration("uptime", Nanos{dc.uptime_s} * kNanosPerSecond));
+    rep.add_field(Field::of_count("restarts", dc.restarts));
+    if (dc.malformed > 0) rep.add_field(Field::of_count("malformed", dc.malformed));
+  }
+  return rep;
+}
+
+// "12.3%", or "-" without a bitrate.
+std::string percent_text(const can::BusLoad& l, double v) {
+  return l.known ? fmt::format("{:.1f}%", v) : std::string("-");
+}
+
+// A CAN bus's report: its load (as canbusload), its controller's state from error frames.
+Report bus_report(const can::BusReport& b) {
+  Report rep;
+  rep.kind = ReportKind::Unit;
+  rep.unit_kind = std::string(can::kBusUnit);
+  rep.name = fmt::format("can bus {}", b.bus);
+  rep.status = b.status;
+  const can::ControllerStats& c = b.stats.controller;
+  rep.state_label = c.state == can::ControllerState::Unknown ? std::string("no error frames")
+                                                             : std::string(can::to_string(c.state));
+  const auto mode = static_cast<std::size_t>(b.config.load.stuffing);
+  const can::BusLoad& all = b.stats.load[mode][2];
+  rep.add_field(Field::of_count("frames", all.frames));
+  rep.add_field(Field::of_count("bits_rx", b.stats.load[mode][0].bits));
+  rep.add_field(Field::of_count("bits_tx", b.stats.load[mode][1].bits));
+  rep.add_field(Field::of_count("bits_last_second", all.last_second_bits));
+  if (all.known) {
+    rep.add_field(Field::of_text("load_last_second", percent_text(all, all.last_second)));
+    rep.add_field(Field::of_text("load_1m", percent_text(all, all.avg_1m)));
+    rep.add_field(Field::of_text("load_5m", percent_text(all, all.avg_5m)));
+    rep.add_field(Field::of_text("load_15m", percent_text(all, all.avg_15m)));
+    rep.add_field(Field::of_text("load_peak", percent_text(all, all.peak)));
+    rep.add_field(Field::of_text(
+        "load_rx_1m", percent_text(b.stats.load[mode][0], b.stats.load[mode][0].avg_1m)));
+    rep.add_field(Field::of_text(
+        "load_tx_1m", percent_text(b.stats.load[mode][1], b.stats.load[mode][1].avg_1m)));
+  }
+  rep.add_field(Field::of_text("stuffing", std::string(can::to_string(b.config.load.stuffing))));
+  rep.add_field(Field::of_count("error_frames", c.error_frames));
+  if (c.error_frames > 0) {
+    rep.add_field(Field::of_count("error_passives", c.passives));
+    rep.add_field(Field::of_count("bus_offs", c.bus_offs));
+    rep.add_field(Field::of_count("restarts", c.restarts));
+    rep.add_field(Field::of_count("protocol_errors", c.by_class[3]));
+    rep.add_field(Field::of_count("no_ack", c.by_class[5]));
+    rep.add_field(Field::of_count("lost_arbitration", c.by_class[1]));
+    if (c.tx_errors) rep.add_field(Field::of_count("tx_error_counter", *c.tx_errors));
+    if (c.rx_errors) rep.add_field(Field::of_count("rx_error_counter", *c.rx_errors));
+    rep.add_field(Field::of_text("last_error", c.last));
   }
   return rep;
 }
@@ -143,6 +217,7 @@ void CanExtension::add_reports(ReportSet& reports,
   const Nanos now = stopped != 0 ? stopped : platform::now_ns();
   const can::CanReport r = monitor_->evaluate(*statistics_, now);
   publish_changes(r, now);
+  publish_protocol_events(r);
   reports.components.push_back(supervisor_report(r, running));
   std::map<std::string, GroupTally> groups;
   std::map<std::pair<std::uint8_t, std::uint32_t>, std::string> names;  // of the nodes seen
@@ -157,13 +232,28 @@ void CanExtension::add_reports(ReportSet& reports,
       t.frames += frames;
       ++t.nodes;
       if (n.liveness == can::Liveness::Responding) ++t.responding;
+      if (n.bus) t.buses.insert(*n.bus);
       if (n.status.level() != StatusLevel::Ok) {
         t.status.merge(n.status.level(), fmt::format("{}: {}", n.name, n.status.summary()));
       }
     }
     reports.components.push_back(std::move(rep));
   }
-  for (auto& [name, t] : groups) reports.components.push_back(group_report(name, t));
+  for (auto& [name, t] : groups) {
+    // A controller error passive (WARN) or bus off (ERROR) is its nodes' groups' problem too.
+    for (const std::uint8_t bus : t.buses) {
+      const can::BusReport* b = r.find_bus(bus);
+      if (b == nullptr) continue;
+      const can::ControllerState st = b->stats.controller.state;
+      if (st == can::ControllerState::BusOff) {
+        t.status.merge(StatusLevel::Error, fmt::format("can bus {}: controller bus off", bus));
+      } else if (st == can::ControllerState::ErrorPassive) {
+        t.status.merge(StatusLevel::Warn, fmt::format("can bus {}: controller error passive", bus));
+      }
+    }
+    reports.components.push_back(group_report(name, t));
+  }
+  for (const can::BusReport& b : r.buses) reports.components.push_back(bus_report(b));
   if (histograms == nullptr) return;
   // The buckets, from the aggregator's histograms: one more pass under its lock, right after
   // the snapshot the reports were judged on (a batch applied in between shows in the buckets,
@@ -228,6 +318,65 @@ void CanExtension::publish_changes(const can::CanReport& r, Nanos now) {
       e.fault_ns = last_frame > 0 ? last_frame : now;  // its first frame again, or about then
       e.detail = fmt::format("{} again", can::to_string(n.liveness));
     }
+    events_->publish(std::move(e));
+  }
+}
+
+void CanExtension::publish_protocol_events(const can::CanReport& r) {
+  const std::vector<can::ProtocolEvent> events = statistics_->protocol_events_after(protocol_seq_);
+  if (events.empty()) return;
+  protocol_seq_ = events.back().seq;
+  if (events_ == nullptr) return;
+  const Nanos detected = platform::now_ns();
+  for (const can::ProtocolEvent& pe : events) {
+    supervisor::Event e;
+    switch (pe.kind) {
+      case can::ProtocolEventKind::NmtState:
+        e.kind = supervisor::EventKind::NmtState;
+        break;
+      case can::ProtocolEventKind::NodeReset:
+        e.kind = supervisor::EventKind::NodeReset;
+        break;
+      case can::ProtocolEventKind::Emergency:
+        e.kind = supervisor::EventKind::Emergency;
+        break;
+      case can::ProtocolEventKind::NmtCommand:
+        e.kind = supervisor::EventKind::NmtCommand;
+        break;
+      case can::ProtocolEventKind::ErrorWarning:
+        e.kind = supervisor::EventKind::ErrorWarning;
+        break;
+      case can::ProtocolEventKind::ErrorPassive:
+        e.kind = supervisor::EventKind::ErrorPassive;
+        break;
+      case can::ProtocolEventKind::BusOff:
+        e.kind = supervisor::EventKind::BusOff;
+        break;
+      case can::ProtocolEventKind::ErrorActive:
+        e.kind = supervisor::EventKind::ErrorActive;
+        break;
+      case can::ProtocolEventKind::NodeHealth:
+        e.kind = supervisor::EventKind::NodeHealth;
+        break;
+    }
+    e.severity = pe.severity == 2   ? supervisor::EventSeverity::Error
+                 : pe.severity == 1 ? supervisor::EventSeverity::Warn
+                                    : supervisor::EventSeverity::Info;
+    // A node's events name it as its report does; an NMT command names its target node.
+    const bool bus_event = pe.node == can::kNoNode || pe.kind == can::ProtocolEventKind::NmtCommand;
+    if (bus_event) {
+      e.component = fmt::format("can bus {}", pe.bus);
+    } else {
+      const can::NodeReport* n = r.find(pe.bus, pe.node);
+      const can::NodeConfig* named = config_.find_node(pe.bus, pe.node);
+      e.component = fmt::format("can{}/{}", pe.bus,
+                                n != nullptr       ? n->name
+                                : named != nullptr ? named->name
+                                                   : can::format_node(r.node_map, pe.node));
+    }
+    e.fault_ns = pe.time_ns;  // the frame's time, on the frames' clock
+    e.detected_ns = detected;
+    e.detail = pe.detail;
     events_->publish(std::move(e));
   }
 }

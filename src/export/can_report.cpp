@@ -4,6 +4,8 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <utility>
 
 #include "vigil/export/json_writer.hpp"
@@ -213,6 +215,150 @@ std::string ids_table(const CanReport& r, const CanTextOptions& options) {
   return out;
 }
 
+// "12.3" (percent), or "-" when the bitrate is not known.
+std::string pct(const BusLoad& l, double v) {
+  return l.known ? fmt::format("{:.1f}", v) : std::string("-");
+}
+
+std::string bitrate_text(const BusSettings& s) {
+  if (s.bitrate == 0) return "-";
+  const auto one = [](std::uint32_t b) {
+    if (b % 1000000 == 0) return fmt::format("{}M", b / 1000000);
+    if (b % 1000 == 0) return fmt::format("{}k", b / 1000);
+    return fmt::format("{}", b);
+  };
+  std::string t = one(s.bitrate);
+  if (s.data_bitrate != 0 && s.data_bitrate != s.bitrate) t += "/" + one(s.data_bitrate);
+  return t;
+}
+
+// Bus load per bus, stuffing mode and direction (as canbusload), and the bus's verdict.
+std::string buses_table(const CanReport& r, const CanTextOptions& options) {
+  TextTable t(
+      {"STATUS", "BUS", "BITRATE", "STUFFING", "DIR", "FRAMES", "BITS", "LAST %", "1MIN %",
+       "5MIN %", "15MIN %", "PEAK %", "MEAN %", "MESSAGES"},
+      {false, false, true, false, false, true, true, true, true, true, true, true, true, false});
+  for (const BusReport& b : r.buses) {
+    bool first = true;
+    for (std::size_t m = 0; m < kStuffingModes; ++m) {
+      for (std::size_t k = 0; k < 3; ++k) {
+        const BusLoad& l = b.stats.load[m][k];
+        if (k < 2 && (l.frames == 0 || b.stats.load[m][1 - k].frames == 0)) continue;
+        t.add({first ? std::string(to_string(b.status.level())) : "",
+               bus_name(b.bus, options.bus_names), bitrate_text(b.stats.settings),
+               std::string(to_string(static_cast<Stuffing>(m))),
+               k == 0 ? "Rx" : (k == 1 ? "Tx" : "all"), fmt::format("{}", l.frames),
+               fmt::format("{}", l.bits), pct(l, l.last_second), pct(l, l.avg_1m), pct(l, l.avg_5m),
+               pct(l, l.avg_15m), pct(l, l.peak), pct(l, l.mean),
+               first ? messages_of(b.status) : ""});
+        first = false;
+      }
+    }
+  }
+  std::string out = t.str();
+  if (std::any_of(r.buses.begin(), r.buses.end(),
+                  [](const BusReport& b) { return b.stats.settings.bitrate == 0; })) {
+    out += "(- : no bitrate configured for the bus (buses.<bus>.bitrate): no percentage)\n";
+  }
+  if (std::any_of(r.buses.begin(), r.buses.end(),
+                  [](const BusReport& b) { return b.stats.fd_estimated > 0; })) {
+    out +=
+        "(exact: CAN FD frames are counted with the worst case, as canbusload has no exact "
+        "CAN FD count)\n";
+  }
+  return out;
+}
+
+// The controllers' state from error frames, for buses that had any.
+std::string controllers_table(const CanReport& r, const CanTextOptions& options) {
+  TextTable t({"BUS", "STATE", "ERROR FRAMES", "WARNINGS", "PASSIVES", "BUS-OFFS", "RESTARTS",
+               "PROTOCOL", "NO ACK", "LOST ARB", "TX ERR", "RX ERR", "LATEST"},
+              {false, false, true, true, true, true, true, true, true, true, true, true, false});
+  bool any = false;
+  for (const BusReport& b : r.buses) {
+    const ControllerStats& c = b.stats.controller;
+    if (c.error_frames == 0) continue;
+    any = true;
+    const auto opt = [](const std::optional<std::uint8_t>& v) {
+      return v ? fmt::format("{}", *v) : std::string("-");
+    };
+    t.add({bus_name(b.bus, options.bus_names), std::string(to_string(c.state)),
+           fmt::format("{}", c.error_frames), fmt::format("{}", c.warnings),
+           fmt::format("{}", c.passives), fmt::format("{}", c.bus_offs),
+           fmt::format("{}", c.restarts), fmt::format("{}", c.by_class[3]),
+           fmt::format("{}", c.by_class[5]), fmt::format("{}", c.by_class[1]), opt(c.tx_errors),
+           opt(c.rx_errors), c.last});
+  }
+  return any ? t.str() : std::string();
+}
+
+// Every CANopen node the decoder saw.
+std::string canopen_table(const CanReport& r, const CanTextOptions& options) {
+  const auto& nodes = r.snapshot.protocol.canopen;
+  if (nodes.empty()) return {};
+  TextTable t({"BUS", "NODE", "NAME", "NMT", "HEARTBEATS", "BOOT-UPS", "RESETS", "EMCY", "GUARDING",
+               "TOGGLE ERR", "MALFORMED", "LAST EMERGENCY"},
+              {false, true, false, false, true, true, true, true, true, true, true, false});
+  for (const canopen::NodeStats& n : nodes) {
+    const NodeReport* rep = r.find(n.bus, n.node);
+    t.add({bus_name(n.bus, options.bus_names), fmt::format("{}", n.node),
+           rep != nullptr && rep->named ? rep->name : "-", std::string(to_string(n.state)),
+           fmt::format("{}", n.heartbeats), fmt::format("{}", n.boot_ups),
+           fmt::format("{}", n.resets), fmt::format("{}", n.emergencies),
+           fmt::format("{}", n.guard_responses), fmt::format("{}", n.toggle_errors),
+           fmt::format("{}", n.malformed_emergencies + n.malformed_heartbeats),
+           n.last_emergency ? n.last_emergency->describe() : "-"});
+  }
+  return t.str();
+}
+
+// Every DroneCAN node whose NodeStatus was decoded.
+std::string dronecan_table(const CanReport& r, const CanTextOptions& options) {
+  const auto& nodes = r.snapshot.protocol.dronecan;
+  if (nodes.empty()) return {};
+  TextTable t({"BUS", "NODE", "NAME", "HEALTH", "MODE", "SUB", "UPTIME s", "VENDOR", "STATUSES",
+               "RESTARTS", "MALFORMED"},
+              {false, true, false, false, false, true, true, false, true, true, true});
+  for (const dronecan::NodeStats& n : nodes) {
+    const NodeReport* rep = r.find(n.bus, n.node);
+    t.add({bus_name(n.bus, options.bus_names), fmt::format("{}", n.node),
+           rep != nullptr && rep->named ? rep->name : "-",
+           std::string(dronecan::to_string(n.health)), dronecan::mode_name(n.mode),
+           fmt::format("{}", n.sub_mode), fmt::format("{}", n.uptime_s),
+           fmt::format("0x{:04X}", n.vendor_status), fmt::format("{}", n.statuses),
+           fmt::format("{}", n.restarts), fmt::format("{}", n.malformed)});
+  }
+  return t.str();
+}
+
+std::string event_node(const CanReport& r, const ProtocolEvent& e) {
+  if (e.node == kNoNode) return "-";
+  const NodeReport* rep = r.find(e.bus, e.node);
+  if (rep != nullptr && rep->named) return fmt::format("{} ({})", e.node, rep->name);
+  return fmt::format("{}", e.node);
+}
+
+std::string events_list(const CanReport& r, const CanTextOptions& options) {
+  const ProtocolSnapshot& p = r.snapshot.protocol;
+  if (p.events == 0) return {};
+  std::string out = fmt::format("\nProtocol events ({}", p.events);
+  if (p.events_dropped > 0) out += fmt::format(", the oldest {} no longer kept", p.events_dropped);
+  const std::size_t n = p.recent_events.size();
+  const std::size_t show =
+      options.max_events < 0 ? n : std::min(n, static_cast<std::size_t>(options.max_events));
+  if (show < n) out += fmt::format(", the latest {} shown", show);
+  out += ")\n";
+  TextTable t({"TIME s", "BUS", "NODE", "EVENT", "LEVEL", "DETAIL"},
+              {true, false, false, false, false, false});
+  for (std::size_t i = n - show; i < n; ++i) {
+    const ProtocolEvent& e = p.recent_events[i];
+    t.add({fmt::format("{:.6f}", static_cast<double>(e.time_ns) / 1e9),
+           bus_name(e.bus, options.bus_names), event_node(r, e), std::string(to_string(e.kind)),
+           e.severity == 2 ? "ERROR" : (e.severity == 1 ? "WARN" : "INFO"), e.detail});
+  }
+  return out + t.str();
+}
+
 }  // namespace
 
 std::string format_can_report(const CanReport& r, const CanTextOptions& options) {
@@ -221,6 +367,16 @@ std::string format_can_report(const CanReport& r, const CanTextOptions& options)
   out += summary_table(r);
   out += "\nNodes\n";
   out += nodes_table(r, options);
+  if (!r.buses.empty()) {
+    out += "\nBuses\n";
+    out += buses_table(r, options);
+  }
+  if (const std::string c = controllers_table(r, options); !c.empty()) {
+    out += "\nControllers (error frames)\n" + c;
+  }
+  if (const std::string c = canopen_table(r, options); !c.empty()) out += "\nCANopen\n" + c;
+  if (const std::string c = dronecan_table(r, options); !c.empty()) out += "\nDroneCAN\n" + c;
+  out += events_list(r, options);
   if (options.ids) {
     out += "\nIds\n";
     out += ids_table(r, options);
@@ -412,6 +568,210 @@ void write_sniffer(exporter::JsonWriter& w, const SnifferInfo& s) {
   w.end_object();
 }
 
+void write_load(exporter::JsonWriter& w, const BusLoad& l) {
+  w.begin_object();
+  w.field("frames", l.frames).field("bits", l.bits).field("last_second_bits", l.last_second_bits);
+  const auto p = [&](std::string_view k, double v) {
+    w.key(k);
+    if (l.known) {
+      w.value(v);
+    } else {
+      w.null();
+    }
+  };
+  p("last_second", l.last_second);
+  p("avg_1m", l.avg_1m);
+  p("avg_5m", l.avg_5m);
+  p("avg_15m", l.avg_15m);
+  p("peak", l.peak);
+  p("mean", l.mean);
+  w.end_object();
+}
+
+void write_bus(exporter::JsonWriter& w, const BusReport& b,
+               const std::vector<std::string>& bus_names) {
+  const BusProtocolStats& s = b.stats;
+  w.begin_object();
+  w.field("bus", b.bus).field("bus_name", bus_name(b.bus, bus_names));
+  write_status(w, b.status);
+  w.key("bitrate");
+  if (s.settings.bitrate != 0) {
+    w.value(s.settings.bitrate);
+  } else {
+    w.null();
+  }
+  w.key("data_bitrate");
+  if (s.settings.data_bitrate != 0) {
+    w.value(s.settings.data_bitrate);
+  } else {
+    w.null();
+  }
+  w.field("protocol", to_string(s.settings.protocol));
+  w.key("judged").begin_object();
+  w.field("stuffing", to_string(b.config.load.stuffing))
+      .field("figure", to_string(b.config.load.figure));
+  w.key("load");
+  if (std::isnan(b.judged_load)) {
+    w.null();
+  } else {
+    w.value(b.judged_load);
+  }
+  w.key("warn");
+  if (b.config.load.warn) {
+    w.value(*b.config.load.warn);
+  } else {
+    w.null();
+  }
+  w.key("error");
+  if (b.config.load.error) {
+    w.value(*b.config.load.error);
+  } else {
+    w.null();
+  }
+  w.end_object();
+  w.key("load").begin_object();
+  for (std::size_t m = 0; m < kStuffingModes; ++m) {
+    w.key(to_string(static_cast<Stuffing>(m))).begin_object();
+    w.key("rx");
+    write_load(w, s.load[m][0]);
+    w.key("tx");
+    write_load(w, s.load[m][1]);
+    w.key("all");
+    write_load(w, s.load[m][2]);
+    w.end_object();
+  }
+  w.end_object();
+  w.field("fd_estimated", s.fd_estimated);
+  optional_ns(w, "window_end_ns", s.window_end_ns);
+  const ControllerStats& c = s.controller;
+  w.key("controller").begin_object();
+  w.field("state", to_string(c.state));
+  optional_ns(w, "state_since_ns", c.state_since_ns);
+  w.field("error_frames", c.error_frames);
+  w.key("by_class").begin_object();
+  for (std::size_t i = 0; i < error_class::kCount; ++i) {
+    w.field(error_class_name(i), c.by_class[i]);
+  }
+  w.end_object();
+  w.field("warnings", c.warnings).field("passives", c.passives).field("bus_offs", c.bus_offs);
+  w.field("restarts", c.restarts).field("rx_overflows", c.rx_overflows);
+  w.field("tx_overflows", c.tx_overflows);
+  w.key("protocol_types").begin_object();
+  constexpr std::array<std::string_view, 8> kTypes{"bit",  "form",     "stuff",  "bit0",
+                                                   "bit1", "overload", "active", "tx"};
+  for (std::size_t i = 0; i < 8; ++i) w.field(kTypes[i], c.protocol_types[i]);
+  w.end_object();
+  w.key("protocol_locations").begin_array();
+  for (const auto& [loc, n] : c.protocol_locations) {
+    w.begin_object().field("location", protocol_location_name(loc)).field("count", n);
+    w.end_object();
+  }
+  w.end_array();
+  w.key("transceiver");
+  if (c.transceiver) {
+    w.value(transceiver_name(*c.transceiver));
+  } else {
+    w.null();
+  }
+  w.key("tx_errors");
+  if (c.tx_errors) {
+    w.value(*c.tx_errors);
+  } else {
+    w.null();
+  }
+  w.key("rx_errors");
+  if (c.rx_errors) {
+    w.value(*c.rx_errors);
+  } else {
+    w.null();
+  }
+  w.field("latest", c.last);
+  w.end_object();
+  w.field("nmt_commands", s.nmt_commands).field("malformed_nmt", s.malformed_nmt);
+  w.end_object();
+}
+
+void write_emergency(exporter::JsonWriter& w, const canopen::Emergency& e) {
+  w.begin_object();
+  w.field("code", fmt::format("0x{:04X}", e.code)).field("class", canopen::emergency_class(e.code));
+  w.field("error_register", e.error_register)
+      .field("error_register_bits", canopen::error_register_names(e.error_register));
+  w.field("manufacturer",
+          fmt::format("{:02X} {:02X} {:02X} {:02X} {:02X}", e.manufacturer[0], e.manufacturer[1],
+                      e.manufacturer[2], e.manufacturer[3], e.manufacturer[4]));
+  w.field("length", e.length).field("time_ns", e.time_ns).field("text", e.describe());
+  w.end_object();
+}
+
+void write_canopen(exporter::JsonWriter& w, const CanReport& r, const canopen::NodeStats& n,
+                   const std::vector<std::string>& bus_names) {
+  w.begin_object();
+  w.field("bus", n.bus).field("bus_name", bus_name(n.bus, bus_names)).field("node", n.node);
+  const NodeReport* rep = r.find(n.bus, n.node);
+  w.key("name");
+  if (rep != nullptr && rep->named) {
+    w.value(rep->name);
+  } else {
+    w.null();
+  }
+  w.field("nmt_state", to_string(n.state));
+  optional_ns(w, "state_since_ns", n.state_since_ns);
+  optional_ns(w, "last_heartbeat_ns", n.last_heartbeat_ns);
+  optional_ns(w, "not_operational_since_ns", n.operational_left_ns);
+  w.field("heartbeats", n.heartbeats).field("boot_ups", n.boot_ups).field("resets", n.resets);
+  optional_ns(w, "last_reset_ns", n.last_reset_ns);
+  w.field("state_changes", n.state_changes);
+  w.field("guard_requests", n.guard_requests).field("guard_responses", n.guard_responses);
+  w.field("toggle_errors", n.toggle_errors).field("emergencies", n.emergencies);
+  w.key("last_emergency");
+  if (n.last_emergency) {
+    write_emergency(w, *n.last_emergency);
+  } else {
+    w.null();
+  }
+  w.field("malformed_emergencies", n.malformed_emergencies);
+  w.field("malformed_heartbeats", n.malformed_heartbeats);
+  w.field("last_malformed", n.last_malformed);
+  w.end_object();
+}
+
+void write_dronecan(exporter::JsonWriter& w, const CanReport& r, const dronecan::NodeStats& n,
+                    const std::vector<std::string>& bus_names) {
+  w.begin_object();
+  w.field("bus", n.bus).field("bus_name", bus_name(n.bus, bus_names)).field("node", n.node);
+  const NodeReport* rep = r.find(n.bus, n.node);
+  w.key("name");
+  if (rep != nullptr && rep->named) {
+    w.value(rep->name);
+  } else {
+    w.null();
+  }
+  w.field("health", dronecan::to_string(n.health)).field("mode", dronecan::mode_name(n.mode));
+  w.field("sub_mode", n.sub_mode).field("vendor_status", n.vendor_status);
+  w.field("uptime_s", n.uptime_s);
+  optional_ns(w, "last_status_ns", n.last_status_ns);
+  w.field("statuses", n.statuses).field("restarts", n.restarts);
+  optional_ns(w, "last_restart_ns", n.last_restart_ns);
+  w.field("malformed", n.malformed).field("last_malformed", n.last_malformed);
+  w.end_object();
+}
+
+void write_event(exporter::JsonWriter& w, const ProtocolEvent& e,
+                 const std::vector<std::string>& bus_names) {
+  w.begin_object();
+  w.field("seq", e.seq).field("kind", to_string(e.kind));
+  w.field("severity", e.severity == 2 ? "error" : (e.severity == 1 ? "warn" : "info"));
+  w.field("time_ns", e.time_ns).field("bus", e.bus).field("bus_name", bus_name(e.bus, bus_names));
+  w.key("node");
+  if (e.node == kNoNode) {
+    w.null();
+  } else {
+    w.value(e.node);
+  }
+  w.field("direction", to_string(e.direction)).field("detail", e.detail);
+  w.end_object();
+}
+
 }  // namespace
 
 void write_can_report_members(exporter::JsonWriter& w, const CanReport& r,
@@ -441,6 +801,37 @@ void write_can_report_members(exporter::JsonWriter& w, const CanReport& r,
   w.key("sniffers").begin_array();
   for (const SnifferInfo& s : r.snapshot.sniffers) write_sniffer(w, s);
   w.end_array();
+  // What the frames said (vigil/can/protocol.hpp): bus load, controllers, CANopen, events.
+  w.key("bus_reports").begin_array();
+  for (const BusReport& b : r.buses) write_bus(w, b, bus_names);
+  w.end_array();
+  w.key("canopen").begin_array();
+  for (const canopen::NodeStats& n : r.snapshot.protocol.canopen) {
+    write_canopen(w, r, n, bus_names);
+  }
+  w.end_array();
+  w.key("dronecan").begin_array();
+  for (const dronecan::NodeStats& n : r.snapshot.protocol.dronecan) {
+    write_dronecan(w, r, n, bus_names);
+  }
+  w.end_array();
+  const ProtocolSnapshot& p = r.snapshot.protocol;
+  w.key("protocol").begin_object();
+  w.field("error_records", r.snapshot.error_records);
+  w.field("events", p.events).field("events_dropped", p.events_dropped);
+  w.field("untracked_canopen_nodes", p.untracked_nodes);
+  std::uint64_t resets = 0;
+  std::uint64_t emergencies = 0;
+  for (const canopen::NodeStats& n : p.canopen) {
+    resets += n.resets;
+    emergencies += n.emergencies;
+  }
+  for (const dronecan::NodeStats& n : p.dronecan) resets += n.restarts;
+  w.field("resets", resets).field("emergencies", emergencies);
+  w.key("recent_events").begin_array();
+  for (const ProtocolEvent& e : p.recent_events) write_event(w, e, bus_names);
+  w.end_array();
+  w.end_object();
 }
 
 std::string can_report_json(const CanReport& report, int indent,
@@ -503,8 +894,49 @@ std::string format_can_replay(const LogReplay& replay, const CanReport& report,
   }
   if (!buses.empty()) out += "  buses: " + buses + '\n';
   if (!options.config.empty()) out += "  config: " + options.config + '\n';
+  // The findings in one line: resets, emergencies, controller faults, bus load.
+  const ProtocolSnapshot& p = report.snapshot.protocol;
+  std::uint64_t resets = 0;
+  std::uint64_t emergencies = 0;
+  for (const canopen::NodeStats& n : p.canopen) {
+    resets += n.resets;
+    emergencies += n.emergencies;
+  }
+  std::uint64_t passives = 0;
+  std::uint64_t bus_offs = 0;
+  std::string loads;
+  for (const BusReport& b : report.buses) {
+    passives += b.stats.controller.passives;
+    bus_offs += b.stats.controller.bus_offs;
+    const BusLoad& l = b.stats.load[static_cast<std::size_t>(b.config.load.stuffing)][2];
+    if (!loads.empty()) loads += ", ";
+    loads += l.known ? fmt::format("{} mean {:.1f}% peak {:.1f}%",
+                                   bus_name(b.bus, replay.bus_names()), l.mean, l.peak)
+                     : fmt::format("{} {} bits (no bitrate)", bus_name(b.bus, replay.bus_names()),
+                                   l.bits);
+  }
+  std::string dronecan;
+  if (!p.dronecan.empty()) {
+    std::uint64_t restarts = 0;
+    std::size_t unhealthy = 0;
+    for (const dronecan::NodeStats& n : p.dronecan) {
+      restarts += n.restarts;
+      if (n.health != dronecan::Health::Ok) ++unhealthy;
+    }
+    dronecan = fmt::format("{} DroneCAN node{} ({} not OK, {} restart{}), ", p.dronecan.size(),
+                           p.dronecan.size() == 1 ? "" : "s", unhealthy, restarts,
+                           restarts == 1 ? "" : "s");
+  }
+  out += fmt::format(
+      "  findings: {} CANopen node{}, {} reset{}, {} emergenc{}, {}{} error passive, {} bus off; "
+      "load ({} stuffing): {}\n",
+      p.canopen.size(), p.canopen.size() == 1 ? "" : "s", resets, resets == 1 ? "" : "s",
+      emergencies, emergencies == 1 ? "y" : "ies", dronecan, passives, bus_offs,
+      report.buses.empty() ? "exact" : to_string(report.buses.front().config.load.stuffing),
+      loads.empty() ? "-" : loads);
   out += '\n';
-  out += format_can_report(report, {.ids = options.ids, .bus_names = replay.bus_names()});
+  out += format_can_report(report,
+                           {.ids = options.ids, .bus_names = replay.bus_names(), .max_events = -1});
   return out;
 }
 

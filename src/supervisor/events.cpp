@@ -55,6 +55,24 @@ const char* to_string(EventKind k) noexcept {
       return "logical_supervision";
     case EventKind::CheckpointMisuse:
       return "checkpoint_misuse";
+    case EventKind::NmtState:
+      return "nmt_state";
+    case EventKind::NodeReset:
+      return "node_reset";
+    case EventKind::Emergency:
+      return "emergency";
+    case EventKind::NmtCommand:
+      return "nmt_command";
+    case EventKind::ErrorWarning:
+      return "error_warning";
+    case EventKind::ErrorPassive:
+      return "error_passive";
+    case EventKind::BusOff:
+      return "bus_off";
+    case EventKind::ErrorActive:
+      return "error_active";
+    case EventKind::NodeHealth:
+      return "node_health";
   }
   return "?";
 }

@@ -190,7 +190,8 @@ TEST_CASE("Sniffer counts error frames apart", "[can][sniffer]") {
   CHECK(t.frames == 2);
   CHECK(t.error_frames == 1);
   CHECK(t.accepted == 1);
-  // Error frames are counted per error class in the id table, with no node and no record.
+  // Error frames are counted per error class in the id table, with no node; their record
+  // (flagged `error`, for the CAN supervisor's controller-state decoding) is pushed too.
   const auto ids = sniffer.ids();
   REQUIRE(ids.size() == 2);
   const auto err = std::find_if(ids.begin(), ids.end(), [](const IdEntry& e) { return e.error; });
@@ -198,7 +199,13 @@ TEST_CASE("Sniffer counts error frames apart", "[can][sniffer]") {
   CHECK(err->id == 0x4);
   CHECK(err->node == vigil::can::kNoNode);
   CHECK(err->frames == 1);
-  CHECK(drain_records(registry).size() == 1);
+  const auto records = drain_records(registry);
+  REQUIRE(records.size() == 2);
+  CHECK(records[0].error);
+  CHECK(records[0].id == 0x4);
+  CHECK(records[0].node == vigil::can::kNoNode);
+  CHECK(records[0].data[1] == 0x10);
+  CHECK_FALSE(records[1].error);
 }
 
 TEST_CASE("Sniffer state outlives the sniffer in its registry", "[can][sniffer]") {

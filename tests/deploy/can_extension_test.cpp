@@ -47,8 +47,38 @@ class Bus : public Task<Bus> {
   std::unique_ptr<can::Sniffer<64>> sniffer_;
 };
 
+// A CANopen node 1: boot-up, then operational heartbeats every cycle; a boot-up again at cycle
+// 40 (a reset), an emergency at cycle 50, then its controller goes bus off at cycle 60.
+class CanOpenBus : public Task<CanOpenBus> {
+ public:
+  explicit CanOpenBus(const ComponentContext& c) : Task(c.name, c.supervision, c.registry()) {
+    auto* ext = c.system->extension<CanExtension>();
+    if (ext == nullptr) throw std::runtime_error("needs a can: section");
+    sniffer_ = std::make_unique<can::Sniffer<64>>(
+        ext->registry(), c.name, can::SnifferOptions{.node_map = can::NodeMap::canopen()});
+  }
+  void on_update() {
+    ++cycle_;
+    const Nanos t = platform::now_ns();
+    const auto read = [&](can::Frame f) {
+      f.timestamp = t;
+      sniffer_->on_read(f, t, t);
+    };
+    read(can::Frame::classic(
+        0x701, {cycle_ == 1 || cycle_ == 40 ? std::uint8_t{0x00} : std::uint8_t{0x05}}));
+    if (cycle_ == 50) read(can::Frame::classic(0x081, {0x30, 0x81, 0x11, 0, 0, 0, 0, 0}));
+    if (cycle_ == 60) read(can::Frame::error_frame(can::error_class::kBusOff));
+  }
+
+ private:
+  std::uint64_t cycle_ = 0;
+  std::unique_ptr<can::Sniffer<64>> sniffer_;
+};
+
 ComponentFactory& factory() {
   static ComponentFactory f;
+  static const bool canopen = f.add<CanOpenBus>("test.canopen_bus");
+  (void)canopen;
   static const bool once = f.add<Bus>("test.can_bus");
   (void)once;
   return f;
@@ -217,4 +247,72 @@ can:
   CHECK(up.detected_ns >= up.fault_ns);
   CHECK(std::string(to_string(up.kind)) == "responding");
   CHECK(std::string(to_string(down.kind)) == "not_responding");
+}
+
+TEST_CASE("CANopen resets, emergencies and a bus off are events, units show them",
+          "[deploy][can][events]") {
+  auto spec = load_deployment_string(R"(
+activities: [{name: io, period: 5ms}]
+components: [{name: bus, type: test.canopen_bus, activity: io}]
+supervision: {lock_memory: false, monitor_period: 20ms}
+can:
+  node_map: canopen
+  buses: {all: {bitrate: 500k}}
+  nodes: {drive_1: {node: 1, bus: 0}}
+  groups: {arm: {nodes: [1], bus: 0}}
+)",
+                                     "can.yaml", factory());
+  REQUIRE(spec.has_value());
+  auto sys = System::create(std::move(*spec), factory());
+  REQUIRE(sys.has_value());
+  std::mutex m;
+  std::vector<Event> seen;
+  const auto sub = (*sys)->service().events().subscribe([&](const Event& e) {
+    const std::lock_guard lock(m);
+    seen.push_back(e);
+  });
+  REQUIRE((*sys)->start().has_value());
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  (*sys)->stop();
+  const ReportSet r = (*sys)->step_monitor();
+  (*sys)->service().events().flush();
+  (*sys)->service().events().unsubscribe(sub);
+  const std::lock_guard lock(m);
+  const auto find = [&](EventKind k) -> const Event* {
+    for (const Event& e : seen) {
+      if (e.kind == k) return &e;
+    }
+    return nullptr;
+  };
+  const Event* reset = find(EventKind::NodeReset);
+  REQUIRE(reset != nullptr);
+  CHECK(reset->component == "can0/drive_1");
+  CHECK(reset->severity == EventSeverity::Warn);
+  CHECK(reset->fault_ns > 0);
+  CHECK(reset->detected_ns >= reset->fault_ns);
+  const Event* emcy = find(EventKind::Emergency);
+  REQUIRE(emcy != nullptr);
+  CHECK(emcy->detail.find("0x8130") != std::string::npos);
+  const Event* off = find(EventKind::BusOff);
+  REQUIRE(off != nullptr);
+  CHECK(off->component == "can bus 0");
+  CHECK(off->severity == EventSeverity::Error);
+  REQUIRE(find(EventKind::NmtState) != nullptr);
+
+  const Report* bus0 = r.find("can bus 0");
+  REQUIRE(bus0 != nullptr);
+  CHECK(bus0->kind_name() == "can_bus");
+  CHECK(bus0->state_label == "bus off");
+  CHECK(bus0->status.level() == StatusLevel::Error);
+  REQUIRE(bus0->field("load_1m") != nullptr);
+  CHECK(bus0->field("bus_offs")->count == 1);
+  const Report* drive = r.find("can0/drive_1");
+  REQUIRE(drive != nullptr);
+  CHECK(drive->field("nmt_state")->text == "operational");
+  CHECK(drive->field("resets")->count == 1);
+  REQUIRE(drive->field("last_emergency") != nullptr);
+  CHECK(drive->status.level() == StatusLevel::Warn);  // its reset and its emergency
+  const Report* arm = r.find("can group arm");
+  REQUIRE(arm != nullptr);
+  CHECK(arm->status.level() == StatusLevel::Error);  // its bus is off
 }

@@ -35,6 +35,7 @@
 #include "vigil/can/can_statistics.hpp"
 #include "vigil/can/filter.hpp"
 #include "vigil/can/node_map.hpp"
+#include "vigil/can/protocol.hpp"
 #include "vigil/config/error.hpp"
 #include "vigil/expected.hpp"
 #include "vigil/monitor/status.hpp"
@@ -103,6 +104,17 @@ struct NodeThresholds {
   Limit write_time;  ///< time spent writing a frame to the node (Tx I/O time)
   Limit rx_gap;      ///< time between consecutive frames received from the node
   Limit tx_gap;      ///< time between consecutive frames sent to the node
+  /// CANopen (CiA 301), for nodes whose bus or group speaks it (`protocol: canopen`).
+  /// Heartbeat consumer time (object 0x1016): no heartbeat for longer is "heartbeat lost" at
+  /// `not_responding_level`. Empty: learned (the node's learned silence limit covers its
+  /// heartbeat id, 0x700 + node-ID).
+  std::optional<Nanos> canopen_heartbeat_ns;
+  /// A node outside operational for longer than this is WARN; empty: never.
+  std::optional<Nanos> canopen_not_operational_after_ns;
+  /// A node reset (boot-up of a running node) keeps the node WARN this long; 0: never WARN.
+  Nanos canopen_reset_window_ns = 5 * 60 * kNanosPerSecond;
+  /// Level while the node's latest emergency is not "error reset" (0x0000).
+  StatusLevel canopen_emergency_level = StatusLevel::Warn;
 };
 
 /// One layer of a limit, as written: each field replaces the layer below when set.
@@ -133,6 +145,10 @@ struct ThresholdOverrides {
   LimitOverride write_time;
   LimitOverride rx_gap;
   LimitOverride tx_gap;
+  std::optional<std::optional<Nanos>> canopen_heartbeat_ns;
+  std::optional<std::optional<Nanos>> canopen_not_operational_after_ns;
+  std::optional<Nanos> canopen_reset_window_ns;
+  std::optional<StatusLevel> canopen_emergency_level;
 
   /// Applies this layer on top of `t`.
   void apply_to(NodeThresholds& t) const;
@@ -152,16 +168,45 @@ struct GroupConfig {
   GroupSpec members;
   bool expected = true;           ///< the nodes listed in `members.nodes` (not ranges) are expected
   ThresholdOverrides thresholds;  ///< applied to each member, after the defaults
+  /// `protocol: canopen` decodes CiA 301 for the members (Auto: not set; the bus decides).
+  BusProtocol protocol = BusProtocol::Auto;
+};
+
+/// Bus load thresholds: percent of the bitrate (worst-case stuffing can exceed 100).
+struct LoadLimit {
+  std::optional<double> warn{};
+  std::optional<double> error{};
+  Stuffing stuffing = Stuffing::Exact;    ///< which count is judged
+  LoadFigure figure = LoadFigure::Avg1m;  ///< which figure is judged
+};
+
+/// One entry of `buses:` (its keys, as given; `CanConfig::bus_config` layers them).
+struct BusConfig {
+  std::optional<std::uint8_t> bus{};  ///< empty: `all`
+  std::optional<std::uint32_t> bitrate{};
+  std::optional<std::uint32_t> data_bitrate{};
+  std::optional<BusProtocol> protocol{};
+  std::optional<double> load_warn{};
+  std::optional<double> load_error{};
+  std::optional<Stuffing> load_stuffing{};
+  std::optional<LoadFigure> load_figure{};
+};
+
+/// A bus's settings after layering (`all`, then its own entry).
+struct ResolvedBus {
+  BusSettings settings;  ///< bitrates and protocol (`Auto` resolved by the tracker)
+  LoadLimit load;
 };
 
 /// A whole CAN supervision configuration. Defaults: identity mapping, accept every frame,
-/// built-in thresholds (see NodeThresholds), no named node, no group.
+/// built-in thresholds (see NodeThresholds), no named node, no group, no bus settings.
 struct CanConfig {
   NodeMapKind node_map = NodeMapKind::Identity;
   FilterExpr filter;                ///< accept every frame by default
   ThresholdOverrides defaults;      ///< on top of the built-in thresholds
   std::vector<NodeConfig> nodes;    ///< in file order
   std::vector<GroupConfig> groups;  ///< in file order
+  std::vector<BusConfig> buses;     ///< `buses:` in file order
 
   /// The thresholds of node `node` on `bus`: built-in, then `defaults`, then each group that
   /// contains it (file order), then its `nodes` entries.
@@ -170,6 +215,11 @@ struct CanConfig {
   [[nodiscard]] std::vector<GroupSpec> group_specs() const;
   /// The named node for (bus, node), or null.
   [[nodiscard]] const NodeConfig* find_node(std::uint8_t bus, std::uint32_t node) const noexcept;
+  /// Bus `bus`'s bitrates, protocol and load thresholds: built-in, `all`, then its entry.
+  [[nodiscard]] ResolvedBus bus_config(std::uint8_t bus) const;
+  /// What the CAN aggregator's protocol tracker needs: the node map, every bus's settings and
+  /// the CANopen nodes of groups with `protocol: canopen`.
+  [[nodiscard]] ProtocolOptions protocol_options() const;
 };
 
 /// Schema loader of a whole file (the root mapping). Use it with `config::load_file`,

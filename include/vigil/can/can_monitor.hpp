@@ -62,6 +62,8 @@ namespace vigil::can {
 /// ("can0/drive_5") and one per group ("can group left_arm").
 inline constexpr std::string_view kNodeUnit = "can_node";
 inline constexpr std::string_view kGroupUnit = "can_group";
+/// The kind of the unit of one bus ("can bus 0"): its load, controller state, error frames.
+inline constexpr std::string_view kBusUnit = "can_bus";
 
 /// How a node's liveness stands.
 enum class Liveness : std::uint8_t {
@@ -122,10 +124,25 @@ struct NodeReport {
   /// Age of the latest request to it not answered yet, at the observed time; -1: none.
   Nanos unanswered_ns = -1;
   NodeThresholds thresholds;  ///< as resolved for this node
+  /// What its CANopen messages said (node map `canopen`, and its bus or group decodes CANopen).
+  std::optional<canopen::NodeStats> canopen;
+  /// What its DroneCAN NodeStatus said (node map `dronecan`, a bus decoding DroneCAN).
+  std::optional<dronecan::NodeStats> dronecan;
   Status status;
 
   /// A node of the mapping (not the frames of no node).
   [[nodiscard]] bool is_node() const noexcept { return liveness != Liveness::NoNode; }
+};
+
+/// What the monitor says about one bus: its load, its controller's state (error frames).
+struct BusReport {
+  std::uint8_t bus = 0;
+  ResolvedBus config;      ///< its bitrates, protocol and load thresholds
+  BusProtocolStats stats;  ///< from `CanSnapshot::protocol`
+  /// The load judged: `config.load.figure` of the `config.load.stuffing` count, both directions
+  /// (percent; NaN when the bitrate is not configured).
+  double judged_load = 0;
+  Status status;  ///< load above its thresholds; error passive WARN, bus off ERROR
 };
 
 /// One monitor evaluation.
@@ -142,6 +159,10 @@ struct CanReport {
   CanSnapshot snapshot;           ///< the statistics judged (ids, nodes, categories, totals)
   std::vector<IdVerdict> ids;     ///< one per `snapshot.ids`, same order
   std::vector<NodeReport> nodes;  ///< by bus, then node; never-seen any-bus nodes last
+  std::vector<BusReport> buses;   ///< by bus: every bus a frame (or error frame) came from
+
+  /// The report of bus `bus`, or null.
+  [[nodiscard]] const BusReport* find_bus(std::uint8_t bus) const noexcept;
 
   /// Nodes counted (the "no node" rows excluded), and of them those OK and those learning.
   [[nodiscard]] std::size_t node_count() const noexcept;

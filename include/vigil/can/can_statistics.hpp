@@ -47,6 +47,7 @@
 #include "vigil/bus/registry.hpp"
 #include "vigil/can/frame.hpp"
 #include "vigil/can/node_map.hpp"
+#include "vigil/can/protocol.hpp"
 #include "vigil/can/sniffer.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/supervisor/drain_loop.hpp"
@@ -172,6 +173,11 @@ struct CanSnapshot {
   /// "all" Rx then Tx, then each group Rx then Tx (groups in the order given). Rows without
   /// frames are left out, except one (Rx) row for a group that has none at all.
   std::vector<CategoryStats> categories;
+  /// What the frames themselves said: bus load, controller state (error frames), CANopen
+  /// (vigil/can/protocol.hpp). Decoded on the CAN supervisor's thread from the records.
+  ProtocolSnapshot protocol;
+  /// Error frames the CAN supervisor decoded (their records).
+  std::uint64_t error_records = 0;
 
   /// The node's statistics, or null. O(log n).
   [[nodiscard]] const NodeStats* find_node(std::uint8_t bus, std::uint32_t node,
@@ -212,6 +218,8 @@ struct CanAggregatorOptions {
   std::size_t max_nodes = 4096;
   /// Weight of the newest sample in the EWMAs (0 < w <= 1).
   double ewma_weight = supervisor::RunningStats::kDefaultEwmaWeight;
+  /// Bitrates, protocols and bounds of the protocol decoding (`CanConfig::protocol_options`).
+  ProtocolOptions protocol{};
 };
 
 /**
@@ -267,6 +275,13 @@ class CanAggregator {
   /// Allocates; any non-RT thread; `visit` must not call back into the aggregator.
   void visit_gap_distributions(std::span<const GroupSpec> groups,
                                const std::function<void(const GapDistribution&)>& visit) const;
+  /// Replaces the protocol decoding's configuration (bitrates, protocols); counts are kept.
+  /// Any thread.
+  void set_protocol_options(ProtocolOptions options);
+  /// Protocol events (NMT states, resets, emergencies, NMT commands, controller states) with a
+  /// sequence number above `after`, oldest first; at most `ProtocolOptions::max_events` are
+  /// kept. Any thread.
+  [[nodiscard]] std::vector<ProtocolEvent> protocol_events_after(std::uint64_t after) const;
 
   struct Impl;
 

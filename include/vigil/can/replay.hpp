@@ -51,6 +51,9 @@ struct ReplayOptions {
   /// Node keys tracked, likewise.
   std::size_t max_nodes = 4096;
   ReaderOptions reader{};  ///< what the log readers do with bad lines
+  /// Bitrates, protocols and event bounds of the protocol decoding (bus load, error frames,
+  /// CANopen), as live: `CanConfig::protocol_options()`. A replay keeps up to 65536 events.
+  ProtocolOptions protocol{.max_events = 65536};
 };
 
 /// What was read from one file.

@@ -32,12 +32,16 @@ struct FrameRecord {
   std::uint32_t function = 0;   ///< mapped function
   std::uint8_t bus = 0;         ///< bus index
   Direction direction = Direction::Rx;
-  std::uint8_t length = 0;             ///< DLC or CAN FD length, as in `Frame`
-  bool extended : 1 = false;           ///< 29-bit identifier
-  bool rtr : 1 = false;                ///< remote frame
-  bool fd : 1 = false;                 ///< CAN FD frame
-  bool id_untracked : 1 = false;       ///< the id table had no room for its key
-  bool node_untracked : 1 = false;     ///< the node table had no room for its key
+  std::uint8_t length = 0;          ///< DLC or CAN FD length, as in `Frame`
+  bool extended : 1 = false;        ///< 29-bit identifier
+  bool rtr : 1 = false;             ///< remote frame
+  bool fd : 1 = false;              ///< CAN FD frame
+  bool id_untracked : 1 = false;    ///< the id table had no room for its key
+  bool node_untracked : 1 = false;  ///< the node table had no room for its key
+  bool brs : 1 = false;             ///< CAN FD bit rate switch (bus load: data bitrate)
+  /// An error frame (SocketCAN's CAN_ERR_FLAG): `id` is its error class, `data` its details;
+  /// no node, no timing (the CAN aggregator hands it to the protocol tracker only).
+  bool error : 1 = false;
   std::array<std::uint8_t, 8> data{};  ///< the first min(8, data_size) data bytes, zero-padded
 };
 static_assert(std::is_trivially_copyable_v<FrameRecord> && sizeof(FrameRecord) == 64);
@@ -57,8 +61,9 @@ struct SnifferOptions {
   NodeMap node_map = NodeMap::identity();
 };
 
-/// A sniffer's cumulative counters (exact). `frames` = `error_frames` + `rejected` + accepted,
-/// and accepted = `records` + ... every accepted frame gives one record: pushed or `dropped`.
+/// A sniffer's cumulative counters (exact). `frames` = `error_frames` + `rejected` + accepted.
+/// Every accepted frame and every error frame gives one record: pushed, or counted in
+/// `dropped` (error frames are pushed so that the CAN supervisor decodes the controller state).
 struct SnifferTotals {
   std::uint64_t frames = 0;           ///< on_read/on_write calls
   std::uint64_t rx = 0;               ///< of which reads

@@ -51,7 +51,9 @@ class CanExtension : public Extension {
  public:
   /// Builds the registry, aggregator, supervisor (not started) and monitor for `config`. With
   /// `events`, a node that stops responding and one that responds again are published there
-  /// (`EventKind::NotResponding`, `EventKind::Responding`), once per change.
+  /// (`EventKind::NotResponding`, `EventKind::Responding`), once per change, and what the frames
+  /// say (CANopen NMT states, resets, emergencies and NMT commands; controller error warning,
+  /// error passive, bus off and back to error active) once each, with the frame's time.
   explicit CanExtension(can::CanConfig config, supervisor::EventHub* events = nullptr);
   /// Starts the CAN supervisor thread; fails when the thread cannot be created.
   expected<void, Error> start() override;
@@ -85,6 +87,7 @@ class CanExtension : public Extension {
   std::unique_ptr<can::CanMonitor> monitor_;
   void add_reports(ReportSet& reports, std::vector<exporter::CanHistograms>* histograms);
   void publish_changes(const can::CanReport& r, Nanos now);
+  void publish_protocol_events(const can::CanReport& r);
   [[nodiscard]] Report supervisor_report(const can::CanReport& r, bool running) const;
 
   std::atomic<Nanos> stopped_at_{0};  // once stopping: the time liveness is judged at
@@ -92,6 +95,8 @@ class CanExtension : public Extension {
   // The nodes not responding at the latest evaluation, by report name (the thread evaluating:
   // the monitor's, or a caller of step_monitor(); never two at once, see the service).
   std::map<std::string, bool> not_responding_;
+  // The latest protocol event published (`CanAggregator::protocol_events_after`).
+  std::uint64_t protocol_seq_ = 0;
 };
 
 /// Registers the extension for the `can:` section (idempotent, thread-safe). Linking

@@ -21,6 +21,8 @@ namespace vigil::exporter {
 struct CanTextOptions {
   bool ids = true;                       ///< append the per-id table
   std::vector<std::string> bus_names{};  ///< name of bus i (e.g. candump's interfaces); else i
+  /// Protocol events listed (the latest ones; -1: every one kept).
+  std::ptrdiff_t max_events = 20;
 };
 
 /// The report for people: status line, summary table, node table, optionally the id table.

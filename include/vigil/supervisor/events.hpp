@@ -57,6 +57,17 @@ enum class EventKind : std::uint8_t {
   DeadlineSupervision,  ///< an end too early, missed (found when max passed), or a second start
   LogicalSupervision,   ///< a checkpoint the graph does not allow after the previous one
   CheckpointMisuse,     ///< a component reported a checkpoint id it did not declare (Warn)
+  // What CAN frames say (vigil/can/protocol.hpp): the component is "can0/<node>" or "can bus 0";
+  // `fault_ns` is the frame's time.
+  NmtState,      ///< a CANopen node's NMT state changed (heartbeat); Warn when leaving operational
+  NodeReset,     ///< a CANopen node that was running booted again (Warn)
+  Emergency,     ///< a CANopen emergency message; `detail` decodes it (Warn; Info for a reset)
+  NmtCommand,    ///< an NMT command on the bus (Info; Warn for reset node / communication)
+  ErrorWarning,  ///< a CAN controller reached error warning (Info)
+  ErrorPassive,  ///< a CAN controller went error passive (Warn)
+  BusOff,        ///< a CAN controller went bus off (Error)
+  ErrorActive,   ///< a CAN controller is error active again (Info)
+  NodeHealth,    ///< a DroneCAN node's NodeStatus health changed (by the new health)
 };
 /// Lower-case name of a kind ("exception", "overrun_limit", ...), as written in JSON.
 [[nodiscard]] const char* to_string(EventKind k) noexcept;

@@ -236,7 +236,20 @@ inline bool SnifferState::process(const Frame& f, Direction d, Nanos io, Nanos a
   if (f.error) [[unlikely]] {
     bump(error_frames_);
     count_error(f, tx, at);
-    return false;
+    // Pushed (unfiltered) for the CAN supervisor's controller-state decoding; no node, no gap.
+    out = FrameRecord{};
+    out.time_ns = at;
+    out.io_ns = io;
+    out.id = f.id;
+    out.node = kNoNode;
+    out.bus = f.bus;
+    out.direction = d;
+    out.length = f.length;
+    out.error = true;
+    out.id_untracked = true;
+    out.node_untracked = true;
+    std::memcpy(out.data.data(), f.data.data(), out.data.size());
+    return true;
   }
   const NodeAddress a = node_map_.map(f.id, f.extended, f.rtr);
 
@@ -277,6 +290,8 @@ inline bool SnifferState::process(const Frame& f, Direction d, Nanos io, Nanos a
   out.fd = f.fd;
   out.id_untracked = false;
   out.node_untracked = false;
+  out.brs = f.brs;
+  out.error = false;
   const std::size_t n = std::min<std::size_t>(f.data_size(), out.data.size());
   if constexpr (std::endian::native == std::endian::little) {
     // One 8-byte load and a mask instead of a branch per byte; the bytes past the data are
