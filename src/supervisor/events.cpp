@@ -55,6 +55,10 @@ const char* to_string(EventKind k) noexcept {
       return "logical_supervision";
     case EventKind::CheckpointMisuse:
       return "checkpoint_misuse";
+    case EventKind::SegmentCorrupted:
+      return "segment_corrupted";
+    case EventKind::SupervisorRestarted:
+      return "supervisor_restarted";
   }
   return "?";
 }

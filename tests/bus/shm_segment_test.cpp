@@ -118,12 +118,21 @@ TEST_CASE("Every header field, corrupted, is rejected naming the field", "[shm][
        }},
       {"write_index", [](auto& h) { h.write_index = ~std::uint64_t{0}; }},
       {"dropped", [](auto& h) { h.dropped = h.offered + 1; }},
-      // Informative fields: any value is harmless and accepted.
-      {"", [](auto& h) { h.uid = 0xFFFFFFFF; }},
-      {"", [](auto& h) { h.start_ticks = ~std::uint64_t{0}; }},
-      {"", [](auto& h) { h.created_unix_ns = -1; }},
-      {"", [](auto& h) { h.component_index = 0xFFFFFFFF; }},
-      {"", [](auto& h) { h.flags = 0xFFFFFFFF; }},
+      // Informative fields: any value would be harmless, but the writer set them once and the
+      // constant part's checksum no longer matches.
+      {"header_checksum", [](auto& h) { h.uid = 0xFFFFFFFF; }},
+      {"header_checksum", [](auto& h) { h.start_ticks = ~std::uint64_t{0}; }},
+      {"header_checksum", [](auto& h) { h.created_unix_ns = -1; }},
+      {"header_checksum", [](auto& h) { h.component_index = 0xFFFFFFFF; }},
+      {"header_checksum", [](auto& h) { h.flags = 0xFFFFFFFF; }},
+      {"header_checksum", [](auto& h) { h.pid += 1; }},
+      {"header_checksum", [](auto& h) { h.component_name[0] = 'k'; }},
+      {"header_checksum", [](auto& h) { h.command_line[3] = 'X'; }},
+      {"header_checksum", [](auto& h) { h.header_checksum ^= 1; }},
+      {"reserved0", [](auto& h) { h.reserved0 = 1; }},
+      {"reserved1", [](auto& h) { h.reserved1 = 0xFFFFFFFF; }},
+      {"reserved2", [](auto& h) { h.reserved2[55] = 1; }},
+      // Fields that change after creation: any value is accepted at open.
       {"", [](auto& h) { h.exit_code = -1; }},
       {"",
        [](auto& h) {
@@ -131,11 +140,6 @@ TEST_CASE("Every header field, corrupted, is rejected naming the field", "[shm][
          h.daemon_pid = -1;
        }},
       {"", [](auto& h) { h.drains = ~std::uint64_t{0}; }},
-      {"",
-       [](auto& h) {
-         h.reserved0 = h.reserved1 = 0xFFFFFFFF;
-         std::memset(h.reserved2, 0xFF, 64);
-       }},
       {"",
        [](auto& h) {
          h.read_index = 1000;
@@ -188,7 +192,7 @@ TEST_CASE("Errors say what is wrong in words", "[shm][segment]") {
   auto r = validate_shm_image(img.base, img.size, expect());
   REQUIRE_FALSE(r);
   CHECK(r.error().to_string() ==
-        "abi_version: segment format version 9, this reader reads version 1 (different vigil "
+        "abi_version: segment format version 9, this reader reads version 2 (different vigil "
         "releases)");
   Image img2 = make_image(kSchema, 16);
   img2.header().write_index = 100;
@@ -469,6 +473,16 @@ TEST_CASE("Bad records reject the segment: type, size, sequence, contents", "[sh
   REQUIRE(s.producer.push(Small{1}));
   REQUIRE(s.producer.push(Flagged{2, true, "ok"}));
   TestVariant out[8];
+  // A bad second record: the good first one is still handed out (its counters count), the
+  // segment is marked corrupt, and the next pop says why.
+  const auto pop_after_good = [&](ShmReader<TestVariant>& r) {
+    auto first = r.pop(out, nullptr, 8, &check_test);
+    REQUIRE(first);
+    CHECK(*first == 1);
+    CHECK(std::get<Small>(out[0]).value == 1);
+    CHECK(r.error().has_value());
+    return r.pop(out, nullptr, 8, &check_test);
+  };
   SECTION("type") {
     s.edit_header(0, [](ShmRecordHeader& h) { h.type = 7; });
     auto r = s.reader();
@@ -479,14 +493,14 @@ TEST_CASE("Bad records reject the segment: type, size, sequence, contents", "[sh
   SECTION("size") {
     s.edit_header(1, [](ShmRecordHeader& h) { h.size = 4000; });
     auto r = s.reader();
-    auto n = r.pop(out, nullptr, 8, &check_test);
+    auto n = pop_after_good(r);
     REQUIRE_FALSE(n);
     CHECK(n.error().field == "record.size");
   }
   SECTION("sequence") {
     s.edit_header(1, [](ShmRecordHeader& h) { h.seq = 1; });  // same as the first record's
     auto r = s.reader();
-    auto n = r.pop(out, nullptr, 8, &check_test);
+    auto n = pop_after_good(r);
     REQUIRE_FALSE(n);
     CHECK(n.error().field == "record.seq");
     CHECK(n.error().message == "sequence 1 does not follow 1");
@@ -499,7 +513,7 @@ TEST_CASE("Bad records reject the segment: type, size, sequence, contents", "[sh
     payload[offsetof(Flagged, flag)] = std::byte{5};
     s.edit_header(2, [](ShmRecordHeader& h) { h.type = 9; });
     auto r = s.reader();
-    auto n = r.pop(out, nullptr, 8, &check_test);
+    auto n = pop_after_good(r);
     REQUIRE_FALSE(n);
     CHECK(n.error().field == "record");
   }
@@ -507,7 +521,7 @@ TEST_CASE("Bad records reject the segment: type, size, sequence, contents", "[sh
     auto* payload = s.record(1) + sizeof(ShmRecordHeader);
     payload[offsetof(Flagged, flag)] = std::byte{2};
     auto r = s.reader();
-    auto n = r.pop(out, nullptr, 8, &check_test);
+    auto n = pop_after_good(r);
     REQUIRE_FALSE(n);
     CHECK(n.error().field == "record");
     CHECK_THAT(n.error().message, Catch::Contains("neither 0 nor 1"));
