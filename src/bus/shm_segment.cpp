@@ -190,30 +190,40 @@ constexpr FieldSpan kFields[] = {
     {offsetof(ShmSegmentHeader, magic), sizeof(ShmSegmentHeader::magic), "magic"},
     {offsetof(ShmSegmentHeader, abi_version), sizeof(ShmSegmentHeader::abi_version), "abi_version"},
     {offsetof(ShmSegmentHeader, header_size), sizeof(ShmSegmentHeader::header_size), "header_size"},
-    {offsetof(ShmSegmentHeader, segment_size), sizeof(ShmSegmentHeader::segment_size), "segment_size"},
+    {offsetof(ShmSegmentHeader, segment_size), sizeof(ShmSegmentHeader::segment_size),
+     "segment_size"},
     {offsetof(ShmSegmentHeader, schema_id), sizeof(ShmSegmentHeader::schema_id), "schema_id"},
     {offsetof(ShmSegmentHeader, type_count), sizeof(ShmSegmentHeader::type_count), "type_count"},
-    {offsetof(ShmSegmentHeader, payload_size), sizeof(ShmSegmentHeader::payload_size), "payload_size"},
+    {offsetof(ShmSegmentHeader, payload_size), sizeof(ShmSegmentHeader::payload_size),
+     "payload_size"},
     {offsetof(ShmSegmentHeader, record_size), sizeof(ShmSegmentHeader::record_size), "record_size"},
     {offsetof(ShmSegmentHeader, capacity), sizeof(ShmSegmentHeader::capacity), "capacity"},
-    {offsetof(ShmSegmentHeader, mailbox_offset), sizeof(ShmSegmentHeader::mailbox_offset), "mailbox_offset"},
+    {offsetof(ShmSegmentHeader, mailbox_offset), sizeof(ShmSegmentHeader::mailbox_offset),
+     "mailbox_offset"},
     {offsetof(ShmSegmentHeader, ring_offset), sizeof(ShmSegmentHeader::ring_offset), "ring_offset"},
     {offsetof(ShmSegmentHeader, pid), sizeof(ShmSegmentHeader::pid), "pid"},
     {offsetof(ShmSegmentHeader, uid), sizeof(ShmSegmentHeader::uid), "uid"},
     {offsetof(ShmSegmentHeader, start_ticks), sizeof(ShmSegmentHeader::start_ticks), "start_ticks"},
-    {offsetof(ShmSegmentHeader, created_unix_ns), sizeof(ShmSegmentHeader::created_unix_ns), "created_unix_ns"},
-    {offsetof(ShmSegmentHeader, component_index), sizeof(ShmSegmentHeader::component_index), "component_index"},
+    {offsetof(ShmSegmentHeader, created_unix_ns), sizeof(ShmSegmentHeader::created_unix_ns),
+     "created_unix_ns"},
+    {offsetof(ShmSegmentHeader, component_index), sizeof(ShmSegmentHeader::component_index),
+     "component_index"},
     {offsetof(ShmSegmentHeader, flags), sizeof(ShmSegmentHeader::flags), "flags"},
-    {offsetof(ShmSegmentHeader, supervisor_name), sizeof(ShmSegmentHeader::supervisor_name), "supervisor_name"},
-    {offsetof(ShmSegmentHeader, component_name), sizeof(ShmSegmentHeader::component_name), "component_name"},
-    {offsetof(ShmSegmentHeader, process_name), sizeof(ShmSegmentHeader::process_name), "process_name"},
+    {offsetof(ShmSegmentHeader, supervisor_name), sizeof(ShmSegmentHeader::supervisor_name),
+     "supervisor_name"},
+    {offsetof(ShmSegmentHeader, component_name), sizeof(ShmSegmentHeader::component_name),
+     "component_name"},
+    {offsetof(ShmSegmentHeader, process_name), sizeof(ShmSegmentHeader::process_name),
+     "process_name"},
     {offsetof(ShmSegmentHeader, schema_name), sizeof(ShmSegmentHeader::schema_name), "schema_name"},
-    {offsetof(ShmSegmentHeader, command_line), sizeof(ShmSegmentHeader::command_line), "command_line"},
+    {offsetof(ShmSegmentHeader, command_line), sizeof(ShmSegmentHeader::command_line),
+     "command_line"},
     {offsetof(ShmSegmentHeader, state), sizeof(ShmSegmentHeader::state), "state"},
     {offsetof(ShmSegmentHeader, exit_kind), sizeof(ShmSegmentHeader::exit_kind), "exit_kind"},
     {offsetof(ShmSegmentHeader, exit_code), sizeof(ShmSegmentHeader::exit_code), "exit_code"},
     {offsetof(ShmSegmentHeader, reserved0), sizeof(ShmSegmentHeader::reserved0), "reserved0"},
-    {offsetof(ShmSegmentHeader, daemon_heartbeat_ns), sizeof(ShmSegmentHeader::daemon_heartbeat_ns), "daemon_heartbeat_ns"},
+    {offsetof(ShmSegmentHeader, daemon_heartbeat_ns), sizeof(ShmSegmentHeader::daemon_heartbeat_ns),
+     "daemon_heartbeat_ns"},
     {offsetof(ShmSegmentHeader, daemon_pid), sizeof(ShmSegmentHeader::daemon_pid), "daemon_pid"},
     {offsetof(ShmSegmentHeader, reserved1), sizeof(ShmSegmentHeader::reserved1), "reserved1"},
     {offsetof(ShmSegmentHeader, write_index), sizeof(ShmSegmentHeader::write_index), "write_index"},
@@ -221,7 +231,8 @@ constexpr FieldSpan kFields[] = {
     {offsetof(ShmSegmentHeader, offered), sizeof(ShmSegmentHeader::offered), "offered"},
     {offsetof(ShmSegmentHeader, read_index), sizeof(ShmSegmentHeader::read_index), "read_index"},
     {offsetof(ShmSegmentHeader, drains), sizeof(ShmSegmentHeader::drains), "drains"},
-    {offsetof(ShmSegmentHeader, header_checksum), sizeof(ShmSegmentHeader::header_checksum), "header_checksum"},
+    {offsetof(ShmSegmentHeader, header_checksum), sizeof(ShmSegmentHeader::header_checksum),
+     "header_checksum"},
     {offsetof(ShmSegmentHeader, reserved2), sizeof(ShmSegmentHeader::reserved2), "reserved2"},
 };
 
@@ -418,22 +429,21 @@ expected<ShmLiveState, ShmError> ShmRingReader::live() const noexcept {
   }
   // Only this reader moves the shared read index once it attached.
   if (attached_ && c.out.read_index != read_) {
-    return unexpected<ShmError>(err(
-        "read_index", fmt::format("{}, but this reader consumed {} records", c.out.read_index,
-                                  read_)));
+    return unexpected<ShmError>(
+        err("read_index",
+            fmt::format("{}, but this reader consumed {} records", c.out.read_index, read_)));
   }
   // The writer publishes a record's write index, then its sequence number in `offered`: the
   // offered number read after the index is at least that of the record before it.
   if (c.out.offered + 1 < c.out.write_index) {
     return unexpected<ShmError>(
-        err("offered", fmt::format("{} messages offered, but {} records written",
-                                   c.out.offered, c.out.write_index)));
+        err("offered", fmt::format("{} messages offered, but {} records written", c.out.offered,
+                                   c.out.write_index)));
   }
   // A drop counts itself, then its sequence number: at most one drop ahead of `offered`.
   if (c.out.dropped > c.out.offered + 1) {
     return unexpected<ShmError>(err(
-        "dropped", fmt::format("{} messages dropped of {} offered", c.out.dropped,
-                               c.out.offered)));
+        "dropped", fmt::format("{} messages dropped of {} offered", c.out.dropped, c.out.offered)));
   }
   return c.out;
 }
@@ -459,12 +469,12 @@ expected<void, ShmError> ShmRingReader::verify_header(const ShmSegmentHeader& re
   // comparing with the reader's own copy from the open; the checksum stands for the writer's
   // values when the reader has none (a copy taken after a change: see validate_shm_header).
   if (const char* f = shm_constant_difference(h, reference)) {
-    return unexpected<ShmError>(err(
-        f, std::string(f) == "header_checksum"
-               ? fmt::format("{:#018x}, was {:#018x} (written over)", h.header_checksum,
-                             reference.header_checksum)
-               : std::string("changed after the segment was created (written over; the writer "
-                             "sets it once)")));
+    return unexpected<ShmError>(
+        err(f, std::string(f) == "header_checksum"
+                   ? fmt::format("{:#018x}, was {:#018x} (written over)", h.header_checksum,
+                                 reference.header_checksum)
+                   : std::string("changed after the segment was created (written over; the writer "
+                                 "sets it once)")));
   }
   if (auto x = integrity_error(h)) return unexpected<ShmError>(std::move(*x));
   return {};

@@ -56,7 +56,7 @@ struct Process {
   platform::ProcessWatch watch;
   bool watched = false;  // watch holds a pidfd or /proc fallback for this process
   std::vector<Segment*> segments;
-  std::vector<Report> dead_reports;  // its components at its death, or corrupted, ERROR
+  std::vector<Report> dead_reports;           // its components at its death, or corrupted, ERROR
   std::vector<std::string> corrupt_segments;  // its segments found corrupt (removed at its end)
 };
 

@@ -230,8 +230,14 @@ TEST_CASE("Any single corrupted header byte never crashes the validator", "[shm]
       if (*p == v) continue;
       *p = static_cast<unsigned char>(v);
       const bool ok = validate_shm_image(img.base, img.size, expect()).has_value();
-      // The first 64 bytes describe the format and geometry: any change there is rejected.
-      if (off < 64) {
+      // The first 512 bytes (written once, under the checksum), the checksum and the reserved
+      // fields: any change there is rejected.
+      const bool reserved = (off >= offsetof(ShmSegmentHeader, reserved0) &&
+                             off < offsetof(ShmSegmentHeader, reserved0) + 4) ||
+                            (off >= offsetof(ShmSegmentHeader, reserved1) &&
+                             off < offsetof(ShmSegmentHeader, reserved1) + 4);
+      if (off < kShmConstantBytes || off >= offsetof(ShmSegmentHeader, header_checksum) ||
+          reserved) {
         ++format_changes;
         format_rejected += ok ? 0 : 1;
       }
@@ -617,4 +623,99 @@ TEST_CASE("A segment truncated under the reader is an error, not a bus error", "
   REQUIRE(fd2 >= 0);
   REQUIRE(::ftruncate(fd2, static_cast<off_t>(s.segment->geometry().segment_size)) == 0);
   ::close(fd2);
+}
+
+TEST_CASE("Every header field written over after the reader opened the segment is named",
+          "[shm][segment][corruption]") {
+  struct Over {
+    const char* field;
+    std::size_t offset;
+    std::size_t size;
+  };
+#define VIGIL_OVER(f) \
+  Over { #f, offsetof(ShmSegmentHeader, f), sizeof(ShmSegmentHeader::f) }
+  const std::vector<Over> fields = {
+      VIGIL_OVER(magic),
+      VIGIL_OVER(abi_version),
+      VIGIL_OVER(header_size),
+      VIGIL_OVER(segment_size),
+      VIGIL_OVER(schema_id),
+      VIGIL_OVER(type_count),
+      VIGIL_OVER(payload_size),
+      VIGIL_OVER(record_size),
+      VIGIL_OVER(capacity),
+      VIGIL_OVER(mailbox_offset),
+      VIGIL_OVER(ring_offset),
+      VIGIL_OVER(pid),
+      VIGIL_OVER(uid),
+      VIGIL_OVER(start_ticks),
+      VIGIL_OVER(created_unix_ns),
+      VIGIL_OVER(component_index),
+      VIGIL_OVER(flags),
+      VIGIL_OVER(supervisor_name),
+      VIGIL_OVER(component_name),
+      VIGIL_OVER(process_name),
+      VIGIL_OVER(schema_name),
+      VIGIL_OVER(command_line),
+      VIGIL_OVER(state),
+      VIGIL_OVER(exit_kind),
+      VIGIL_OVER(exit_code),
+      VIGIL_OVER(reserved0),
+      VIGIL_OVER(daemon_heartbeat_ns),
+      VIGIL_OVER(daemon_pid),
+      VIGIL_OVER(reserved1),
+      VIGIL_OVER(write_index),
+      VIGIL_OVER(dropped),
+      VIGIL_OVER(offered),
+      VIGIL_OVER(read_index),
+      VIGIL_OVER(drains),
+      VIGIL_OVER(header_checksum),
+      VIGIL_OVER(reserved2),
+  };
+#undef VIGIL_OVER
+  for (const Over& f : fields) {
+    INFO("field " << f.field);
+    CHECK(std::string(shm_header_field(f.offset)) == f.field);
+    RealSegment s;
+    for (int i = 0; i < 3; ++i) REQUIRE(s.producer.push(Small{static_cast<std::uint64_t>(i)}));
+    auto r = s.reader();
+    TestVariant out[8];
+    REQUIRE(r.pop(out, nullptr, 8, &check_test).value() == 3);
+    r.heartbeat(1000, 77);  // the daemon's own fields now hold what it wrote
+    REQUIRE(r.live());
+    REQUIRE(r.verify());
+    auto* bytes = static_cast<std::byte*>(s.segment->data()) + f.offset;
+    for (std::size_t i = 0; i < f.size; ++i) bytes[i] ^= std::byte{0xA5};
+    // What a daemon does: header checks at their rate, a drain, the writer pushes, again.
+    bool found = !r.verify() || !r.live();
+    if (!found) {
+      (void)s.producer.push(Small{9});
+      found = !r.live() || !r.verify();
+    }
+    REQUIRE(found);
+    REQUIRE(r.error().has_value());
+    CHECK(r.error()->field == f.field);
+    CHECK_FALSE(r.error()->message.empty());
+    // Never read again.
+    CHECK_FALSE(r.pop(out, nullptr, 8, &check_test));
+    CHECK_FALSE(r.live());
+  }
+}
+
+TEST_CASE("The header checksum covers the constant part, word by word", "[shm][segment]") {
+  Image img = make_image(kSchema, 16);
+  const ShmSegmentHeader& h = img.header();
+  CHECK(h.header_checksum == shm_header_checksum(&h));
+  for (std::size_t bit = 0; bit < kShmConstantBytes * 8; bit += 61) {
+    ShmSegmentHeader c = h;
+    reinterpret_cast<unsigned char*>(&c)[bit / 8] ^= static_cast<unsigned char>(1U << (bit % 8));
+    CHECK(shm_header_checksum(&c) != h.header_checksum);
+    CHECK(shm_constant_difference(c, h) != nullptr);
+  }
+  // The fields that change after creation are outside it.
+  ShmSegmentHeader c = h;
+  c.write_index = 5;
+  c.state = 2;
+  CHECK(shm_header_checksum(&c) == h.header_checksum);
+  CHECK(shm_constant_difference(c, h) == nullptr);
 }

@@ -182,7 +182,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       check(e.detail.find("corrupted: ") != std::string::npos);
       check(e.severity == EventSeverity::Error);
     }
-    if (e.kind == EventKind::SegmentRejected) check(e.detail.find("rejected: ") != std::string::npos);
+    if (e.kind == EventKind::SegmentRejected)
+      check(e.detail.find("rejected: ") != std::string::npos);
   }
   static const bool verbose = std::getenv("VIGIL_FUZZ_VERBOSE") != nullptr;
   if (verbose) {

@@ -49,11 +49,11 @@ class Ctl : public Task<Ctl> {
 
 // What the test damages, and the field the daemon must name.
 struct Damage {
-  std::string expect;          // the field named in the error
-  std::size_t offset = 0;      // header offset written over (for header damage)
-  std::size_t size = 0;        // bytes written over (0: a record is damaged instead)
-  int record = 0;              // 1: the pending record's seq, 2: its type, 3: its size, 4: payload
-  bool writer_heals = false;   // the writer rewrites the field: write it over until seen
+  std::string expect;         // the field named in the error
+  std::size_t offset = 0;     // header offset written over (for header damage)
+  std::size_t size = 0;       // bytes written over (0: a record is damaged instead)
+  int record = 0;             // 1: the pending record's seq, 2: its type, 3: its size, 4: payload
+  bool writer_heals = false;  // the writer rewrites the field: write it over until seen
 };
 
 #define VIGIL_FIELD(f) \
@@ -61,18 +61,42 @@ struct Damage {
 
 std::vector<Damage> damages() {
   std::vector<Damage> d = {
-      VIGIL_FIELD(magic),           VIGIL_FIELD(abi_version),     VIGIL_FIELD(header_size),
-      VIGIL_FIELD(segment_size),    VIGIL_FIELD(schema_id),       VIGIL_FIELD(type_count),
-      VIGIL_FIELD(payload_size),    VIGIL_FIELD(record_size),     VIGIL_FIELD(capacity),
-      VIGIL_FIELD(mailbox_offset),  VIGIL_FIELD(ring_offset),     VIGIL_FIELD(pid),
-      VIGIL_FIELD(uid),             VIGIL_FIELD(start_ticks),     VIGIL_FIELD(created_unix_ns),
-      VIGIL_FIELD(component_index), VIGIL_FIELD(flags),           VIGIL_FIELD(supervisor_name),
-      VIGIL_FIELD(component_name),  VIGIL_FIELD(process_name),    VIGIL_FIELD(schema_name),
-      VIGIL_FIELD(command_line),    VIGIL_FIELD(state),           VIGIL_FIELD(exit_kind),
-      VIGIL_FIELD(exit_code),       VIGIL_FIELD(reserved0),       VIGIL_FIELD(daemon_heartbeat_ns),
-      VIGIL_FIELD(daemon_pid),      VIGIL_FIELD(reserved1),       VIGIL_FIELD(write_index),
-      VIGIL_FIELD(dropped),         VIGIL_FIELD(offered),         VIGIL_FIELD(read_index),
-      VIGIL_FIELD(drains),          VIGIL_FIELD(header_checksum), VIGIL_FIELD(reserved2),
+      VIGIL_FIELD(magic),
+      VIGIL_FIELD(abi_version),
+      VIGIL_FIELD(header_size),
+      VIGIL_FIELD(segment_size),
+      VIGIL_FIELD(schema_id),
+      VIGIL_FIELD(type_count),
+      VIGIL_FIELD(payload_size),
+      VIGIL_FIELD(record_size),
+      VIGIL_FIELD(capacity),
+      VIGIL_FIELD(mailbox_offset),
+      VIGIL_FIELD(ring_offset),
+      VIGIL_FIELD(pid),
+      VIGIL_FIELD(uid),
+      VIGIL_FIELD(start_ticks),
+      VIGIL_FIELD(created_unix_ns),
+      VIGIL_FIELD(component_index),
+      VIGIL_FIELD(flags),
+      VIGIL_FIELD(supervisor_name),
+      VIGIL_FIELD(component_name),
+      VIGIL_FIELD(process_name),
+      VIGIL_FIELD(schema_name),
+      VIGIL_FIELD(command_line),
+      VIGIL_FIELD(state),
+      VIGIL_FIELD(exit_kind),
+      VIGIL_FIELD(exit_code),
+      VIGIL_FIELD(reserved0),
+      VIGIL_FIELD(daemon_heartbeat_ns),
+      VIGIL_FIELD(daemon_pid),
+      VIGIL_FIELD(reserved1),
+      VIGIL_FIELD(write_index),
+      VIGIL_FIELD(dropped),
+      VIGIL_FIELD(offered),
+      VIGIL_FIELD(read_index),
+      VIGIL_FIELD(drains),
+      VIGIL_FIELD(header_checksum),
+      VIGIL_FIELD(reserved2),
   };
   for (auto& x : d) x.writer_heals = x.expect == "write_index" || x.expect == "offered";
   d.push_back(Damage{"record.seq", 0, 0, 1});

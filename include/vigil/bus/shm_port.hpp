@@ -321,7 +321,7 @@ class ShmReader {
     r.reference_ = std::make_unique<ShmSegmentHeader>(copy);
     r.ring_ = ShmRingReader(r.mem_->data(), r.info_.geometry);
     if (auto a = r.ring_.attach(); !a) return unexpected<ShmError>(a.error());
-    r.seen_ = Seen{copy.state, copy.exit_kind, copy.exit_code, copy.offered,
+    r.seen_ = Seen{copy.state,   copy.exit_kind,           copy.exit_code,  copy.offered,
                    copy.dropped, copy.daemon_heartbeat_ns, copy.daemon_pid, copy.drains};
     return r;
   }
@@ -360,8 +360,8 @@ class ShmReader {
     const bool orphan_code = now.exit_kind == 0 && now.exit_code != 0;
     if (orphan_code && orphan_code_) {
       return fail(ShmError{"exit_code", std::to_string(now.exit_code) +
-                                                  " without an exit record (exit_kind 0), "
-                                                  "twice in a row: written over"});
+                                            " without an exit record (exit_kind 0), "
+                                            "twice in a row: written over"});
     }
     orphan_code_ = orphan_code;
     return {};
@@ -417,8 +417,8 @@ class ShmReader {
     if (!bad && d.stopped) {
       // The record that stopped the batch stays in the ring; the segment is corrupt.
       if (d.bad.seq <= d.last_seq) {
-        bad = ShmError{"record.seq", "sequence " + std::to_string(d.bad.seq) +
-                                         " does not follow " + std::to_string(d.last_seq)};
+        bad = ShmError{"record.seq", "sequence " + std::to_string(d.bad.seq) + " does not follow " +
+                                         std::to_string(d.last_seq)};
       } else {
         bad.emplace();
         (void)shm_record_fits<Variant>(d.bad, &*bad);

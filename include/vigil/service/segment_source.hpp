@@ -119,16 +119,16 @@ struct ProcessInfo {
 struct SegmentSourceStats {
   std::uint64_t cycles = 0;
   std::uint64_t messages = 0;
-  std::size_t segments = 0;        ///< segments drained now
-  std::size_t processes = 0;       ///< processes alive now
-  std::size_t dead_processes = 0;  ///< processes whose end is still reported
-  std::uint64_t rejected = 0;      ///< segments rejected so far (at open, or corrupted later)
-  std::uint64_t corrupted = 0;     ///< segments found corrupt while being read, so far
+  std::size_t segments = 0;         ///< segments drained now
+  std::size_t processes = 0;        ///< processes alive now
+  std::size_t dead_processes = 0;   ///< processes whose end is still reported
+  std::uint64_t rejected = 0;       ///< segments rejected so far (at open, or corrupted later)
+  std::uint64_t corrupted = 0;      ///< segments found corrupt while being read, so far
   std::uint64_t header_checks = 0;  ///< header verifications (every segment counts one)
   /// Segments taken over from a daemon that stopped draining them without detaching (killed).
   std::uint64_t adopted = 0;
-  std::uint64_t reclaimed = 0;     ///< segments removed so far
-  StatsSummary cycle_ns;           ///< time per cycle
+  std::uint64_t reclaimed = 0;  ///< segments removed so far
+  StatsSummary cycle_ns;        ///< time per cycle
 };
 
 /// The process table, one line per process: name, pid, start time, incarnation, state (running,

@@ -58,7 +58,7 @@ enum class EventKind : std::uint8_t {
   LogicalSupervision,   ///< a checkpoint the graph does not allow after the previous one
   CheckpointMisuse,     ///< a component reported a checkpoint id it did not declare (Warn)
   // `vigil supervise` again (appended: the values above keep their numbers):
-  SegmentCorrupted,     ///< a segment being read was found corrupt; `detail` names the field (Error)
+  SegmentCorrupted,  ///< a segment being read was found corrupt; `detail` names the field (Error)
   SupervisorRestarted,  ///< this daemon took over from one that was killed; `detail`: the outage
 };
 /// Lower-case name of a kind ("exception", "overrun_limit", ...), as written in JSON.
