@@ -18,6 +18,13 @@
 // process, which does nothing else; value = this process's CPU time / wall time over 3 s, in % of
 // one core.
 //
+// drain_checks: the daemon's per-segment work on one segment, without the aggregator: the writer
+// pushes 10 CycleSamples (what a 1 kHz component queues between two 10 ms drains), then the reader
+// reads the state fields (live(): the index and counter checks of issue 49), pops the 10 records
+// checking each (sequence, type, size, check_shm_message) and writes its heartbeat. Value: ns per
+// drain (the pushes excluded). header_verify: one re-verification of a segment's header (the 768
+// bytes copied, the constant part compared and hashed), done every 100 ms and at every report.
+//
 // sigkill_to_error: one forked process with a Task at 1 kHz; the daemon's thread runs; the
 // process is killed with SIGKILL (and reaped at once, as a shell would); value = time from the
 // kill() call to the daemon's Exited event, which it emits after building the ERROR reports.
@@ -417,7 +424,71 @@ void sigkill_to_error(benchmark::State& state) {
   benchmark::DoNotOptimize(message.data());
 }
 
+// One segment of this process, its producer and the daemon's reader.
+struct DrainSubject {
+  DrainSubject() : name(bench_name("d")) {
+    auto session = bus::ShmSession::open(bus::ShmOptions{name, "", 0, {}}, task::kShmMessageSchema);
+    if (!session) std::abort();
+    auto seg = (*session)->create("drain", 64);
+    if (!seg) std::abort();
+    segment = std::move(*seg);
+    producer = bus::ShmProducer<task::Message>(segment->data(), segment->geometry(),
+                                               task::kShmStickyMessages);
+    auto r = bus::ShmReader<task::Message>::open(segment->name(), {task::kShmMessageSchema, name},
+                                                 platform::effective_uid(), false);
+    if (!r) std::abort();
+    reader.emplace(std::move(*r));
+  }
+  ~DrainSubject() {
+    reader.reset();
+    segment.reset();
+    remove_segments(name);
+  }
+  void push(int n) {
+    for (int i = 0; i < n; ++i) {
+      task::CycleSample c;
+      c.counters.cycles = ++cycle;
+      c.start_ns = static_cast<Nanos>(cycle) * 1000;
+      c.end_ns = c.start_ns + 100;
+      (void)producer.push(task::Message{c});
+    }
+  }
+  std::string name;
+  std::unique_ptr<bus::ShmSegment> segment;
+  bus::ShmProducer<task::Message> producer;
+  std::optional<bus::ShmReader<task::Message>> reader;
+  std::uint64_t cycle = 0;
+  task::Message out[16];
+};
+
+void drain_checks(benchmark::State& state) {
+  DrainSubject s;
+  for (auto _ : state) {
+    s.push(10);
+    const Nanos t0 = platform::now_ns();
+    auto live = s.reader->live();
+    auto n = s.reader->pop(s.out, nullptr, 16, &task::check_shm_message);
+    s.reader->heartbeat(t0, 1);
+    const Nanos t1 = platform::now_ns();
+    if (!live || !n || *n != 10) std::abort();
+    state.SetIterationTime(static_cast<double>(t1 - t0) / 1e9);
+  }
+}
+
+void header_verify(benchmark::State& state) {
+  DrainSubject s;
+  for (auto _ : state) {
+    if (!s.reader->verify()) std::abort();
+  }
+}
+
 void register_all() {
+  benchmark::RegisterBenchmark("bus/shm/drain_checks", drain_checks)
+      ->Iterations(200000)
+      ->UseManualTime()
+      ->Unit(benchmark::kNanosecond);
+  benchmark::RegisterBenchmark("bus/shm/header_verify", header_verify)
+      ->Unit(benchmark::kNanosecond);
   benchmark::RegisterBenchmark("bus/shm/overhead:shm_vs_in_process", overhead)
       ->Iterations(kBatchesPerRep)
       ->UseManualTime()

@@ -180,7 +180,105 @@ std::optional<ShmError> state_error(const ShmSegmentHeader& h) {
   return std::nullopt;
 }
 
+// Every field of the header, in order: what a corruption is named after.
+struct FieldSpan {
+  std::size_t offset;
+  std::size_t size;
+  const char* name;
+};
+constexpr FieldSpan kFields[] = {
+    {offsetof(ShmSegmentHeader, magic), sizeof(ShmSegmentHeader::magic), "magic"},
+    {offsetof(ShmSegmentHeader, abi_version), sizeof(ShmSegmentHeader::abi_version), "abi_version"},
+    {offsetof(ShmSegmentHeader, header_size), sizeof(ShmSegmentHeader::header_size), "header_size"},
+    {offsetof(ShmSegmentHeader, segment_size), sizeof(ShmSegmentHeader::segment_size),
+     "segment_size"},
+    {offsetof(ShmSegmentHeader, schema_id), sizeof(ShmSegmentHeader::schema_id), "schema_id"},
+    {offsetof(ShmSegmentHeader, type_count), sizeof(ShmSegmentHeader::type_count), "type_count"},
+    {offsetof(ShmSegmentHeader, payload_size), sizeof(ShmSegmentHeader::payload_size),
+     "payload_size"},
+    {offsetof(ShmSegmentHeader, record_size), sizeof(ShmSegmentHeader::record_size), "record_size"},
+    {offsetof(ShmSegmentHeader, capacity), sizeof(ShmSegmentHeader::capacity), "capacity"},
+    {offsetof(ShmSegmentHeader, mailbox_offset), sizeof(ShmSegmentHeader::mailbox_offset),
+     "mailbox_offset"},
+    {offsetof(ShmSegmentHeader, ring_offset), sizeof(ShmSegmentHeader::ring_offset), "ring_offset"},
+    {offsetof(ShmSegmentHeader, pid), sizeof(ShmSegmentHeader::pid), "pid"},
+    {offsetof(ShmSegmentHeader, uid), sizeof(ShmSegmentHeader::uid), "uid"},
+    {offsetof(ShmSegmentHeader, start_ticks), sizeof(ShmSegmentHeader::start_ticks), "start_ticks"},
+    {offsetof(ShmSegmentHeader, created_unix_ns), sizeof(ShmSegmentHeader::created_unix_ns),
+     "created_unix_ns"},
+    {offsetof(ShmSegmentHeader, component_index), sizeof(ShmSegmentHeader::component_index),
+     "component_index"},
+    {offsetof(ShmSegmentHeader, flags), sizeof(ShmSegmentHeader::flags), "flags"},
+    {offsetof(ShmSegmentHeader, supervisor_name), sizeof(ShmSegmentHeader::supervisor_name),
+     "supervisor_name"},
+    {offsetof(ShmSegmentHeader, component_name), sizeof(ShmSegmentHeader::component_name),
+     "component_name"},
+    {offsetof(ShmSegmentHeader, process_name), sizeof(ShmSegmentHeader::process_name),
+     "process_name"},
+    {offsetof(ShmSegmentHeader, schema_name), sizeof(ShmSegmentHeader::schema_name), "schema_name"},
+    {offsetof(ShmSegmentHeader, command_line), sizeof(ShmSegmentHeader::command_line),
+     "command_line"},
+    {offsetof(ShmSegmentHeader, state), sizeof(ShmSegmentHeader::state), "state"},
+    {offsetof(ShmSegmentHeader, exit_kind), sizeof(ShmSegmentHeader::exit_kind), "exit_kind"},
+    {offsetof(ShmSegmentHeader, exit_code), sizeof(ShmSegmentHeader::exit_code), "exit_code"},
+    {offsetof(ShmSegmentHeader, reserved0), sizeof(ShmSegmentHeader::reserved0), "reserved0"},
+    {offsetof(ShmSegmentHeader, daemon_heartbeat_ns), sizeof(ShmSegmentHeader::daemon_heartbeat_ns),
+     "daemon_heartbeat_ns"},
+    {offsetof(ShmSegmentHeader, daemon_pid), sizeof(ShmSegmentHeader::daemon_pid), "daemon_pid"},
+    {offsetof(ShmSegmentHeader, reserved1), sizeof(ShmSegmentHeader::reserved1), "reserved1"},
+    {offsetof(ShmSegmentHeader, write_index), sizeof(ShmSegmentHeader::write_index), "write_index"},
+    {offsetof(ShmSegmentHeader, dropped), sizeof(ShmSegmentHeader::dropped), "dropped"},
+    {offsetof(ShmSegmentHeader, offered), sizeof(ShmSegmentHeader::offered), "offered"},
+    {offsetof(ShmSegmentHeader, read_index), sizeof(ShmSegmentHeader::read_index), "read_index"},
+    {offsetof(ShmSegmentHeader, drains), sizeof(ShmSegmentHeader::drains), "drains"},
+    {offsetof(ShmSegmentHeader, header_checksum), sizeof(ShmSegmentHeader::header_checksum),
+     "header_checksum"},
+    {offsetof(ShmSegmentHeader, reserved2), sizeof(ShmSegmentHeader::reserved2), "reserved2"},
+};
+
+// The reserved fields a writer leaves zero: the first one that is not, or null.
+const char* reserved_not_zero(const ShmSegmentHeader& h) noexcept {
+  if (h.reserved0 != 0) return "reserved0";
+  if (h.reserved1 != 0) return "reserved1";
+  for (const std::uint8_t b : h.reserved2) {
+    if (b != 0) return "reserved2";
+  }
+  return nullptr;
+}
+
+// The integrity fields: the constant part matches its checksum, the reserved fields are zero.
+std::optional<ShmError> integrity_error(const ShmSegmentHeader& h) {
+  if (const char* f = reserved_not_zero(h)) {
+    return err(f, "not zero (reserved: no writer sets it)");
+  }
+  const std::uint64_t sum = shm_header_checksum(&h);
+  if (sum != h.header_checksum) {
+    return err("header_checksum",
+               fmt::format("{:#018x} does not match the header's constant part ({:#018x}): "
+                           "written over since the segment was created",
+                           h.header_checksum, sum));
+  }
+  return std::nullopt;
+}
+
 }  // namespace
+
+const char* shm_header_field(std::size_t offset) noexcept {
+  for (const FieldSpan& f : kFields) {
+    if (offset >= f.offset && offset < f.offset + f.size) return f.name;
+  }
+  return "header padding";
+}
+
+const char* shm_constant_difference(const ShmSegmentHeader& a, const ShmSegmentHeader& b) noexcept {
+  const auto* x = reinterpret_cast<const unsigned char*>(&a);
+  const auto* y = reinterpret_cast<const unsigned char*>(&b);
+  for (std::size_t i = 0; i < kShmConstantBytes; ++i) {
+    if (x[i] != y[i]) return shm_header_field(i);
+  }
+  if (a.header_checksum != b.header_checksum) return "header_checksum";
+  return nullptr;
+}
 
 bool valid_supervisor_name(std::string_view name) noexcept {
   return !name.empty() && name.size() <= 31 &&
@@ -206,6 +304,9 @@ expected<ShmSegmentInfo, ShmError> validate_shm_header(const ShmSegmentHeader& h
   }
   if (auto x = read_writer(h, e.supervisor_name, info)) return unexpected<ShmError>(std::move(*x));
   if (auto x = state_error(h)) return unexpected<ShmError>(std::move(*x));
+  // Last: a field whose value is invalid was named above; a plausible value written over the
+  // one the writer set is found here.
+  if (auto x = integrity_error(h)) return unexpected<ShmError>(std::move(*x));
   return info;
 }
 
@@ -271,6 +372,7 @@ void init_shm_segment(void* base, const ShmGeometry& g, const ShmSchema& schema,
   put_text(h->process_name, who.process_name);
   put_text(h->schema_name, schema.name);
   put_text(h->command_line, who.command_line);
+  h->header_checksum = shm_header_checksum(h);
   // Last, with release: a reader that sees Open sees every field above.
   at(h->state).store(static_cast<std::uint32_t>(ShmState::Open), std::memory_order_release);
 }
@@ -294,9 +396,13 @@ void read_live(void* p) noexcept {
   c.out.write_index = at(h.write_index).load(std::memory_order_acquire);
   c.out.exit_code = at(h.exit_code).load(std::memory_order_relaxed);
   c.out.read_index = at(h.read_index).load(std::memory_order_relaxed);
-  c.out.dropped = at(h.dropped).load(std::memory_order_relaxed);
-  c.out.offered = at(h.offered).load(std::memory_order_relaxed);
+  // `dropped` (acquire) before `offered`, both after `write_index`: the order the bounds
+  // checked by live() rely on (ShmProducer::push and drop store them in the opposite order).
+  c.out.dropped = at(h.dropped).load(std::memory_order_acquire);
+  c.out.offered = at(h.offered).load(std::memory_order_acquire);
   c.out.daemon_heartbeat_ns = at(h.daemon_heartbeat_ns).load(std::memory_order_relaxed);
+  c.out.daemon_pid = at(h.daemon_pid).load(std::memory_order_relaxed);
+  c.out.drains = at(h.drains).load(std::memory_order_relaxed);
 }
 
 ShmError truncated() {
@@ -321,7 +427,57 @@ expected<ShmLiveState, ShmError> ShmRingReader::live() const noexcept {
   if (c.out.write_index < read_ || c.out.write_index - read_ > g_.capacity) {
     return unexpected<ShmError>(indices_error(read_, c.out.write_index, g_.capacity));
   }
+  // Only this reader moves the shared read index once it attached.
+  if (attached_ && c.out.read_index != read_) {
+    return unexpected<ShmError>(
+        err("read_index",
+            fmt::format("{}, but this reader consumed {} records", c.out.read_index, read_)));
+  }
+  // The writer publishes a record's write index, then its sequence number in `offered`: the
+  // offered number read after the index is at least that of the record before it.
+  if (c.out.offered + 1 < c.out.write_index) {
+    return unexpected<ShmError>(
+        err("offered", fmt::format("{} messages offered, but {} records written", c.out.offered,
+                                   c.out.write_index)));
+  }
+  // A drop counts itself, then its sequence number: at most one drop ahead of `offered`.
+  if (c.out.dropped > c.out.offered + 1) {
+    return unexpected<ShmError>(err(
+        "dropped", fmt::format("{} messages dropped of {} offered", c.out.dropped, c.out.offered)));
+  }
   return c.out;
+}
+
+namespace {
+struct HeaderCopy {
+  const std::byte* src;
+  ShmSegmentHeader* dst;
+};
+void copy_header(void* p) noexcept {
+  auto& c = *static_cast<HeaderCopy*>(p);
+  std::memcpy(c.dst, c.src, sizeof(ShmSegmentHeader));
+}
+}  // namespace
+
+expected<void, ShmError> ShmRingReader::verify_header(const ShmSegmentHeader& reference,
+                                                      ShmSegmentHeader* out) const noexcept {
+  ShmSegmentHeader local;
+  ShmSegmentHeader& h = out != nullptr ? *out : local;
+  HeaderCopy c{base_, &h};
+  if (!platform::run_guarded(&copy_header, &c)) return unexpected<ShmError>(truncated());
+  // The copy is private: every check below reads the same bytes. A field is named by
+  // comparing with the reader's own copy from the open; the checksum stands for the writer's
+  // values when the reader has none (a copy taken after a change: see validate_shm_header).
+  if (const char* f = shm_constant_difference(h, reference)) {
+    return unexpected<ShmError>(
+        err(f, std::string(f) == "header_checksum"
+                   ? fmt::format("{:#018x}, was {:#018x} (written over)", h.header_checksum,
+                                 reference.header_checksum)
+                   : std::string("changed after the segment was created (written over; the writer "
+                                 "sets it once)")));
+  }
+  if (auto x = integrity_error(h)) return unexpected<ShmError>(std::move(*x));
+  return {};
 }
 
 expected<void, ShmError> ShmRingReader::attach() noexcept {
@@ -331,6 +487,7 @@ expected<void, ShmError> ShmRingReader::attach() noexcept {
   const std::uint64_t w = c.out.write_index;
   if (w < r || w - r > g_.capacity) return unexpected<ShmError>(indices_error(r, w, g_.capacity));
   read_ = r;
+  attached_ = true;
   return {};
 }
 

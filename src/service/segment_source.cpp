@@ -56,7 +56,8 @@ struct Process {
   platform::ProcessWatch watch;
   bool watched = false;  // watch holds a pidfd or /proc fallback for this process
   std::vector<Segment*> segments;
-  std::vector<Report> dead_reports;  // its components at its death, ERROR
+  std::vector<Report> dead_reports;           // its components at its death, or corrupted, ERROR
+  std::vector<std::string> corrupt_segments;  // its segments found corrupt (removed at its end)
 };
 
 // What reports() adds to a component's report: where it runs.
@@ -138,13 +139,26 @@ struct SegmentSource::Impl {
   bool dir_changed = false;  // the drain thread saw our segments' names change while it slept
   Nanos next_scan = 0;
   Nanos next_state_check = 0;
+  Nanos next_header_check = 0;
   std::uint32_t next_id = 1;
+  // Daemons that drained segments before this one and stopped without detaching (killed), by
+  // pid: found in the segments' daemon fields at open, announced once after the scan.
+  struct Outage {
+    Nanos last_beat = 0;  // the latest heartbeat it left (monotonic, system-wide)
+    std::size_t segments = 0;
+    std::set<std::int32_t> processes;
+    bool announced = false;
+  };
+  std::map<std::int32_t, Outage> outages;
   std::vector<task::Message> buffer;
   std::vector<std::uint64_t> seqs;
   // Statistics.
   std::uint64_t cycles = 0;
   std::uint64_t messages = 0;
   std::uint64_t rejected_total = 0;
+  std::uint64_t corrupted_total = 0;
+  std::uint64_t header_checks = 0;
+  std::uint64_t adopted_total = 0;
   std::uint64_t reclaimed = 0;
   supervisor::RunningStats cycle_time;
 
@@ -161,8 +175,10 @@ struct SegmentSource::Impl {
   void event(EventKind k, std::int32_t pid, std::string component, std::string message) {
     Event e;
     e.kind = k;
-    e.severity = k == EventKind::ProcessExited ? EventSeverity::Error
-                 : k == EventKind::SegmentRejected || k == EventKind::ProcessStopped
+    e.severity = k == EventKind::ProcessExited || k == EventKind::SegmentCorrupted
+                     ? EventSeverity::Error
+                 : k == EventKind::SegmentRejected || k == EventKind::ProcessStopped ||
+                         k == EventKind::SupervisorRestarted
                      ? EventSeverity::Warn
                      : EventSeverity::Info;
     e.component = component.empty() ? fmt::format("pid {}", pid) : std::move(component);
@@ -222,6 +238,8 @@ struct SegmentSource::Impl {
       if (!m) return false;
       if (!late.empty()) visit(s, late.data(), late.size(), 0, live->dropped);
     }
+    // A bad record after good ones: those were counted, the segment is corrupt.
+    if (s.reader.error()) return false;
     s.reader.heartbeat(beat, self_pid);
     return true;
   }
@@ -237,6 +255,10 @@ struct SegmentSource::Impl {
     const std::size_t n0 = std::min(occupancy, buffer.size());
     auto n = s.reader.pop(buffer.data(), seqs.data(), n0, &task::check_shm_message);
     if (!n) return false;
+    if (s.reader.error()) {  // good records, then a bad one: keep what was good
+      visit(s, buffer.data(), *n, occupancy, live->dropped);
+      return false;
+    }
     const std::uint64_t first_seq = *n > 0 ? seqs[0] : ~std::uint64_t{0};
     std::vector<task::Message> early;
     auto m = s.reader.mailboxes(early, 0, first_seq, &task::check_shm_message);
@@ -314,6 +336,7 @@ struct SegmentSource::Impl {
     pending.erase(name);
     auto seg = std::make_unique<Segment>(Segment{name, std::move(*r), nullptr, nullptr, 1, {}});
     const bus::ShmSegmentInfo& info = seg->reader.info();
+    note_previous_daemon(seg->reader.header_at_open(), info.pid);
     Process& p = process_for(info);
     seg->process = &p;
     seg->entry = std::make_shared<Entry>();
@@ -324,8 +347,8 @@ struct SegmentSource::Impl {
     auto [it, first] = incarnations.try_emplace(info.component_name, 1);
     if (!first) ++it->second;
     seg->incarnation = it->second;
+    // (In a live process, only corrupted components have such reports.)
     for (auto& [key, other] : processes) {
-      if (other->info.alive) continue;
       std::erase_if(other->dead_reports,
                     [&](const Report& rep) { return rep.name == info.component_name; });
     }
@@ -355,6 +378,45 @@ struct SegmentSource::Impl {
     }
     // A process found dead at discovery (it ended before the daemon watched it).
     if (!p.info.alive) end_segment_of_dead(s);
+  }
+
+  // A segment drained by another daemon that did not detach (a daemon detaches when it stops):
+  // if that daemon is gone, it was killed, and this one takes over from it.
+  void note_previous_daemon(const bus::ShmSegmentHeader& h, std::int32_t writer) {
+    const std::int32_t prev = h.daemon_pid;
+    if (h.daemon_heartbeat_ns == 0 || prev <= 0 || prev == self_pid) return;
+    if (platform::process_start_ticks(prev)) return;  // still there: not an outage of ours
+    Outage& o = outages[prev];
+    o.last_beat = std::max(o.last_beat, h.daemon_heartbeat_ns);
+    ++o.segments;
+    o.processes.insert(writer);
+    ++adopted_total;
+  }
+
+  // One event per daemon this one took over from, once the scan found its segments.
+  void announce_outages() {
+    for (auto& [pid, o] : outages) {
+      if (o.announced) continue;
+      o.announced = true;
+      const Nanos mono = platform::now_ns();
+      const std::int64_t wall = platform::unix_now_ns();
+      const Nanos down = mono > o.last_beat ? mono - o.last_beat : 0;
+      Event e;
+      e.kind = EventKind::SupervisorRestarted;
+      e.severity = EventSeverity::Warn;
+      e.component = options.report_name;
+      e.pid = pid;
+      e.detected_ns = now();
+      e.fault_ns = e.detected_ns > down ? e.detected_ns - down : 0;
+      e.detail = fmt::format(
+          "the daemon was down from {} to {} ({}): daemon {} stopped draining without detaching "
+          "(killed), daemon {} took over its {} segment{} of {} process{}; totals continue from "
+          "the segments, messages the full rings dropped meanwhile are counted as dropped",
+          platform::format_unix_time(wall - down), platform::format_unix_time(wall),
+          format_nanos(static_cast<double>(down)), pid, self_pid, o.segments,
+          o.segments == 1 ? "" : "s", o.processes.size(), o.processes.size() == 1 ? "" : "es");
+      (void)aggregator.events().publish(std::move(e));
+    }
   }
 
   Process& process_for(const bus::ShmSegmentInfo& info) {
@@ -404,11 +466,32 @@ struct SegmentSource::Impl {
     order_stale = true;
   }
 
-  // A segment found corrupt while being read: rejected; its component is gone.
+  // A segment found corrupt while being read: never read again. Its component becomes an ERROR
+  // report that keeps its counters up to the last good record (until its process ends, or a
+  // component of that name joins again), and an event names the field.
   void corrupt(Segment& s) {
     const bus::ShmError e = s.reader.error().value_or(bus::ShmError{"segment", "unreadable"});
-    reject(s.name, s.process != nullptr ? s.process->info.pid : 0, e);
-    forget(s, false);
+    if (!s.reader.error()) s.reader.set_corrupt(e);
+    const std::int32_t pid = s.process != nullptr ? s.process->info.pid : 0;
+    rejected[s.name] = e.to_string();
+    ++rejected_total;
+    ++corrupted_total;
+    const std::string component = s.entry->name;
+    event(EventKind::SegmentCorrupted, pid, component,
+          fmt::format("segment {} of component {} (process {}) corrupted: {}; no longer read, "
+                      "its counters are kept up to its last good record",
+                      s.name, component, pid, e.to_string()));
+    if (s.process != nullptr) {
+      Report r = dead_report(s, corruption_message(e));
+      r.state_label = "segment corrupted";
+      s.process->dead_reports.push_back(std::move(r));
+      s.process->corrupt_segments.push_back(s.name);
+    }
+    forget(s, true);
+  }
+
+  static std::string corruption_message(const bus::ShmError& e) {
+    return fmt::format("segment corrupted: {} ({})", e.field, e.message);
   }
 
   std::string death_message(const Process& p) const {
@@ -431,7 +514,7 @@ struct SegmentSource::Impl {
       }
     }
     for (const Segment* s : p.segments) {
-      if (auto live = s->reader.live()) {
+      if (auto live = s->reader.peek()) {
         if (live->exit_kind == bus::ShmExit::Exited) {
           p.info.exit =
               platform::ExitStatus{platform::ExitStatus::Kind::Exited, live->exit_code, false}
@@ -482,6 +565,18 @@ struct SegmentSource::Impl {
     }
     settle_exit(p);
     end_all(p);
+    reclaim_corrupt(p);
+  }
+
+  // The files of a dead process's corrupted segments: nobody writes them any more.
+  void reclaim_corrupt(Process& p) {
+    for (const std::string& name : p.corrupt_segments) {
+      if (options.reclaim && platform::unlink_shared_memory(name)) {
+        ++reclaimed;
+        rejected.erase(name);
+      }
+    }
+    p.corrupt_segments.clear();
   }
 
   void end_segment_of_dead(Segment& s) {
@@ -518,6 +613,8 @@ struct SegmentSource::Impl {
     detect_deaths();
     check_run_states(t0);
     discover(t0);
+    announce_outages();
+    verify_headers(t0, false);
     drain_all();
     forget_placements(t0);
     const Nanos t1 = now();
@@ -554,6 +651,20 @@ struct SegmentSource::Impl {
         }
       }
     }
+  }
+
+  // (2b) What the writers set once: every `header_check_ns`, or now when `force` (a report).
+  // Returns the segments found corrupt (marked; `corrupt()` handles them at the drain).
+  std::size_t verify_headers(Nanos t0, bool force) {
+    if (!force && t0 < next_header_check) return 0;
+    if (!force) next_header_check = t0 + options.header_check_ns;
+    std::size_t bad = 0;
+    for (auto& [name, s] : segments) {
+      if (s->reader.error()) continue;
+      ++header_checks;
+      if (!s->reader.verify()) ++bad;
+    }
+    return bad;
   }
 
   // (1b) Stops and continues: each live process's state in /proc, every `state_check_ns`.
@@ -722,6 +833,8 @@ struct SegmentSource::Impl {
     r.add("segments", std::to_string(segments.size()));
     r.add("messages", std::to_string(messages));
     r.add("rejected", std::to_string(rejected_total));
+    r.add("corrupted", std::to_string(corrupted_total));
+    r.add("adopted", std::to_string(adopted_total));
     r.add("reclaimed", std::to_string(reclaimed));
     for (const auto& [name, why] : rejected) {
       r.merge(StatusLevel::Warn, fmt::format("segment {} rejected: {}", name, why));
@@ -735,12 +848,22 @@ struct SegmentSource::Impl {
     return r;
   }
 
-  void contribute(ReportSet& set) const {
+  void contribute(ReportSet& set) {
     ReportSet out;
     out.cycle = set.cycle;
     out.time_ns = set.time_ns;
     const ReportSet& base = set;
     std::lock_guard lock(mutex);
+    // Every report verifies the headers: a segment found corrupt now is an ERROR in this very
+    // report (its event and its final report come with the next drain).
+    std::unordered_map<std::uint32_t, std::string> corrupt_now;
+    if (verify_headers(0, true) > 0) {
+      for (const auto& [name, sg] : segments) {
+        if (sg->reader.error()) {
+          corrupt_now.emplace(sg->entry->id, corruption_message(*sg->reader.error()));
+        }
+      }
+    }
     for (const Report& r : base.components) {
       if (r.kind != ReportKind::Component) continue;
       const auto it = placements.find(r.id);
@@ -749,6 +872,11 @@ struct SegmentSource::Impl {
       if (it != placements.end()) {
         add_placement(c, it->second);
         name_a_stop(c, it->second.pid, base.time_ns);
+      }
+      if (const auto bad = corrupt_now.find(r.id); bad != corrupt_now.end()) {
+        c.alive = false;
+        c.state_label = "segment corrupted";
+        c.merge(StatusLevel::Error, bad->second);
       }
       out.components.push_back(std::move(c));
     }
@@ -840,6 +968,9 @@ expected<void, Error> validate(const SegmentSourceOptions& options) {
         Error(EINVAL, fmt::format("group '{}' does not exist", options.group)));
   }
   if (options.period_ns <= 0) return unexpected<Error>(Error(EINVAL, "period must be positive"));
+  if (options.header_check_ns < 0) {
+    return unexpected<Error>(Error(EINVAL, "header_check_ns must not be negative"));
+  }
   return {};
 }
 
@@ -921,6 +1052,9 @@ SegmentSourceStats SegmentSource::stats() const {
   for (const auto& [key, p] : impl_->processes)
     (p->info.alive ? s.processes : s.dead_processes) += 1;
   s.rejected = impl_->rejected_total;
+  s.corrupted = impl_->corrupted_total;
+  s.header_checks = impl_->header_checks;
+  s.adopted = impl_->adopted_total;
   s.reclaimed = impl_->reclaimed;
   s.cycle_ns = impl_->cycle_time.summary();
   return s;

@@ -73,6 +73,10 @@ const char* to_string(EventKind k) noexcept {
       return "error_active";
     case EventKind::NodeHealth:
       return "node_health";
+    case EventKind::SegmentCorrupted:
+      return "segment_corrupted";
+    case EventKind::SupervisorRestarted:
+      return "supervisor_restarted";
   }
   return "?";
 }

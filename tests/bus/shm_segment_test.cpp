@@ -118,12 +118,21 @@ TEST_CASE("Every header field, corrupted, is rejected naming the field", "[shm][
        }},
       {"write_index", [](auto& h) { h.write_index = ~std::uint64_t{0}; }},
       {"dropped", [](auto& h) { h.dropped = h.offered + 1; }},
-      // Informative fields: any value is harmless and accepted.
-      {"", [](auto& h) { h.uid = 0xFFFFFFFF; }},
-      {"", [](auto& h) { h.start_ticks = ~std::uint64_t{0}; }},
-      {"", [](auto& h) { h.created_unix_ns = -1; }},
-      {"", [](auto& h) { h.component_index = 0xFFFFFFFF; }},
-      {"", [](auto& h) { h.flags = 0xFFFFFFFF; }},
+      // Informative fields: any value would be harmless, but the writer set them once and the
+      // constant part's checksum no longer matches.
+      {"header_checksum", [](auto& h) { h.uid = 0xFFFFFFFF; }},
+      {"header_checksum", [](auto& h) { h.start_ticks = ~std::uint64_t{0}; }},
+      {"header_checksum", [](auto& h) { h.created_unix_ns = -1; }},
+      {"header_checksum", [](auto& h) { h.component_index = 0xFFFFFFFF; }},
+      {"header_checksum", [](auto& h) { h.flags = 0xFFFFFFFF; }},
+      {"header_checksum", [](auto& h) { h.pid += 1; }},
+      {"header_checksum", [](auto& h) { h.component_name[0] = 'k'; }},
+      {"header_checksum", [](auto& h) { h.command_line[3] = 'X'; }},
+      {"header_checksum", [](auto& h) { h.header_checksum ^= 1; }},
+      {"reserved0", [](auto& h) { h.reserved0 = 1; }},
+      {"reserved1", [](auto& h) { h.reserved1 = 0xFFFFFFFF; }},
+      {"reserved2", [](auto& h) { h.reserved2[55] = 1; }},
+      // Fields that change after creation: any value is accepted at open.
       {"", [](auto& h) { h.exit_code = -1; }},
       {"",
        [](auto& h) {
@@ -131,11 +140,6 @@ TEST_CASE("Every header field, corrupted, is rejected naming the field", "[shm][
          h.daemon_pid = -1;
        }},
       {"", [](auto& h) { h.drains = ~std::uint64_t{0}; }},
-      {"",
-       [](auto& h) {
-         h.reserved0 = h.reserved1 = 0xFFFFFFFF;
-         std::memset(h.reserved2, 0xFF, 64);
-       }},
       {"",
        [](auto& h) {
          h.read_index = 1000;
@@ -188,7 +192,7 @@ TEST_CASE("Errors say what is wrong in words", "[shm][segment]") {
   auto r = validate_shm_image(img.base, img.size, expect());
   REQUIRE_FALSE(r);
   CHECK(r.error().to_string() ==
-        "abi_version: segment format version 9, this reader reads version 1 (different vigil "
+        "abi_version: segment format version 9, this reader reads version 2 (different vigil "
         "releases)");
   Image img2 = make_image(kSchema, 16);
   img2.header().write_index = 100;
@@ -226,8 +230,14 @@ TEST_CASE("Any single corrupted header byte never crashes the validator", "[shm]
       if (*p == v) continue;
       *p = static_cast<unsigned char>(v);
       const bool ok = validate_shm_image(img.base, img.size, expect()).has_value();
-      // The first 64 bytes describe the format and geometry: any change there is rejected.
-      if (off < 64) {
+      // The first 512 bytes (written once, under the checksum), the checksum and the reserved
+      // fields: any change there is rejected.
+      const bool reserved = (off >= offsetof(ShmSegmentHeader, reserved0) &&
+                             off < offsetof(ShmSegmentHeader, reserved0) + 4) ||
+                            (off >= offsetof(ShmSegmentHeader, reserved1) &&
+                             off < offsetof(ShmSegmentHeader, reserved1) + 4);
+      if (off < kShmConstantBytes || off >= offsetof(ShmSegmentHeader, header_checksum) ||
+          reserved) {
         ++format_changes;
         format_rejected += ok ? 0 : 1;
       }
@@ -469,6 +479,16 @@ TEST_CASE("Bad records reject the segment: type, size, sequence, contents", "[sh
   REQUIRE(s.producer.push(Small{1}));
   REQUIRE(s.producer.push(Flagged{2, true, "ok"}));
   TestVariant out[8];
+  // A bad second record: the good first one is still handed out (its counters count), the
+  // segment is marked corrupt, and the next pop says why.
+  const auto pop_after_good = [&](ShmReader<TestVariant>& r) {
+    auto first = r.pop(out, nullptr, 8, &check_test);
+    REQUIRE(first);
+    CHECK(*first == 1);
+    CHECK(std::get<Small>(out[0]).value == 1);
+    CHECK(r.error().has_value());
+    return r.pop(out, nullptr, 8, &check_test);
+  };
   SECTION("type") {
     s.edit_header(0, [](ShmRecordHeader& h) { h.type = 7; });
     auto r = s.reader();
@@ -479,14 +499,14 @@ TEST_CASE("Bad records reject the segment: type, size, sequence, contents", "[sh
   SECTION("size") {
     s.edit_header(1, [](ShmRecordHeader& h) { h.size = 4000; });
     auto r = s.reader();
-    auto n = r.pop(out, nullptr, 8, &check_test);
+    auto n = pop_after_good(r);
     REQUIRE_FALSE(n);
     CHECK(n.error().field == "record.size");
   }
   SECTION("sequence") {
     s.edit_header(1, [](ShmRecordHeader& h) { h.seq = 1; });  // same as the first record's
     auto r = s.reader();
-    auto n = r.pop(out, nullptr, 8, &check_test);
+    auto n = pop_after_good(r);
     REQUIRE_FALSE(n);
     CHECK(n.error().field == "record.seq");
     CHECK(n.error().message == "sequence 1 does not follow 1");
@@ -499,7 +519,7 @@ TEST_CASE("Bad records reject the segment: type, size, sequence, contents", "[sh
     payload[offsetof(Flagged, flag)] = std::byte{5};
     s.edit_header(2, [](ShmRecordHeader& h) { h.type = 9; });
     auto r = s.reader();
-    auto n = r.pop(out, nullptr, 8, &check_test);
+    auto n = pop_after_good(r);
     REQUIRE_FALSE(n);
     CHECK(n.error().field == "record");
   }
@@ -507,7 +527,7 @@ TEST_CASE("Bad records reject the segment: type, size, sequence, contents", "[sh
     auto* payload = s.record(1) + sizeof(ShmRecordHeader);
     payload[offsetof(Flagged, flag)] = std::byte{2};
     auto r = s.reader();
-    auto n = r.pop(out, nullptr, 8, &check_test);
+    auto n = pop_after_good(r);
     REQUIRE_FALSE(n);
     CHECK(n.error().field == "record");
     CHECK_THAT(n.error().message, Catch::Contains("neither 0 nor 1"));
@@ -603,4 +623,99 @@ TEST_CASE("A segment truncated under the reader is an error, not a bus error", "
   REQUIRE(fd2 >= 0);
   REQUIRE(::ftruncate(fd2, static_cast<off_t>(s.segment->geometry().segment_size)) == 0);
   ::close(fd2);
+}
+
+TEST_CASE("Every header field written over after the reader opened the segment is named",
+          "[shm][segment][corruption]") {
+  struct Over {
+    const char* field;
+    std::size_t offset;
+    std::size_t size;
+  };
+#define VIGIL_OVER(f) \
+  Over { #f, offsetof(ShmSegmentHeader, f), sizeof(ShmSegmentHeader::f) }
+  const std::vector<Over> fields = {
+      VIGIL_OVER(magic),
+      VIGIL_OVER(abi_version),
+      VIGIL_OVER(header_size),
+      VIGIL_OVER(segment_size),
+      VIGIL_OVER(schema_id),
+      VIGIL_OVER(type_count),
+      VIGIL_OVER(payload_size),
+      VIGIL_OVER(record_size),
+      VIGIL_OVER(capacity),
+      VIGIL_OVER(mailbox_offset),
+      VIGIL_OVER(ring_offset),
+      VIGIL_OVER(pid),
+      VIGIL_OVER(uid),
+      VIGIL_OVER(start_ticks),
+      VIGIL_OVER(created_unix_ns),
+      VIGIL_OVER(component_index),
+      VIGIL_OVER(flags),
+      VIGIL_OVER(supervisor_name),
+      VIGIL_OVER(component_name),
+      VIGIL_OVER(process_name),
+      VIGIL_OVER(schema_name),
+      VIGIL_OVER(command_line),
+      VIGIL_OVER(state),
+      VIGIL_OVER(exit_kind),
+      VIGIL_OVER(exit_code),
+      VIGIL_OVER(reserved0),
+      VIGIL_OVER(daemon_heartbeat_ns),
+      VIGIL_OVER(daemon_pid),
+      VIGIL_OVER(reserved1),
+      VIGIL_OVER(write_index),
+      VIGIL_OVER(dropped),
+      VIGIL_OVER(offered),
+      VIGIL_OVER(read_index),
+      VIGIL_OVER(drains),
+      VIGIL_OVER(header_checksum),
+      VIGIL_OVER(reserved2),
+  };
+#undef VIGIL_OVER
+  for (const Over& f : fields) {
+    INFO("field " << f.field);
+    CHECK(std::string(shm_header_field(f.offset)) == f.field);
+    RealSegment s;
+    for (int i = 0; i < 3; ++i) REQUIRE(s.producer.push(Small{static_cast<std::uint64_t>(i)}));
+    auto r = s.reader();
+    TestVariant out[8];
+    REQUIRE(r.pop(out, nullptr, 8, &check_test).value() == 3);
+    r.heartbeat(1000, 77);  // the daemon's own fields now hold what it wrote
+    REQUIRE(r.live());
+    REQUIRE(r.verify());
+    auto* bytes = static_cast<std::byte*>(s.segment->data()) + f.offset;
+    for (std::size_t i = 0; i < f.size; ++i) bytes[i] ^= std::byte{0xA5};
+    // What a daemon does: header checks at their rate, a drain, the writer pushes, again.
+    bool found = !r.verify() || !r.live();
+    if (!found) {
+      (void)s.producer.push(Small{9});
+      found = !r.live() || !r.verify();
+    }
+    REQUIRE(found);
+    REQUIRE(r.error().has_value());
+    CHECK(r.error()->field == f.field);
+    CHECK_FALSE(r.error()->message.empty());
+    // Never read again.
+    CHECK_FALSE(r.pop(out, nullptr, 8, &check_test));
+    CHECK_FALSE(r.live());
+  }
+}
+
+TEST_CASE("The header checksum covers the constant part, word by word", "[shm][segment]") {
+  Image img = make_image(kSchema, 16);
+  const ShmSegmentHeader& h = img.header();
+  CHECK(h.header_checksum == shm_header_checksum(&h));
+  for (std::size_t bit = 0; bit < kShmConstantBytes * 8; bit += 61) {
+    ShmSegmentHeader c = h;
+    reinterpret_cast<unsigned char*>(&c)[bit / 8] ^= static_cast<unsigned char>(1U << (bit % 8));
+    CHECK(shm_header_checksum(&c) != h.header_checksum);
+    CHECK(shm_constant_difference(c, h) != nullptr);
+  }
+  // The fields that change after creation are outside it.
+  ShmSegmentHeader c = h;
+  c.write_index = 5;
+  c.state = 2;
+  CHECK(shm_header_checksum(&c) == h.header_checksum);
+  CHECK(shm_constant_difference(c, h) == nullptr);
 }

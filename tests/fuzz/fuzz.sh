@@ -7,7 +7,7 @@
 # fuzzer instead (on a loaded machine, at nice 19, wall time says little): the run is then
 # stopped with SIGINT once the fuzzer has used that much CPU.
 #
-# TARGET: candump, trc, deployment, thresholds, can_config, http_request, shm_segment
+# TARGET: candump, trc, deployment, thresholds, can_config, http_request, shm_segment, shm_live
 # (tests/fuzz/CMakeLists.txt).
 # WORKDIR (outside the repository) receives corpus/ (grows from run to run), seeds/ (copied from
 # seeds.txt), artifacts/ (crash-*, timeout-*, oom-* inputs) and fuzz.log. The run uses
@@ -31,7 +31,7 @@ while read -r t pattern; do
 done < <(grep -v '^#' "$root/tests/fuzz/seeds.txt")
 dict=()
 case "$target" in
-  candump | trc | shm_segment) ;;
+  candump | trc | shm_segment | shm_live) ;;
   http_request) dict=(-dict="$root/tests/fuzz/http.dict") ;;
   *) dict=(-dict="$root/tests/fuzz/yaml.dict") ;;
 esac
@@ -66,10 +66,13 @@ fi
 # shm_segment writes its input as /dev/shm/vigil.fuzz-<pid>.<pid>.0 and removes it after each
 # input; a stop in the middle of one (SIGINT, the CPU limit) leaves it. Without a finding, remove
 # those of fuzzers that are gone; with one, they stay for the post-mortem.
-if [[ $target == shm_segment && $rc -eq 0 ]]; then
-  for f in /dev/shm/vigil.fuzz-*; do
+# shm_live does the same with /dev/shm/vigil.fuzzlive-<pid>.<pid>.0.
+if [[ ($target == shm_segment || $target == shm_live) && $rc -eq 0 ]]; then
+  prefix=fuzz
+  [[ $target == shm_live ]] && prefix=fuzzlive
+  for f in /dev/shm/vigil.$prefix-*; do
     [[ -e $f ]] || continue
-    p=${f#/dev/shm/vigil.fuzz-}
+    p=${f#/dev/shm/vigil.$prefix-}
     p=${p%%.*}
     kill -0 "$p" 2>/dev/null || rm -f "$f"
   done

@@ -156,6 +156,9 @@ void substitute(std::byte* image, std::size_t size) {
   if (size < sizeof(bus::ShmSegmentHeader)) return;
   bus::ShmSegmentHeader h;
   std::memcpy(&h, image, sizeof h);
+  // A header whose checksum held keeps it after the substitution (otherwise every seed would
+  // stop at header_checksum).
+  const bool summed = bus::shm_header_checksum(&h) == h.header_checksum;
   if (std::memcmp(h.supervisor_name, kSupervisorPlaceholder, sizeof kSupervisorPlaceholder) == 0) {
     std::memset(h.supervisor_name, 0, sizeof h.supervisor_name);
     std::memcpy(h.supervisor_name, self().supervisor.data(), self().supervisor.size());
@@ -165,6 +168,7 @@ void substitute(std::byte* image, std::size_t size) {
     h.start_ticks = self().ticks;
     h.uid = self().uid;
   }
+  if (summed) h.header_checksum = bus::shm_header_checksum(&h);
   std::memcpy(image, &h, sizeof h);
 }
 

@@ -18,6 +18,7 @@ struct DaemonOptions {
   Nanos rescan_ns = kNanosPerSecond;
   bool watch_directory = true;
   bool reclaim = true;
+  Nanos header_check_ns = 100 * kNanosPerMilli;
   MonitorOptions monitor{};  // read_thread_stats and clock are used
   supervisor::AggregatorOptions aggregator{};
 };
@@ -29,6 +30,7 @@ class Daemon {
     s.segments = service::SegmentSourceOptions{.name = o.name,
                                                .rescan_ns = o.rescan_ns,
                                                .watch_directory = o.watch_directory,
+                                               .header_check_ns = o.header_check_ns,
                                                .reclaim = o.reclaim};
     if (auto ok = service::validate(*s.segments); !ok) return unexpected(ok.error());
     s.supervisor_period_ns = o.period_ns;

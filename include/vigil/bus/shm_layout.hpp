@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// The binary format of a shared-memory port segment (ABI version 1), shared by the process that
+/// The binary format of a shared-memory port segment (ABI version 2), shared by the process that
 /// writes it and the daemon that reads it. docs/reference/shm-segment.md describes every field.
 ///
 /// One segment per component, created when the component joins and never resized:
@@ -26,6 +26,7 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <string_view>
 #include <type_traits>
 #include <variant>
@@ -34,8 +35,12 @@ namespace vigil::bus {
 
 /// "VIGILSHM" read as a little-endian 64-bit number.
 inline constexpr std::uint64_t kShmMagic = 0x4D48534C49474956ULL;
-/// Incremented whenever the layout below changes in any way.
-inline constexpr std::uint32_t kShmAbiVersion = 1;
+/// Incremented whenever the layout below changes in any way. 2: the header's constant part is
+/// covered by `header_checksum` (ABI 1 had no checksum).
+inline constexpr std::uint32_t kShmAbiVersion = 2;
+/// The header's first bytes, written once before the segment is published and never again:
+/// what `header_checksum` covers.
+inline constexpr std::size_t kShmConstantBytes = 512;
 /// Bounds the reader accepts (a segment outside them is rejected, not read).
 inline constexpr std::uint32_t kShmMaxTypes = 32;
 inline constexpr std::uint32_t kShmMaxCapacity = 1U << 16;
@@ -98,8 +103,10 @@ struct ShmSegmentHeader {
   // --- consumer's line --------------------------------------------------------------------- 640
   alignas(kShmCacheLine) std::uint64_t read_index;  ///< records consumed (release)
   std::uint64_t drains;                             ///< drains by daemons (statistics)
-  // --- reserved ---------------------------------------------------------------------------- 704
-  alignas(kShmCacheLine) std::uint8_t reserved2[64];
+  // --- integrity: written once ----------------------------------------------------------- 704
+  /// shm_header_checksum() of the first kShmConstantBytes, written before `state` becomes Open.
+  alignas(kShmCacheLine) std::uint64_t header_checksum;
+  std::uint8_t reserved2[56];  ///< 0
 };
 
 /// Each record of the ring (and of each mailbox) begins with this.
@@ -123,6 +130,8 @@ static_assert(offsetof(ShmSegmentHeader, command_line) == 256);
 static_assert(offsetof(ShmSegmentHeader, state) == 512);
 static_assert(offsetof(ShmSegmentHeader, write_index) == 576);
 static_assert(offsetof(ShmSegmentHeader, read_index) == 640);
+static_assert(offsetof(ShmSegmentHeader, header_checksum) == 704);
+static_assert(offsetof(ShmSegmentHeader, state) == kShmConstantBytes);
 static_assert(sizeof(ShmRecordHeader) == 16);
 static_assert(sizeof(ShmMailboxHeader) == 24);
 // Cross-process atomics must be lock-free (a lock inside the atomic would be per process).
@@ -163,6 +172,22 @@ struct ShmGeometry {
     return g;
   }
 };
+
+/// The checksum of a header's constant part (its first kShmConstantBytes bytes, `h` need not be
+/// aligned): FNV-1a over 64-bit words (64 multiply-xor steps, about 0.1 us). A change of any
+/// single word always changes it (each step is a bijection of the running value); changes of
+/// several words are missed with a probability of about 2^-64. Not a defence against an attacker
+/// (who can write the checksum too), but against a wild pointer or a stray memset.
+[[nodiscard]] inline std::uint64_t shm_header_checksum(const void* h) noexcept {
+  const auto* b = static_cast<const unsigned char*>(h);
+  std::uint64_t x = 0xCBF29CE484222325ULL;
+  for (std::size_t i = 0; i < kShmConstantBytes; i += 8) {
+    std::uint64_t w = 0;
+    std::memcpy(&w, b + i, sizeof w);  // the machine's byte order, as every field
+    x = (x ^ w) * 0x100000001B3ULL;
+  }
+  return x;
+}
 
 /// The message types a segment carries: how many, how large, and an identity both sides compare
 /// (a daemon built with other message definitions rejects the segment instead of misreading it).

@@ -143,8 +143,10 @@ class ShmProducer {
   void drop(const Variant& m, std::uint64_t dropped_total) noexcept {
     const std::uint64_t seq = ++seq_;
     mail(seq, m);
-    detail::shm_atomic(header_->dropped).store(dropped_total, std::memory_order_relaxed);
-    detail::shm_atomic(header_->offered).store(seq, std::memory_order_relaxed);
+    // Release (free on x86; drop() is the rare path): a reader that sees this count sees every
+    // `offered` stored before it, so `dropped <= offered + 1` holds for what it reads.
+    detail::shm_atomic(header_->dropped).store(dropped_total, std::memory_order_release);
+    detail::shm_atomic(header_->offered).store(seq, std::memory_order_release);
   }
 
   /// Keeps `m` as the latest of its type in its mailbox without counting a drop: for a message
@@ -316,17 +318,67 @@ class ShmReader {
     ShmReader r;
     r.mem_ = std::make_unique<platform::SharedMemory>(std::move(*mem));
     r.info_ = std::move(*info);
+    r.reference_ = std::make_unique<ShmSegmentHeader>(copy);
     r.ring_ = ShmRingReader(r.mem_->data(), r.info_.geometry);
     if (auto a = r.ring_.attach(); !a) return unexpected<ShmError>(a.error());
+    r.seen_ = Seen{copy.state,   copy.exit_kind,           copy.exit_code,  copy.offered,
+                   copy.dropped, copy.daemon_heartbeat_ns, copy.daemon_pid, copy.drains};
     return r;
   }
 
   [[nodiscard]] const ShmSegmentInfo& info() const noexcept { return info_; }
   [[nodiscard]] const platform::SharedMemory& memory() const noexcept { return *mem_; }
-  /// The state fields now (validated).
-  [[nodiscard]] expected<ShmLiveState, ShmError> live() const noexcept { return ring_.live(); }
+  /// The state fields now, validated (ShmRingReader::live) and compared with what this reader
+  /// saw before: the state only goes from Open to Closed, the exit record is written once,
+  /// `offered` and `dropped` never decrease, and the daemon's own fields (heartbeat, pid,
+  /// drains) hold what it wrote last. A failure marks the segment corrupt (error()).
+  [[nodiscard]] expected<ShmLiveState, ShmError> live() {
+    if (error_) return unexpected<ShmError>(*error_);
+    auto l = ring_.live();
+    if (!l) return fail(l.error());
+    if (auto e = compare(*l)) return fail(std::move(*e));
+    seen_.state = static_cast<std::uint32_t>(l->state);
+    seen_.exit_kind = static_cast<std::uint32_t>(l->exit_kind);
+    seen_.exit_code = l->exit_code;
+    seen_.offered = l->offered;
+    seen_.dropped = l->dropped;
+    return l;
+  }
+  /// The state fields now, as the segment holds them (ShmRingReader::live), for a look that
+  /// must not mark anything; use live() to drain.
+  [[nodiscard]] expected<ShmLiveState, ShmError> peek() const noexcept { return ring_.live(); }
+
+  /// Re-verifies what the writer set once (ShmRingReader::verify_header against the header
+  /// validated at open), and an exit code without an exit record seen twice: `exit_code` is
+  /// stored just before `exit_kind`, so a code without a kind lasts nanoseconds, unless it was
+  /// written over. Call at a low fixed rate (its two observations should be well apart). A
+  /// failure marks the segment corrupt.
+  expected<void, ShmError> verify() {
+    if (error_) return unexpected<ShmError>(*error_);
+    ShmSegmentHeader now;
+    if (auto v = ring_.verify_header(*reference_, &now); !v) return fail(v.error());
+    const bool orphan_code = now.exit_kind == 0 && now.exit_code != 0;
+    if (orphan_code && orphan_code_) {
+      return fail(ShmError{"exit_code", std::to_string(now.exit_code) +
+                                            " without an exit record (exit_kind 0), "
+                                            "twice in a row: written over"});
+    }
+    orphan_code_ = orphan_code;
+    return {};
+  }
+
   /// Marks this daemon's drain in the segment.
-  void heartbeat(std::int64_t now, std::int32_t pid) noexcept { ring_.heartbeat(now, pid); }
+  void heartbeat(std::int64_t now, std::int32_t pid) noexcept {
+    ring_.heartbeat(now, pid);
+    seen_.heartbeat = now;
+    seen_.daemon_pid = pid;
+    ++seen_.drains;
+    seen_.beaten = true;
+  }
+  /// The header as validated at open (the writer's constant part, the state fields then).
+  [[nodiscard]] const ShmSegmentHeader& header_at_open() const noexcept { return *reference_; }
+  /// Marks the segment corrupt for `e` (found by the caller): nothing more is read from it.
+  void set_corrupt(ShmError e) { error_ = std::move(e); }
   /// Prefetch hint for a drain to come (ShmRingReader::prefetch_records).
   void prefetch_records(std::size_t lines) const noexcept { ring_.prefetch_records(lines); }
   /// Hints the CPU to bring in this reader's own state (what a pop reads first).
@@ -336,7 +388,9 @@ class ShmReader {
   }
 
   /// Pops up to `max` messages into `out` (and their sequence numbers into `seqs` if not null).
-  /// Sequence numbers must increase; the message must pass `check`. Each record is copied once,
+  /// Sequence numbers must increase; the message must pass `check`. A bad record or message
+  /// marks the segment corrupt (error()): the good ones before it are still returned, and the
+  /// next call returns the error. Each record is copied once,
   /// from the ring straight into `out` (the check then reads that private copy, which the
   /// producer can no longer change).
   expected<std::size_t, ShmError> pop(Variant* out, std::uint64_t* seqs, std::size_t max,
@@ -345,24 +399,36 @@ class ShmReader {
     Decoding d{out, seqs, last_seq_};
     auto n = ring_.pop_each(max, &decode_one, &d);
     if (!n) return fail(n.error());
+    // The good messages before a bad one are handed out (the counters up to the last good
+    // record are kept); the bad one marks the segment corrupt, and the next call fails.
+    std::size_t good = *n;
+    std::optional<ShmError> bad;
     if (check != nullptr) {
       std::string reason;  // one per call, not per message
       for (std::size_t i = 0; i < *n; ++i) {
-        if (!check(out[i], reason)) return fail(ShmError{"record", reason});
+        if (!check(out[i], reason)) {
+          good = i;
+          bad = ShmError{"record", reason};
+          break;
+        }
       }
     }
-    last_seq_ = d.last_seq;
-    if (d.stopped) {
+    last_seq_ = good == *n || seqs == nullptr || good == 0 ? d.last_seq : seqs[good - 1];
+    if (!bad && d.stopped) {
       // The record that stopped the batch stays in the ring; the segment is corrupt.
       if (d.bad.seq <= d.last_seq) {
-        return fail(ShmError{"record.seq", "sequence " + std::to_string(d.bad.seq) +
-                                               " does not follow " + std::to_string(d.last_seq)});
+        bad = ShmError{"record.seq", "sequence " + std::to_string(d.bad.seq) + " does not follow " +
+                                         std::to_string(d.last_seq)};
+      } else {
+        bad.emplace();
+        (void)shm_record_fits<Variant>(d.bad, &*bad);
       }
-      ShmError why;
-      (void)shm_record_fits<Variant>(d.bad, &why);
-      return fail(why);
     }
-    return *n;
+    if (bad) {
+      error_ = *bad;
+      if (good == 0) return unexpected<ShmError>(std::move(*bad));
+    }
+    return good;
   }
 
   /// The mailboxes whose sequence number lies in (after, before), decoded, checked, in
@@ -469,12 +535,70 @@ class ShmReader {
     error_ = e;
     return unexpected<ShmError>(std::move(e));
   }
+  // What this reader saw of the fields that change, to compare the next look with.
+  struct Seen {
+    std::uint32_t state = 0;
+    std::uint32_t exit_kind = 0;
+    std::int32_t exit_code = 0;
+    std::uint64_t offered = 0;
+    std::uint64_t dropped = 0;
+    std::int64_t heartbeat = 0;
+    std::int32_t daemon_pid = 0;
+    std::uint64_t drains = 0;
+    bool beaten = false;  // this reader wrote the daemon's fields at least once
+  };
+
+  [[nodiscard]] std::optional<ShmError> compare(const ShmLiveState& l) const {
+    const auto state = static_cast<std::uint32_t>(l.state);
+    const auto kind = static_cast<std::uint32_t>(l.exit_kind);
+    if (state < seen_.state) {
+      return ShmError{"state", std::to_string(state) + " after " + std::to_string(seen_.state) +
+                                   " (a segment goes from Open to Closed only)"};
+    }
+    if (seen_.exit_kind != 0 && (kind != seen_.exit_kind || l.exit_code != seen_.exit_code)) {
+      return ShmError{kind != seen_.exit_kind ? "exit_kind" : "exit_code",
+                      "exit record " + std::to_string(kind) + "/" + std::to_string(l.exit_code) +
+                          " after " + std::to_string(seen_.exit_kind) + "/" +
+                          std::to_string(seen_.exit_code) + " (written once)"};
+    }
+    if (l.offered < seen_.offered) {
+      return ShmError{"offered", std::to_string(l.offered) + " after " +
+                                     std::to_string(seen_.offered) + " (never decreases)"};
+    }
+    if (l.offered + 1 < last_seq_) {
+      return ShmError{"offered", std::to_string(l.offered) + ", but message " +
+                                     std::to_string(last_seq_) + " was received"};
+    }
+    if (l.dropped < seen_.dropped) {
+      return ShmError{"dropped", std::to_string(l.dropped) + " after " +
+                                     std::to_string(seen_.dropped) + " (never decreases)"};
+    }
+    if (seen_.beaten) {
+      if (l.daemon_heartbeat_ns != seen_.heartbeat) {
+        return ShmError{"daemon_heartbeat_ns", std::to_string(l.daemon_heartbeat_ns) +
+                                                   ", this daemon wrote " +
+                                                   std::to_string(seen_.heartbeat)};
+      }
+      if (l.daemon_pid != seen_.daemon_pid) {
+        return ShmError{"daemon_pid", std::to_string(l.daemon_pid) + ", this daemon is " +
+                                          std::to_string(seen_.daemon_pid)};
+      }
+    }
+    if (l.drains != seen_.drains) {
+      return ShmError{"drains", std::to_string(l.drains) + ", this daemon counted " +
+                                    std::to_string(seen_.drains)};
+    }
+    return std::nullopt;
+  }
 
   std::unique_ptr<platform::SharedMemory> mem_;
   ShmSegmentInfo info_;
   ShmRingReader ring_;
   std::uint64_t last_seq_ = 0;
   std::optional<ShmError> error_;
+  std::unique_ptr<ShmSegmentHeader> reference_;  // the header validated at open
+  Seen seen_;
+  bool orphan_code_ = false;  // verify() saw an exit code without an exit record
 };
 
 }  // namespace vigil::bus

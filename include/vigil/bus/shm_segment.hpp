@@ -69,6 +69,8 @@ struct ShmLiveState {
   std::uint64_t dropped = 0;
   std::uint64_t offered = 0;
   std::int64_t daemon_heartbeat_ns = 0;
+  std::int32_t daemon_pid = 0;
+  std::uint64_t drains = 0;
 };
 
 /// Validates a copy of a segment's header against `e` for a segment of `size` bytes: magic, ABI
@@ -80,6 +82,14 @@ struct ShmLiveState {
 [[nodiscard]] expected<ShmSegmentInfo, ShmError> validate_shm_header(const ShmSegmentHeader& header,
                                                                      std::uint64_t size,
                                                                      const ShmExpectation& e);
+
+/// The name of the header field at byte `offset` ("magic", "component_name", "reserved2"...).
+[[nodiscard]] const char* shm_header_field(std::size_t offset) noexcept;
+
+/// The first field of the constant part (the first kShmConstantBytes) or of `header_checksum`
+/// in which `a` and `b` differ; null when they agree there.
+[[nodiscard]] const char* shm_constant_difference(const ShmSegmentHeader& a,
+                                                  const ShmSegmentHeader& b) noexcept;
 
 /// Validates the segment image of `size` bytes at `bytes` (copies the header out first; an image
 /// shorter than the header is an error). Reads nothing outside [bytes, bytes + size).
@@ -129,9 +139,19 @@ class ShmRingReader {
   ShmRingReader(void* base, const ShmGeometry& g) noexcept
       : base_(static_cast<std::byte*>(base)), g_(g) {}
 
-  /// The state fields, validated (state and exit kind in range, indices consistent with what
-  /// this reader consumed). An error means the segment is corrupt (or was truncated).
+  /// The state fields, validated: state and exit kind in range; the write index neither behind
+  /// what this reader consumed nor more than the capacity ahead; the shared read index equal to
+  /// this reader's; `offered` at least write_index - 1 and `dropped` at most offered + 1 (the
+  /// bounds the writer's store order guarantees). An error means the segment is corrupt (or was
+  /// truncated).
   [[nodiscard]] expected<ShmLiveState, ShmError> live() const noexcept;
+
+  /// Re-verifies what the writer set once: copies the header out and checks that its constant
+  /// part still matches its checksum and `reference` (the copy validated at open; the error
+  /// names the first field that differs), that the reserved fields are still zero and that
+  /// `header_checksum` is unchanged. The copy is left in `out` when not null.
+  [[nodiscard]] expected<void, ShmError> verify_header(const ShmSegmentHeader& reference,
+                                                       ShmSegmentHeader* out) const noexcept;
 
   /// Takes the read index from the segment (call once before pop_each; validated).
   [[nodiscard]] expected<void, ShmError> attach() noexcept;
@@ -184,6 +204,7 @@ class ShmRingReader {
   std::byte* base_ = nullptr;
   ShmGeometry g_;
   std::uint64_t read_ = 0;
+  bool attached_ = false;  // from attach() on, the shared read index is this reader's
 };
 
 }  // namespace vigil::bus

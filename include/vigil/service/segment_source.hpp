@@ -18,8 +18,21 @@
 /// of components that left, once drained. A restarted process whose components have the same
 /// names replaces the dead reports; each component's incarnation is counted.
 ///
+/// Corruption (docs/reference/shm-segment.md): every drain checks the state fields and indices
+/// against each other and against what this daemon saw and wrote, and every record (sequence,
+/// type, size, fields); the constant header under its checksum is verified every
+/// `header_check_ns` and at every report. A segment found corrupt is never read again: its
+/// component becomes an ERROR report "segment corrupted: <field> (...)" that keeps its counters
+/// up to the last good record, and a `segment_corrupted` event names the field.
+///
+/// A daemon that restarts (the previous one killed): the segments keep their read index and the
+/// components' cumulative counters, so the new daemon continues every total; it finds the
+/// previous daemon's pid and last heartbeat in the segments and raises one
+/// `supervisor_restarted` event naming the outage ("daemon 1234 was down from ... to ...").
+///
 /// What happens to processes and segments reaches subscribers as ordinary events of the
-/// aggregator's hub (`joined`, `left`, `process_exited`, `segment_rejected`): one event stream.
+/// aggregator's hub (`joined`, `left`, `process_exited`, `segment_rejected`, `segment_corrupted`,
+/// `supervisor_restarted`): one event stream.
 ///
 /// Built by `SupervisionService` when its options name `segments`. Thread safety: every public
 /// member is thread-safe. Nothing here is RT-safe.
@@ -59,6 +72,11 @@ struct SegmentSourceOptions {
   /// How often each live process's run state is read from /proc (running, stopped by a signal,
   /// stopped by a tracer): a stop and a continue are events found within this time. 0: never.
   Nanos state_check_ns = 100 * kNanosPerMilli;
+  /// How often what each writer set once in its segment's header (the constant part under its
+  /// checksum, the reserved fields) is verified again; it is also verified at every report
+  /// (contribute). 0: at every cycle. The state fields, indices and records are checked at every
+  /// drain whatever this says.
+  Nanos header_check_ns = 100 * kNanosPerMilli;
   /// Accept segments readable by this group (mode 0660); empty: owner-only segments (0600).
   std::string group{};
   /// Remove the segments of dead processes and of components that left, once drained.
@@ -101,12 +119,16 @@ struct ProcessInfo {
 struct SegmentSourceStats {
   std::uint64_t cycles = 0;
   std::uint64_t messages = 0;
-  std::size_t segments = 0;        ///< segments drained now
-  std::size_t processes = 0;       ///< processes alive now
-  std::size_t dead_processes = 0;  ///< processes whose end is still reported
-  std::uint64_t rejected = 0;      ///< segments rejected so far
-  std::uint64_t reclaimed = 0;     ///< segments removed so far
-  StatsSummary cycle_ns;           ///< time per cycle
+  std::size_t segments = 0;         ///< segments drained now
+  std::size_t processes = 0;        ///< processes alive now
+  std::size_t dead_processes = 0;   ///< processes whose end is still reported
+  std::uint64_t rejected = 0;       ///< segments rejected so far (at open, or corrupted later)
+  std::uint64_t corrupted = 0;      ///< segments found corrupt while being read, so far
+  std::uint64_t header_checks = 0;  ///< header verifications (every segment counts one)
+  /// Segments taken over from a daemon that stopped draining them without detaching (killed).
+  std::uint64_t adopted = 0;
+  std::uint64_t reclaimed = 0;  ///< segments removed so far
+  StatsSummary cycle_ns;        ///< time per cycle
 };
 
 /// The process table, one line per process: name, pid, start time, incarnation, state (running,

@@ -68,6 +68,9 @@ enum class EventKind : std::uint8_t {
   BusOff,        ///< a CAN controller went bus off (Error)
   ErrorActive,   ///< a CAN controller is error active again (Info)
   NodeHealth,    ///< a DroneCAN node's NodeStatus health changed (by the new health)
+  // `vigil supervise` again (appended: the values above keep their numbers):
+  SegmentCorrupted,  ///< a segment being read was found corrupt; `detail` names the field (Error)
+  SupervisorRestarted,  ///< this daemon took over from one that was killed; `detail`: the outage
 };
 /// Lower-case name of a kind ("exception", "overrun_limit", ...), as written in JSON.
 [[nodiscard]] const char* to_string(EventKind k) noexcept;
