@@ -672,7 +672,7 @@ Frame node_status(std::uint8_t node, std::uint32_t uptime, std::uint8_t health, 
 
 }  // namespace
 
-TEST_CASE("DroneCAN NodeStatus: health, mode, uptime; a restart when the uptime goes back",
+TEST_CASE("DroneCAN NodeStatus: health, mode, uptime, and a restart when the uptime goes back",
           "[can][protocol][dronecan]") {
   // The payload as a receiver logged it (uptime 28 s, all else 0, tail byte C0).
   const std::vector<std::uint8_t> logged{0x1C, 0, 0, 0, 0, 0, 0, 0xC0};
