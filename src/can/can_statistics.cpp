@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <mutex>
-#include <utility>
 #include <tuple>
 #include <unordered_map>
+#include <utility>
 
 #include "vigil/supervisor/histogram.hpp"
 
