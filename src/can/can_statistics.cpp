@@ -5,6 +5,7 @@
 #include <mutex>
 #include <tuple>
 #include <unordered_map>
+#include <utility>
 
 #include "vigil/supervisor/histogram.hpp"
 
@@ -280,7 +281,11 @@ struct CanAggregator::Impl {
   std::vector<NodeEntry> node_scratch;
 
   Impl(CanRegistry& r, CanAggregatorOptions o)
-      : registry(r), options(o), ids(o.max_ids), nodes(o.max_nodes), protocol(o.protocol) {}
+      : registry(r),
+        options(std::move(o)),
+        ids(options.max_ids),
+        nodes(options.max_nodes),
+        protocol(options.protocol) {}
 
   SnifferSlot* slot_of(std::uint32_t port) {
     for (SnifferSlot& s : sniffers) {
@@ -364,7 +369,7 @@ struct CanAggregator::Impl {
 };
 
 CanAggregator::CanAggregator(CanRegistry& registry, CanAggregatorOptions options)
-    : impl_(std::make_unique<Impl>(registry, options)) {}
+    : impl_(std::make_unique<Impl>(registry, std::move(options))) {}
 
 CanAggregator::~CanAggregator() = default;
 

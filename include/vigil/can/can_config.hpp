@@ -112,7 +112,7 @@ struct NodeThresholds {
   /// A node outside operational for longer than this is WARN; empty: never.
   std::optional<Nanos> canopen_not_operational_after_ns;
   /// A node reset (boot-up of a running node) keeps the node WARN this long; 0: never WARN.
-  Nanos canopen_reset_window_ns = 5 * 60 * kNanosPerSecond;
+  Nanos canopen_reset_window_ns = Nanos{300} * kNanosPerSecond;
   /// Level while the node's latest emergency is not "error reset" (0x0000).
   StatusLevel canopen_emergency_level = StatusLevel::Warn;
 };
