@@ -41,7 +41,7 @@ void check(bool ok) {
   if (!ok) __builtin_trap();
 }
 
-const std::string& supervisor() {
+const std::string& live_supervisor() {
   static const std::string s = "fuzzlive-" + std::to_string(platform::current_pid());
   return s;
 }
@@ -80,7 +80,7 @@ const Report* report_of(const ReportSet& set) {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size > 4096) return 0;
-  const std::string& sup = supervisor();
+  const std::string& sup = live_supervisor();
   auto session = bus::ShmSession::open(bus::ShmOptions{sup, "", 0, {}}, task::kShmMessageSchema);
   check(session.has_value());
   auto segment = (*session)->create("live", 16);
