@@ -123,8 +123,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const std::uint8_t op = in.byte();
     switch (op & 7U) {
       case 0: {
-        const int n = 1 + ((op >> 3U) & 7U);
-        for (int i = 0; i < n; ++i) {
+        const unsigned n = 1U + ((op >> 3U) & 7U);
+        for (unsigned i = 0; i < n; ++i) {
           const task::Message m = sample(++cycle);
           if (!producer.push(m)) producer.drop(m, ++dropped);
         }
