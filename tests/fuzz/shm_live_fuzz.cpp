@@ -41,7 +41,7 @@ void check(bool ok) {
   if (!ok) __builtin_trap();
 }
 
-const std::string& supervisor_name() {
+const std::string& live_supervisor() {
   static const std::string s = "fuzzlive-" + std::to_string(platform::current_pid());
   return s;
 }
@@ -80,7 +80,7 @@ const Report* report_of(const ReportSet& set) {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size > 4096) return 0;
-  const std::string& sup = supervisor_name();
+  const std::string& sup = live_supervisor();
   auto session = bus::ShmSession::open(bus::ShmOptions{sup, "", 0, {}}, task::kShmMessageSchema);
   check(session.has_value());
   auto segment = (*session)->create("live", 16);
@@ -123,8 +123,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const std::uint8_t op = in.byte();
     switch (op & 7U) {
       case 0: {
-        const int n = 1 + ((op >> 3U) & 7U);
-        for (int i = 0; i < n; ++i) {
+        const unsigned n = 1U + ((op >> 3U) & 7U);
+        for (unsigned i = 0; i < n; ++i) {
           const task::Message m = sample(++cycle);
           if (!producer.push(m)) producer.drop(m, ++dropped);
         }

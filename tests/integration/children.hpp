@@ -67,7 +67,7 @@ struct ChildLink {
   }
 };
 
-std::unique_ptr<Child> spawn(const std::function<void(const ChildLink&)>& body) {
+inline std::unique_ptr<Child> spawn(const std::function<void(const ChildLink&)>& body) {
   int down[2];
   int up[2];
   REQUIRE(::pipe(down) == 0);

@@ -10,9 +10,9 @@
 // can be healed by the writer before the daemon looks: that did no harm, and the test writes it
 // over again until the daemon saw it.
 #include <poll.h>
-#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <csignal>
 
 #include <algorithm>
 #include <catch2/catch.hpp>

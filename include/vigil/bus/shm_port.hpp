@@ -574,14 +574,16 @@ class ShmReader {
                                      std::to_string(seen_.dropped) + " (never decreases)"};
     }
     if (seen_.beaten) {
+      if (l.daemon_pid != seen_.daemon_pid) {
+        return ShmError{"daemon_pid", std::to_string(l.daemon_pid) + ", this daemon is " +
+                                          std::to_string(seen_.daemon_pid) +
+                                          " (written over, or a second daemon drains the same "
+                                          "segments: run one per supervisor name)"};
+      }
       if (l.daemon_heartbeat_ns != seen_.heartbeat) {
         return ShmError{"daemon_heartbeat_ns", std::to_string(l.daemon_heartbeat_ns) +
                                                    ", this daemon wrote " +
                                                    std::to_string(seen_.heartbeat)};
-      }
-      if (l.daemon_pid != seen_.daemon_pid) {
-        return ShmError{"daemon_pid", std::to_string(l.daemon_pid) + ", this daemon is " +
-                                          std::to_string(seen_.daemon_pid)};
       }
     }
     if (l.drains != seen_.drains) {
