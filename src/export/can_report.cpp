@@ -703,17 +703,23 @@ void write_emergency(exporter::JsonWriter& w, const canopen::Emergency& e) {
   w.end_object();
 }
 
-void write_canopen(exporter::JsonWriter& w, const CanReport& r, const canopen::NodeStats& n,
-                   const std::vector<std::string>& bus_names) {
-  w.begin_object();
-  w.field("bus", n.bus).field("bus_name", bus_name(n.bus, bus_names)).field("node", n.node);
-  const NodeReport* rep = r.find(n.bus, n.node);
+// A protocol table's node: its bus (index and name), its number, and its configured name or null.
+void write_node_identity(exporter::JsonWriter& w, const CanReport& r, std::uint8_t bus,
+                         std::uint32_t node, const std::vector<std::string>& bus_names) {
+  w.field("bus", bus).field("bus_name", bus_name(bus, bus_names)).field("node", node);
+  const NodeReport* rep = r.find(bus, node);
   w.key("name");
   if (rep != nullptr && rep->named) {
     w.value(rep->name);
   } else {
     w.null();
   }
+}
+
+void write_canopen(exporter::JsonWriter& w, const CanReport& r, const canopen::NodeStats& n,
+                   const std::vector<std::string>& bus_names) {
+  w.begin_object();
+  write_node_identity(w, r, n.bus, n.node, bus_names);
   w.field("nmt_state", to_string(n.state));
   optional_ns(w, "state_since_ns", n.state_since_ns);
   optional_ns(w, "last_heartbeat_ns", n.last_heartbeat_ns);
@@ -738,14 +744,7 @@ void write_canopen(exporter::JsonWriter& w, const CanReport& r, const canopen::N
 void write_dronecan(exporter::JsonWriter& w, const CanReport& r, const dronecan::NodeStats& n,
                     const std::vector<std::string>& bus_names) {
   w.begin_object();
-  w.field("bus", n.bus).field("bus_name", bus_name(n.bus, bus_names)).field("node", n.node);
-  const NodeReport* rep = r.find(n.bus, n.node);
-  w.key("name");
-  if (rep != nullptr && rep->named) {
-    w.value(rep->name);
-  } else {
-    w.null();
-  }
+  write_node_identity(w, r, n.bus, n.node, bus_names);
   w.field("health", dronecan::to_string(n.health)).field("mode", dronecan::mode_name(n.mode));
   w.field("sub_mode", n.sub_mode).field("vendor_status", n.vendor_status);
   w.field("uptime_s", n.uptime_s);

@@ -10,6 +10,9 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <string>
+
+#include "vigil/task/task.hpp"
 
 namespace vigil::test {
 
@@ -87,5 +90,12 @@ inline std::unique_ptr<Child> spawn(const std::function<void(const ChildLink&)>&
   c->from_child = up[0];
   return c;
 }
+
+/// A component that does nothing: what the children run (the daemon sees its cycles).
+class Ctl : public Task<Ctl> {
+ public:
+  Ctl(std::string name, Registry<task::Message>& registry) : Task(std::move(name), {}, registry) {}
+  void on_update() {}
+};
 
 }  // namespace vigil::test

@@ -37,15 +37,10 @@ using namespace vigil;
 using namespace std::chrono_literals;
 using vigil::test::Child;
 using vigil::test::ChildLink;
+using vigil::test::Ctl;
 using vigil::test::spawn;
 
 namespace {
-
-class Ctl : public Task<Ctl> {
- public:
-  Ctl(std::string name, Registry<task::Message>& registry) : Task(std::move(name), {}, registry) {}
-  void on_update() {}
-};
 
 // Child body: `names` at 1 kHz on one periodic thread, in shared memory under `sup`; says ready
 // once every component ran, then waits for "go" and does `then` (by default: runs until killed).

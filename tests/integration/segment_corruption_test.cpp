@@ -37,15 +37,10 @@
 using namespace vigil;
 using namespace std::chrono_literals;
 using vigil::test::ChildLink;
+using vigil::test::Ctl;
 using vigil::test::spawn;
 
 namespace {
-
-class Ctl : public Task<Ctl> {
- public:
-  Ctl(std::string name, Registry<task::Message>& registry) : Task(std::move(name), {}, registry) {}
-  void on_update() {}
-};
 
 // What the test damages, and the field the daemon must name.
 struct Damage {
