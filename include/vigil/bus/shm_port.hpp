@@ -329,9 +329,10 @@ class ShmReader {
   [[nodiscard]] const ShmSegmentInfo& info() const noexcept { return info_; }
   [[nodiscard]] const platform::SharedMemory& memory() const noexcept { return *mem_; }
   /// The state fields now, validated (ShmRingReader::live) and compared with what this reader
-  /// saw before: the state only goes from Open to Closed, the exit record is written once,
-  /// `offered` and `dropped` never decrease, and the daemon's own fields (heartbeat, pid,
-  /// drains) hold what it wrote last. A failure marks the segment corrupt (error()).
+  /// saw before: the state only goes from Open to Closed, the exit record is written once (or an
+  /// exit, then a signal), `offered` and `dropped` never decrease, and the daemon's own fields
+  /// (heartbeat, pid, drains) hold what it wrote last. A failure marks the segment corrupt
+  /// (error()).
   [[nodiscard]] expected<ShmLiveState, ShmError> live() {
     if (error_) return unexpected<ShmError>(*error_);
     auto l = ring_.live();
@@ -555,11 +556,15 @@ class ShmReader {
       return ShmError{"state", std::to_string(state) + " after " + std::to_string(seen_.state) +
                                    " (a segment goes from Open to Closed only)"};
     }
-    if (seen_.exit_kind != 0 && (kind != seen_.exit_kind || l.exit_code != seen_.exit_code)) {
+    // The exit record is written once, or (a crash in an exit handler) an exit then a signal:
+    // its kind only grows, and its code changes only with its kind.
+    if (seen_.exit_kind != 0 &&
+        (kind < seen_.exit_kind || (kind == seen_.exit_kind && l.exit_code != seen_.exit_code))) {
       return ShmError{kind != seen_.exit_kind ? "exit_kind" : "exit_code",
                       "exit record " + std::to_string(kind) + "/" + std::to_string(l.exit_code) +
                           " after " + std::to_string(seen_.exit_kind) + "/" +
-                          std::to_string(seen_.exit_code) + " (written once)"};
+                          std::to_string(seen_.exit_code) +
+                          " (an exit record is never taken back)"};
     }
     if (l.offered < seen_.offered) {
       return ShmError{"offered", std::to_string(l.offered) + " after " +
