@@ -4,9 +4,11 @@
 #include "demo_components.hpp"
 
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -51,6 +53,14 @@ class Motor : public Task<Motor> {
     velocity_ += torque * 1e-3;
     position_ += velocity_ * 1e-3;
     burn(work_ns_);
+  }
+  /// The fallback while the safe state is requested (vigil/safe_state.hpp): hold the position,
+  /// damping the motion out. Runs instead of on_update().
+  void on_safe_state() {
+    const double torque = -kd_ * velocity_ * 10.0;
+    velocity_ += torque * 1e-3;
+    position_ += velocity_ * 1e-3;
+    burn(work_ns_ / 2);
   }
 
  private:
@@ -321,6 +331,37 @@ class Hang : public Task<Hang> {
 /// `drives` simulated CANopen drives and reads their TPDO1 answers, timing every driver call into
 /// the sniffer of the deployment's CAN supervision. Drive `silent_node` stops answering after
 /// `silent_after`.
+/// A queue of frames from the reactions (any thread, rarely) to the CAN I/O's real-time loop:
+/// producers take a mutex (never on a real-time thread); the loop pops without one.
+class FrameQueue {
+ public:
+  bool push(const can::Frame& f) {
+    const std::lock_guard lock(producers_);
+    const std::uint32_t head = head_.load(std::memory_order_relaxed);
+    if (head - tail_.load(std::memory_order_acquire) >= frames_.size()) return false;
+    frames_[head % frames_.size()] = f;
+    head_.store(head + 1, std::memory_order_release);
+    return true;
+  }
+  bool pop(can::Frame& f) noexcept {  // RT-safe: the CAN I/O's thread only
+    const std::uint32_t tail = tail_.load(std::memory_order_relaxed);
+    if (tail == head_.load(std::memory_order_acquire)) return false;
+    f = frames_[tail % frames_.size()];
+    tail_.store(tail + 1, std::memory_order_release);
+    return true;
+  }
+
+ private:
+  std::mutex producers_;
+  std::array<can::Frame, 16> frames_{};
+  std::atomic<std::uint32_t> head_{0};
+  std::atomic<std::uint32_t> tail_{0};
+};
+
+/// CAN I/O with simulated CANopen drives: every cycle a SYNC, an RPDO to each drive and each
+/// drive's TPDO answer. The drives obey NMT commands (CiA 301 7.2.8.3.1: 0x000 [command, node]):
+/// a stopped drive answers no PDO, only its heartbeat (0x700 + node, "stopped"). Registers the CAN
+/// writer `can_io` through which reactions send frames (vigil/service/reactions.hpp).
 class CanIo : public Task<CanIo> {
  public:
   explicit CanIo(const ComponentContext& c)
@@ -339,6 +380,9 @@ class CanIo : public Task<CanIo> {
       throw std::runtime_error("CAN filter: " + ok.error().message);
     }
     if (drives_ == 0 || drives_ > 127) throw std::runtime_error("drives must be 1..127");
+    state_.fill(kOperational);
+    c.system->service().reactions().add_can_writer(
+        c.name, [q = queue_](const can::Frame& f) { return q->push(f); });
   }
   bool on_start() {
     start_ns_ = platform::now_ns();
@@ -346,15 +390,21 @@ class CanIo : public Task<CanIo> {
   }
   void on_update() {
     const bool silent_phase = platform::now_ns() - start_ns_ > silent_after_ns_;
+    for (can::Frame f; queue_->pop(f);) {  // frames the reactions sent: on the bus, then obeyed
+      send(f);
+      obey(f);
+    }
     send(can::Frame::classic(0x080, {}));  // SYNC
     pending_ = 0;
     for (std::uint32_t node = 1; node <= drives_; ++node) {
       send(can::Frame::classic(0x200 + node, {0x0F, 0x00, 0x00, 0x10}));  // RPDO1: control word
-      if (!(silent_phase && node == silent_node_)) {
-        answers_[pending_++] = node;
-      } else {
+      if (silent_phase && node == silent_node_) {
         // Every cycle while the drive is silent: at Debug, and rate-limited by the supervisor.
         VIGIL_LOG_DEBUG("drive {} (node {:#04x}): no TPDO1 answer", node, 0x180 + node);
+      } else {
+        // TPDO1 (status word) while operational; a drive stopped by NMT answers the SYNC with
+        // its heartbeat instead (a simplification: a real drive beats at its own period).
+        answers_[pending_++] = state_[node] == kOperational ? 0x180 + node : 0x700 + node;
       }
     }
     if (silent_phase && !reported_silent_) {
@@ -362,10 +412,12 @@ class CanIo : public Task<CanIo> {
       VIGIL_LOG_WARN("drive {} stopped answering (no TPDO1 since the SYNC of this cycle)",
                      silent_node_);
     }
-    for (std::uint32_t i = 0; i < pending_; ++i) {  // the drives' TPDO1 (status word) answers
+    for (std::uint32_t i = 0; i < pending_; ++i) {  // the drives' frames
       const Nanos t0 = platform::now_ns();
       burn(2 * kNanosPerMicro);  // the driver's read call
-      can::Frame f = can::Frame::classic(0x180 + answers_[i], {0x27, 0x06, 0x00, 0x10});
+      const std::uint32_t id = answers_[i];
+      can::Frame f = id >= 0x700 ? can::Frame::classic(id, {state_[id - 0x700]})
+                                 : can::Frame::classic(id, {0x27, 0x06, 0x00, 0x10});
       const Nanos t1 = platform::now_ns();
       f.timestamp = t1;
       sniffer_->on_read(f, t0, t1);
@@ -373,6 +425,8 @@ class CanIo : public Task<CanIo> {
   }
 
  private:
+  static constexpr std::uint8_t kOperational = 0x05, kStopped = 0x04, kPreOperational = 0x7F;
+
   void send(can::Frame f) {
     const Nanos t0 = platform::now_ns();
     burn(3 * kNanosPerMicro);  // the driver's write call
@@ -380,12 +434,26 @@ class CanIo : public Task<CanIo> {
     f.timestamp = t1;
     sniffer_->on_write(f, t0, t1);
   }
+  // An NMT command (id 0, [command, node]; node 0: all) changes the simulated drives' state.
+  void obey(const can::Frame& f) noexcept {
+    if (f.id != 0 || f.length != 2) return;
+    const std::uint8_t to = f.data[0] == 0x01   ? kOperational
+                            : f.data[0] == 0x02 ? kStopped
+                            : f.data[0] == 0x80 ? kPreOperational
+                                                : 0;
+    if (to == 0) return;
+    for (std::uint32_t node = 1; node <= drives_; ++node) {
+      if (f.data[1] == 0 || f.data[1] == node) state_[node] = to;
+    }
+  }
 
   std::uint32_t drives_;
   std::uint32_t silent_node_;
   Nanos silent_after_ns_;
   Nanos start_ns_ = 0;
   std::unique_ptr<can::Sniffer<256>> sniffer_;
+  std::shared_ptr<FrameQueue> queue_ = std::make_shared<FrameQueue>();
+  std::array<std::uint8_t, 128> state_{};
   std::array<std::uint32_t, 128> answers_{};
   std::uint32_t pending_ = 0;
   bool reported_silent_ = false;
@@ -504,6 +572,18 @@ health:                                   # checkpoints supervised (docs/guide/h
       initial: gripper.command
       final: gripper.report
       transitions: ["gripper.command -> gripper.move", "gripper.move -> gripper.report"]
+reactions:                                # what vigil does about faults (docs/guide/reactions.md)
+  rules:
+    - name: encoder_fault                 # the motors switch to their hold fallback
+      on: {event: exception, component: encoder}
+      safe_state: true
+    - name: stop_right_arm                # drive_5 is silent: stop the right arm's drives
+      on: {event: not_responding, component: can0/drive_5}
+      can:                                # CANopen NMT "stop remote node" (CiA 301)
+        - {writer: can_io, id: 0x000, data: [0x02, 5]}
+        - {writer: can_io, id: 0x000, data: [0x02, 6]}
+        - {writer: can_io, id: 0x000, data: [0x02, 7]}
+        - {writer: can_io, id: 0x000, data: [0x02, 8]}
 outputs: {}
 )";
 

@@ -16,6 +16,13 @@
 // from start + max) and `alive_too_rare` (checkpoint "tick" every cycle, then none for 30 cycles;
 // an alive supervision of 10 per 10 ms reference cycle, min margin 2; latency from the end of the
 // first short window). The supervisor wakes at those due times, not at its next 10 ms drain.
+//
+// Reactions (issue 46): `BM_Action/*` injects the same faults with two reactions on their event
+// kind: one raises the safe state, one calls a handler on the reaction thread. Per trial: the
+// detection latency (as above), the safe state raised (`flag_*`), the flag seen by another
+// real-time thread (`seen_*`: a SCHED_FIFO 60 loop at 10 kHz that reads it once per cycle, as a
+// component would), and the handler's start (`handler_*`), all from the fault. Goal: an action
+// starts within 1.2 x detection + 200 us at p99 (`goal_p99_ms`, from this run's detection p99).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -33,6 +40,8 @@
 
 #include "vigil/exec/periodic_activity.hpp"
 #include "vigil/health/config.hpp"
+#include "vigil/safe_state.hpp"
+#include "vigil/service/reactions.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 #include "vigil/task/task.hpp"
 
@@ -150,7 +159,7 @@ struct Shared {
   Shared() {
     // One deadline and one alive supervision per trial component of the health rows.
     health::HealthConfig cfg;
-    for (int i = 0; i < trial_count(); ++i) {
+    for (int i = 0; i < 2 * trial_count(); ++i) {  // BM_Reaction's, then BM_Action's
       const std::string d = trial_name(Fault::DeadlineMissed, i);
       cfg.deadline.push_back(
           {.name = d, .start = {d, "start"}, .end = {d, "end"}, .max_ns = 500 * kNanosPerMicro});
@@ -241,6 +250,148 @@ void BM_Reaction(benchmark::State& state, Fault fault) {
   state.counters["goal_p99_ms"] = 20;
 }
 
+// A real-time thread that reads the safe-state flag once per 100 us cycle and records when it
+// first saw each request.
+struct Observer {
+  std::atomic<bool> quit{false};
+  std::atomic<Nanos> seen{0};
+  platform::Thread thread;
+  Observer() {
+    platform::ThreadConfig tc;
+    tc.name = "observer";
+    tc.policy = SchedPolicy::Fifo;
+    tc.priority = 60;
+    auto t = platform::Thread::spawn(tc, [this] {
+      std::uint64_t last = 0;
+      Nanos next = platform::now_ns();
+      while (!quit.load(std::memory_order_relaxed)) {
+        if (safe_state_requested()) {
+          const std::uint64_t g = safe_state_generation();
+          if (g != last) {
+            last = g;
+            seen.store(platform::now_ns(), std::memory_order_release);
+          }
+        }
+        next += 100 * kNanosPerMicro;
+        (void)platform::sleep_until(next);
+      }
+    });
+    if (!t) {
+      tc.policy = SchedPolicy::Other;  // no privilege: measured anyway, on SCHED_OTHER
+      tc.priority = 0;
+      t = platform::Thread::spawn(tc, [this] {
+        while (!quit.load(std::memory_order_relaxed)) {
+          if (safe_state_requested() && seen.load() == 0) seen.store(platform::now_ns());
+          (void)platform::sleep_until(platform::now_ns() + 100 * kNanosPerMicro);
+        }
+      });
+    }
+    if (t) thread = std::move(*t);
+  }
+  ~Observer() {
+    quit = true;
+    thread.join();
+  }
+};
+
+void BM_Action(benchmark::State& state, Fault fault) {
+  Shared& s = shared();
+  const int trials = trial_count();
+  std::mt19937 rng(7);
+  std::vector<double> det, flag, seen, handler;
+  int missed = 0;
+  std::atomic<Nanos> handler_start{0};
+  std::string current;
+  std::mutex current_mutex;
+  service::Reactions reactions;
+  reactions.add_handler("mark", [&](const service::ReactionContext& c) {
+    const Nanos now = platform::now_ns();
+    const std::lock_guard lock(current_mutex);
+    if (c.unit == current) handler_start.store(now, std::memory_order_release);
+  });
+  if (!reactions.add({.name = "safe",
+                      .on = {.event = kind_of(fault)},
+                      .safe_state = true,
+                      .min_interval_ns = 0}) ||
+      !reactions.add({.name = "call",
+                      .on = {.event = kind_of(fault)},
+                      .handlers = {"mark"},
+                      .min_interval_ns = 0}) ||
+      !reactions.start(s.agg.events(), nullptr)) {
+    state.SkipWithError("cannot start the reactions");
+    return;
+  }
+  Observer observer;
+  for (auto _ : state) {
+    for (int i = 0; i < trials; ++i) {
+      const std::string name = trial_name(fault, trials + i);
+      Injected task(name, s.reg);
+      task.fault = fault;
+      PeriodicActivity act(task, {.name = name,
+                                  .period_ns = kNanosPerMilli,
+                                  .policy = SchedPolicy::Fifo,
+                                  .priority = 50,
+                                  .share_thread = false});
+      if (!task.configure() || !act.start()) {
+        state.SkipWithError("cannot start the component");
+        return;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(150 + rng() % 10));
+      (void)clear_safe_state();
+      handler_start.store(0);
+      observer.seen.store(0);
+      {
+        const std::lock_guard lock(current_mutex);
+        current = name;
+      }
+      {
+        std::lock_guard lock(s.m);
+        s.got.reset();
+        s.want = name;
+        s.want_kind = kind_of(fault);
+      }
+      task.armed.store(true, std::memory_order_release);
+      std::optional<Event> got;
+      {
+        std::unique_lock lock(s.m);
+        s.cv.wait_for(lock, std::chrono::seconds(2), [&] { return s.got.has_value(); });
+        got = s.got;
+      }
+      for (int w = 0; w < 200 && (handler_start.load() == 0 || observer.seen.load() == 0); ++w) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+      const SafeStateRequest req = safe_state();
+      if (got && got->fault_ns > 0 && handler_start.load() > 0 && observer.seen.load() > 0 &&
+          req.generation != 0) {
+        const auto ms = [&](Nanos t) { return static_cast<double>(t - got->fault_ns) / 1e6; };
+        det.push_back(static_cast<double>(got->latency_ns()) / 1e6);
+        flag.push_back(ms(req.requested_ns));
+        seen.push_back(ms(observer.seen.load()));
+        handler.push_back(ms(handler_start.load()));
+      } else {
+        ++missed;
+      }
+      act.stop();
+    }
+  }
+  reactions.stop();
+  (void)clear_safe_state();
+  state.counters["trials"] = static_cast<double>(det.size());
+  state.counters["missed"] = missed;
+  state.counters["detect_p50_ms"] = percentile(det, 0.5);
+  state.counters["detect_p99_ms"] = percentile(det, 0.99);
+  state.counters["flag_p50_ms"] = percentile(flag, 0.5);
+  state.counters["flag_p99_ms"] = percentile(flag, 0.99);
+  state.counters["seen_p50_ms"] = percentile(seen, 0.5);
+  state.counters["seen_p99_ms"] = percentile(seen, 0.99);
+  state.counters["seen_max_ms"] = seen.empty() ? 0 : *std::max_element(seen.begin(), seen.end());
+  state.counters["handler_p50_ms"] = percentile(handler, 0.5);
+  state.counters["handler_p99_ms"] = percentile(handler, 0.99);
+  state.counters["handler_max_ms"] =
+      handler.empty() ? 0 : *std::max_element(handler.begin(), handler.end());
+  state.counters["goal_p99_ms"] = 1.2 * percentile(det, 0.99) + 0.2;
+}
+
 BENCHMARK_CAPTURE(BM_Reaction, exception, Fault::Exception)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Reaction, hang, Fault::Hang)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Reaction, overrun_burst, Fault::OverrunBurst)->Iterations(1)->UseRealTime();
@@ -249,6 +400,8 @@ BENCHMARK_CAPTURE(BM_Reaction, deadline_missed, Fault::DeadlineMissed)
     ->Iterations(1)
     ->UseRealTime();
 BENCHMARK_CAPTURE(BM_Reaction, alive_too_rare, Fault::AliveTooRare)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Action, exception, Fault::Exception)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Action, deadline_missed, Fault::DeadlineMissed)->Iterations(1)->UseRealTime();
 
 }  // namespace
 }  // namespace vigil::bench

@@ -70,8 +70,8 @@ ActivitySpec parse_activity(const config::Node& n) {
 }
 
 ComponentSpec parse_component(const config::Node& n, const ComponentFactory& factory) {
-  n.reject_unknown_keys(
-      {"name", "type", "activity", "detectors", "overhead_sample_every", "optional", "parameters"});
+  n.reject_unknown_keys({"name", "type", "activity", "detectors", "overhead_sample_every",
+                         "optional", "safe_state", "parameters"});
   ComponentSpec c;
   c.node = n;
   c.name = n.required<std::string>("name", config::non_empty());
@@ -104,6 +104,10 @@ ComponentSpec parse_component(const config::Node& n, const ComponentFactory& fac
   // Any count: the recorder counts cycles down (0: never).
   c.supervision.overhead_sample_every = n.optional<std::uint32_t>("overhead_sample_every", 64);
   c.optional = n.optional("optional", false);
+  // What the component does while the safe state is requested (vigil/safe_state.hpp): run its
+  // own fallback or on_update() (`run`), or stop (`stop`).
+  static constexpr config::EnumName<bool> kSafeState[] = {{"run", false}, {"stop", true}};
+  c.supervision.stop_on_safe_state = n.optional_enum("safe_state", false, kSafeState);
   c.parameters = n["parameters"];
   if (c.parameters.defined() && !c.parameters.is_mapping() && !c.parameters.is_null()) {
     c.parameters.error("expected a mapping of parameters");
@@ -114,7 +118,7 @@ ComponentSpec parse_component(const config::Node& n, const ComponentFactory& fac
 // Top-level keys: the built-in ones, then the sections of registered extensions (kept in `d`).
 void parse_sections(const config::Node& root, DeploymentSpec& d) {
   constexpr std::string_view kBuiltIn[] = {"name",    "activities", "components", "supervision",
-                                           "outputs", "health",     "diagnosis"};
+                                           "outputs", "health",     "diagnosis",  "reactions"};
   const std::vector<std::string> registered = registered_extensions();
   std::vector<std::string_view> allowed(std::begin(kBuiltIn), std::end(kBuiltIn));
   allowed.insert(allowed.end(), registered.begin(), registered.end());
@@ -315,7 +319,7 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
   if (!root.is_mapping()) {
     root.error(
         "a deployment is a mapping with activities, components, supervision, outputs, health, "
-        "diagnosis");
+        "diagnosis, reactions");
     return root.finish(std::move(d));
   }
   parse_sections(root, d);
@@ -333,6 +337,7 @@ expected<DeploymentSpec, config::ConfigErrors> parse_deployment(const config::No
     d.health = parse_health(h, names);
   }
   if (const config::Node g = root["diagnosis"]; g.defined()) d.diagnosis = parse_diagnosis(g);
+  if (const config::Node r = root["reactions"]; r.defined()) d.reactions = parse_reactions(r);
   return root.finish(std::move(d));
 }
 

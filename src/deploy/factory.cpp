@@ -29,4 +29,22 @@ std::vector<ComponentFactory::Type> ComponentFactory::types() const {
   return out;
 }
 
+bool ComponentFactory::add_handler(std::string name, service::ReactionHandler fn, Nanos budget_ns,
+                                   std::string description) {
+  std::lock_guard lock(mutex_);
+  std::string key = name;
+  return handlers_
+      .emplace(std::move(key),
+               Handler{std::move(name), std::move(description), std::move(fn), budget_ns})
+      .second;
+}
+
+std::vector<ComponentFactory::Handler> ComponentFactory::handlers() const {
+  std::lock_guard lock(mutex_);
+  std::vector<Handler> out;
+  out.reserve(handlers_.size());
+  for (const auto& [name, h] : handlers_) out.push_back(h);
+  return out;
+}
+
 }  // namespace vigil::deploy

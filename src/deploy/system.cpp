@@ -3,14 +3,17 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <exception>
 #include <future>
 #include <memory>
+#include <span>
 #include <thread>
 
+#include "vigil/config/error.hpp"
 #include "vigil/task/shm_messages.hpp"
 
 namespace vigil::deploy {
@@ -134,6 +137,7 @@ expected<std::unique_ptr<System>, config::ConfigErrors> System::create(
   }
   sys->supervise_health();
   sys->configure_diagnosis();
+  sys->configure_reactions(factory);
   if (root.has_errors()) return vigil::unexpected(root.errors());
   return sys;
 }
@@ -160,9 +164,7 @@ void System::supervise_health() {
   }
 }
 
-void System::configure_diagnosis() {
-  const DiagnosisSpec& d = spec_.diagnosis;
-  if (!d.defined) return;  // the default graph
+std::vector<std::string> System::known_units() const {
   std::vector<std::string> known{"vigil.supervisor", "vigil.monitor"};
   for (const ComponentSpec& c : spec_.components) known.push_back(c.name);
   for (const auto& a : spec_.health.config.alive) known.push_back("supervision " + a.name);
@@ -171,9 +173,67 @@ void System::configure_diagnosis() {
   for (const auto& e : extensions_) {
     for (std::string& n : e->unit_names()) known.push_back(std::move(n));
   }
-  if (check_unit_names(d, known) > 0 || spec_.root.has_errors()) return;
+  if (!spec_.reactions.rules.empty()) known.emplace_back(service::Reactions::kUnitName);
+  return known;
+}
+
+void System::configure_diagnosis() {
+  const DiagnosisSpec& d = spec_.diagnosis;
+  if (!d.defined) return;  // the default graph
+  if (check_unit_names(d, known_units()) > 0 || spec_.root.has_errors()) return;
   if (auto r = service_->set_diagnosis(d.config); !r)
     spec_.root["diagnosis"].error(r.error().message);
+}
+
+void System::configure_reactions(const ComponentFactory& factory) {
+  const ReactionsSpec& spec = spec_.reactions;
+  if (!spec.defined) return;
+  service::Reactions& reactions = service_->reactions();
+  for (const ComponentFactory::Handler& h : factory.handlers()) {
+    reactions.add_handler(h.name, h.fn, h.budget_ns);
+  }
+  reactions.set_dry_run(spec.dry_run);
+  std::vector<std::string> known = known_units();
+  for (const auto& a : spec_.diagnosis.config.aggregates) known.push_back(a.name);
+  const std::vector<std::string_view> units(known.begin(), known.end());
+  for (std::size_t i = 0; i < spec.rules.size(); ++i) {
+    const service::Reaction& r = spec.rules[i];
+    const config::Node& n = spec.nodes[i];
+    bool ok = true;
+    auto unknown = [&](const config::Node& at, std::string what, std::string_view name,
+                       std::span<const std::string_view> candidates) {
+      std::string msg = fmt::format("no {} named '{}'", what, name);
+      if (const auto near = config::closest_match(name, candidates)) {
+        msg += fmt::format("; did you mean '{}'?", *near);
+      }
+      at.error(std::move(msg));
+      ok = false;
+    };
+    if (!r.on.unit.empty() && std::find(known.begin(), known.end(), r.on.unit) == known.end()) {
+      unknown(n["on"]["unit"], "unit", r.on.unit, units);
+    }
+    if (!r.on.component.empty() &&
+        std::find(known.begin(), known.end(), r.on.component) == known.end()) {
+      unknown(n["on"]["component"], "component or unit", r.on.component, units);
+    }
+    std::vector<std::string> handler_names;
+    for (const auto& h : factory.handlers()) handler_names.push_back(h.name);
+    const std::vector<std::string_view> hn(handler_names.begin(), handler_names.end());
+    for (std::size_t k = 0; k < r.handlers.size(); ++k) {
+      if (!reactions.has_handler(r.handlers[k])) {
+        unknown(n["handlers"].elements()[k], "handler registered by this program", r.handlers[k],
+                hn);
+      }
+    }
+    for (std::size_t k = 0; k < r.can.size(); ++k) {
+      if (!reactions.has_can_writer(r.can[k].writer)) {
+        unknown(n["can"].elements()[k]["writer"], "CAN writer registered by this program",
+                r.can[k].writer, {});
+      }
+    }
+    if (!ok || spec_.root.has_errors()) continue;
+    if (auto added = reactions.add(r); !added) n.error(added.error().message);
+  }
 }
 
 expected<void, Error> System::start() {

@@ -798,12 +798,32 @@ void HttpServer::Impl::healthz(detail::HttpResponse& res) {
   } else {
     const Nanos age = platform::now_ns() - p->snap->published_ns;
     const bool stale = age > stale_limit();
-    res.status = stale ? 503 : 200;
-    w.field("status", stale ? "stale" : "ok");
+    // The pipeline's own threads: the supervisor (STALE when it stopped draining), the monitor
+    // (STALE when its reports are older than the limit) and the reaction thread (ERROR while a
+    // handler runs over its budget).
+    std::vector<std::pair<std::string_view, StatusLevel>> threads;
+    bool stalled = false;
+    for (const monitor::Report& r : p->snap->reports.components) {
+      StatusLevel level = r.status.level();
+      if (r.kind == monitor::ReportKind::Monitor && stale) level = StatusLevel::Stale;
+      if (r.kind == monitor::ReportKind::Supervisor || r.kind == monitor::ReportKind::Monitor) {
+        stalled = stalled || level == StatusLevel::Stale;
+      } else if (r.is_unit("reactions")) {
+        stalled = stalled || level == StatusLevel::Error;
+      } else {
+        continue;
+      }
+      threads.emplace_back(r.name, level);
+    }
+    res.status = stale || stalled ? 503 : 200;
+    w.field("status", stale ? "stale" : stalled ? "stalled" : "ok");
     w.field("cycle", p->snap->reports.cycle);
     w.field("age_s", static_cast<double>(age) / 1e9);
     w.field("stale_after_s", static_cast<double>(stale_limit()) / 1e9);
     w.field("worst", to_string(p->snap->reports.worst()));
+    w.key("threads").begin_object();
+    for (const auto& [name, level] : threads) w.field(name, to_string(level));
+    w.end_object();
   }
   w.end_object();
   res.set(w.take() + "\n", kJson);

@@ -136,8 +136,12 @@ struct Monitor::Impl {
   }
 
   Report supervisor_report(const supervisor::ComponentDrainLoop& sup, const ThresholdSet& th,
-                           Nanos now) {
+                           Nanos /*cycle_start*/) {
     const supervisor::DrainStats st = sup.stats();
+    // Its silence is judged at the time its statistics were read, not at the cycle's start: a
+    // cycle delayed after its start (its hooks, a loaded host) must not see the supervisor's
+    // latest cycles as old.
+    const Nanos now = options.clock.now();
     const Thresholds& t = th.for_component(options.supervisor_name);
     Report r;
     r.kind = ReportKind::Supervisor;

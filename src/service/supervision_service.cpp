@@ -1,5 +1,8 @@
 #include "vigil/service/supervision_service.hpp"
 
+#include <fmt/format.h>
+
+#include <algorithm>
 #include <cstdio>
 #include <exception>
 
@@ -63,6 +66,8 @@ SupervisionService::SupervisionService(SupervisionServiceOptions options)
       latest_(std::make_shared<const exporter::Snapshot>()) {
   if (auto* s = supervisor(); s != nullptr) monitor_.set_supervisor(s);
   if (auto* s = segments(); s != nullptr) add_contributor(*s);
+  // The supervisor's half of the threads' cross-check (on_cycle() has the monitor's).
+  aggregator_.set_cycle_hook([this](Nanos now) { watch_monitor(now); });
   // Health supervisions as units (none until `aggregator().supervise_health()` is called).
   add_contributor(std::make_unique<HealthUnits>(aggregator_));
   if (options_.summary_file != nullptr) {
@@ -140,8 +145,15 @@ expected<void, Error> SupervisionService::start() {
     }
   }
   last_event_seq_ = aggregator_.events().last_seq();
+  if (auto r = reactions_.start(aggregator_.events(), systemd_); !r) {
+    stop_outputs(empty, outputs_.size());
+    return r;
+  }
+  monitor_heartbeat_.store(options_.clock.now(), std::memory_order_relaxed);
+  monitor_stalled_.store(false, std::memory_order_relaxed);
   publishing_.store(true, std::memory_order_release);
   if (auto r = source_->start(); !r) {
+    reactions_.stop();
     publishing_.store(false, std::memory_order_release);
     stop_outputs(empty, outputs_.size());
     return r;
@@ -149,6 +161,7 @@ expected<void, Error> SupervisionService::start() {
   if (options_.monitor_thread) {
     if (auto r = monitor_.start(); !r) {
       source_->stop();
+      reactions_.stop();
       publishing_.store(false, std::memory_order_release);
       stop_outputs(empty, outputs_.size());
       return r;
@@ -166,6 +179,7 @@ ReportSet SupervisionService::stop() {
   publishing_.store(false,
                     std::memory_order_release);  // the last cycle goes to the outputs' stop(), once
   if (options_.final_cycle) (void)monitor_.step();
+  reactions_.stop();  // the handlers queued run first
   const std::shared_ptr<const exporter::Snapshot> last = snapshot();
   final_ = last->reports;
   stop_outputs(*last, outputs_.size());
@@ -231,10 +245,19 @@ void SupervisionService::on_cycle(const ReportSet& monitor_reports) {
     last_event_seq_ = s->events.back().seq;
   }
   for (Contributor* c : contributors_) guarded("a contributor", [&] { c->contribute(*s); });
+  if (!reactions_.reactions().empty()) {
+    guarded("the reactions' unit",
+            [&] { s->reports.components.push_back(reactions_.unit(options_.clock.now())); });
+  }
   {
     std::lock_guard lock(diagnosis_mutex_);
     guarded("the diagnosis graph", [&] { diagnosis_.apply(s->reports, s->reports.time_ns); });
   }
+  guarded("the threads' cross-check", [&] { watch_threads(s->reports); });
+  if (publishing_.load(std::memory_order_acquire)) {
+    guarded("the reactions", [&] { reactions_.on_reports(s->reports); });
+  }
+  monitor_heartbeat_.store(options_.clock.now(), std::memory_order_relaxed);
   std::shared_ptr<const exporter::Snapshot> done = std::move(s);
   {
     std::lock_guard lock(latest_mutex_);
@@ -242,6 +265,66 @@ void SupervisionService::on_cycle(const ReportSet& monitor_reports) {
   }
   if (!publishing_.load(std::memory_order_acquire)) return;
   for (auto& o : outputs_) guarded("an output", [&] { o->publish(*done); });
+}
+
+// On the supervisor's thread, after each drain: the monitor must have ended a cycle within
+// three of its periods (at least 2 s: a loaded host delays a SCHED_OTHER thread that long
+// without anything being wrong).
+void SupervisionService::watch_monitor(Nanos now) {
+  if (!options_.monitor_thread || !publishing_.load(std::memory_order_acquire)) return;
+  const Nanos last = monitor_heartbeat_.load(std::memory_order_relaxed);
+  if (last == 0) return;
+  const Nanos limit = std::max(3 * options_.monitor_period_ns, 2 * kNanosPerSecond);
+  const bool stalled = now - last > limit;
+  if (stalled == monitor_stalled_.load(std::memory_order_relaxed)) return;
+  monitor_stalled_.store(stalled, std::memory_order_relaxed);
+  supervisor::Event e;
+  e.kind = stalled ? supervisor::EventKind::ThreadStalled : supervisor::EventKind::ThreadResumed;
+  e.severity = stalled ? supervisor::EventSeverity::Error : supervisor::EventSeverity::Info;
+  e.component = options_.monitor.monitor_name;
+  e.fault_ns = stalled ? last + limit : 0;
+  e.detected_ns = now;
+  e.detail = stalled ? fmt::format(
+                           "the monitor thread has ended no cycle for {} (limit {}): "
+                           "reports, outputs and status reactions are stalled",
+                           monitor::format_nanos(static_cast<double>(now - last)),
+                           monitor::format_nanos(static_cast<double>(limit)))
+                     : "the monitor thread cycles again";
+  aggregator_.events().publish(std::move(e));
+}
+
+// On the monitor's thread: a supervisor that stopped draining (its report STALE) and a reaction
+// handler stuck over its budget (the reactions' unit ERROR) are threads stalled.
+void SupervisionService::watch_threads(const ReportSet& reports) {
+  for (const monitor::Report& r : reports.components) {
+    bool stalled = false;
+    if (r.kind == monitor::ReportKind::Supervisor) {
+      stalled = r.status.level() == monitor::StatusLevel::Stale;
+    } else if (r.is_unit("reactions")) {
+      stalled = r.status.level() == monitor::StatusLevel::Error;
+    } else {
+      continue;
+    }
+    const auto it = std::find(stalled_.begin(), stalled_.end(), r.name);
+    if (stalled == (it != stalled_.end())) continue;
+    supervisor::Event e;
+    e.component = r.name;
+    e.detected_ns = options_.clock.now();
+    if (stalled) {
+      stalled_.push_back(r.name);
+      e.kind = supervisor::EventKind::ThreadStalled;
+      e.severity = supervisor::EventSeverity::Error;
+      e.fault_ns = r.silence_ns > 0 ? reports.time_ns - r.silence_ns : 0;
+      e.detail =
+          r.status.messages().empty() ? std::string("stalled") : r.status.messages().front().text;
+    } else {
+      stalled_.erase(it);
+      e.kind = supervisor::EventKind::ThreadResumed;
+      e.detail = r.kind == monitor::ReportKind::Supervisor ? "the supervisor drains again"
+                                                           : "the reaction thread is free again";
+    }
+    aggregator_.events().publish(std::move(e));
+  }
 }
 
 }  // namespace vigil::service

@@ -871,6 +871,7 @@ void ComponentAggregator::on_cycle(const DrainCycle& c) {
     const Nanos now = options_.clock.now();
     for (const auto& slot : slots_) watch(*slot, now);
   }
+  if (cycle_hook_) cycle_hook_(options_.clock.now());
   if (departed_ == 0) return;  // nothing to forget: no walk over thousands of records
   const Nanos now = options_.clock.now();
   const auto expired = [&](const auto& s) {

@@ -77,8 +77,31 @@ const char* to_string(EventKind k) noexcept {
       return "segment_corrupted";
     case EventKind::SupervisorRestarted:
       return "supervisor_restarted";
+    case EventKind::Reaction:
+      return "reaction";
+    case EventKind::ThreadStalled:
+      return "thread_stalled";
+    case EventKind::ThreadResumed:
+      return "thread_resumed";
   }
   return "?";
+}
+
+std::optional<EventKind> parse_event_kind(std::string_view name) noexcept {
+  for (auto k = static_cast<std::uint8_t>(EventKind::Exception);
+       k <= static_cast<std::uint8_t>(EventKind::ThreadResumed); ++k) {
+    if (name == to_string(static_cast<EventKind>(k))) return static_cast<EventKind>(k);
+  }
+  return std::nullopt;
+}
+
+std::vector<std::string_view> event_kind_names() {
+  std::vector<std::string_view> out;
+  for (auto k = static_cast<std::uint8_t>(EventKind::Exception);
+       k <= static_cast<std::uint8_t>(EventKind::ThreadResumed); ++k) {
+    out.emplace_back(to_string(static_cast<EventKind>(k)));
+  }
+  return out;
 }
 
 const char* to_string(EventSeverity s) noexcept {

@@ -9,6 +9,7 @@
 #include "vigil/exec/manual_activity.hpp"
 #include "vigil/exec/periodic_activity.hpp"
 #include "vigil/platform/rt_loss.hpp"
+#include "vigil/safe_state.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
 #include "vigil/task/instrumentation.hpp"
 #include "vigil/task/task.hpp"
@@ -202,5 +203,52 @@ TEST_CASE("Counters stay exact under loss: overruns, exceptions and RT losses",
   CHECK(s->counters.dropped == sup.port()->dropped());
   CHECK(s->has_exception);
   CHECK(s->last_exception.message == std::string_view("injected"));
+}
+
+namespace {
+// A component with a fallback (vigil/safe_state.hpp).
+class Fallback : public Task<Fallback> {
+ public:
+  Fallback(std::string name, Registry<task::Message>& reg)
+      : Task(std::move(name), {.detectors = Detectors::Allocation}, reg) {}
+  void on_update() { ++normal; }
+  void on_safe_state() { ++held; }
+  std::uint64_t normal = 0, held = 0;
+};
+}  // namespace
+
+TEST_CASE("The safe-state fallback switches without allocating, both ways", "[supervisor][alloc]") {
+  REQUIRE(platform::allocation_counting_available());
+  (void)clear_safe_state();
+  Registry<task::Message> reg;
+  ComponentAggregator agg;
+  ComponentDrainLoop sup(reg, agg, {.period_ns = kNanosPerMilli});
+  REQUIRE(sup.start().has_value());
+  std::uint64_t allocations = ~std::uint64_t{0};
+  std::uint64_t normal = 0, held = 0;
+  std::thread component([&] {
+    Fallback f("fallback", reg);
+    TypedManualActivity<Fallback> act(f, {.name = "m", .period_ns = kNanosPerMilli});
+    f.configure();
+    act.start();
+    act.step();
+    const auto before = platform::thread_allocations();
+    for (int i = 0; i < 100'000; ++i) act.step();
+    const auto normal_allocations = platform::thread_allocations() - before;
+    // The request comes from another thread (a reaction); it allocates there, not here.
+    std::thread([] { (void)request_safe_state("test"); }).join();
+    const auto mid = platform::thread_allocations();
+    for (int i = 0; i < 100'000; ++i) act.step();
+    allocations = platform::thread_allocations() - mid + normal_allocations;
+    normal = f.normal;
+    held = f.held;
+    act.stop();
+  });
+  component.join();
+  sup.stop();
+  (void)clear_safe_state();
+  CHECK(allocations == 0);
+  CHECK(normal == 100'001);
+  CHECK(held == 100'000);
 }
 #endif

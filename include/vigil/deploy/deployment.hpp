@@ -39,6 +39,7 @@
 #include "vigil/deploy/diagnosis_section.hpp"
 #include "vigil/deploy/factory.hpp"
 #include "vigil/deploy/health_section.hpp"
+#include "vigil/deploy/reactions_section.hpp"
 #include "vigil/exec/periodic_activity.hpp"
 #include "vigil/expected.hpp"
 #include "vigil/export/http_server.hpp"
@@ -143,6 +144,8 @@ struct DeploymentSpec {
   /// `diagnosis:`: the diagnosis graph (vigil/deploy/diagnosis_section.hpp); the default graph
   /// when absent.
   DiagnosisSpec diagnosis;
+  /// `reactions:`: what the pipeline does about faults (vigil/deploy/reactions_section.hpp).
+  ReactionsSpec reactions;
   /// Sections handled by registered extensions (e.g. `can:`), in file order, unparsed.
   std::vector<ExtensionSection> extensions;
   /// The document (keeps the nodes valid; component parameters report into it).

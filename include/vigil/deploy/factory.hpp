@@ -28,6 +28,7 @@
 
 #include "vigil/bus/registry.hpp"
 #include "vigil/config/node.hpp"
+#include "vigil/service/reactions.hpp"
 #include "vigil/task/messages.hpp"
 #include "vigil/task/supervision.hpp"
 #include "vigil/task/task_core.hpp"
@@ -88,9 +89,24 @@ class ComponentFactory {
   /// Every registered type, sorted by name.
   [[nodiscard]] std::vector<Type> types() const;
 
+  /// A reaction handler a deployment's `reactions:` may name (`handlers: [name]`), called on the
+  /// reaction thread with its budget (0: the default, 10 ms; vigil/service/reactions.hpp).
+  struct Handler {
+    std::string name;
+    std::string description;
+    service::ReactionHandler fn;
+    Nanos budget_ns = 0;
+  };
+  /// Registers handler `name`; returns false (and keeps the first) if the name is taken.
+  bool add_handler(std::string name, service::ReactionHandler fn, Nanos budget_ns = 0,
+                   std::string description = {});
+  /// Every registered handler, sorted by name.
+  [[nodiscard]] std::vector<Handler> handlers() const;
+
  private:
   mutable std::mutex mutex_;
   std::map<std::string, Type, std::less<>> types_;
+  std::map<std::string, Handler, std::less<>> handlers_;
 };
 
 }  // namespace vigil::deploy

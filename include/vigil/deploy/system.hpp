@@ -126,6 +126,10 @@ class System {
   void supervise_health();
   // `diagnosis:`: checks the unit names it uses, sets the service's diagnosis graph.
   void configure_diagnosis();
+  // `reactions:`: checks the units, handlers and CAN writers it names, adds the reactions.
+  void configure_reactions(const ComponentFactory& factory);
+  // Every unit name of this system: components, supervisions, extensions' units, the pipeline's.
+  [[nodiscard]] std::vector<std::string> known_units() const;
 
   struct Slot {
     std::unique_ptr<TaskCore> task;

@@ -18,6 +18,11 @@
 /// runs: the source finds them in the registry (the process's default one unless the options
 /// name another).
 ///
+/// The pipeline watches its own threads: the monitor reports a supervisor that stopped draining
+/// (STALE, and a `thread_stalled` event), the supervisor a monitor that stopped cycling (a
+/// `thread_stalled` event), the monitor a reaction handler stuck over its budget; /healthz and
+/// systemd's keep-alive say so too (docs/guide/reactions.md, "Who watches the supervisor").
+///
 /// The one pipeline of vigil: a program's own components, a deployment's `deploy::System` and
 /// the `vigil supervise` daemon are all this class (docs/design/modules.md, "One pipeline").
 ///
@@ -61,6 +66,7 @@
 #include "vigil/monitor/report.hpp"
 #include "vigil/platform/clock.hpp"
 #include "vigil/service/contributor.hpp"
+#include "vigil/service/reactions.hpp"
 #include "vigil/service/segment_source.hpp"
 #include "vigil/service/source.hpp"
 #include "vigil/supervisor/component_aggregator.hpp"
@@ -190,6 +196,11 @@ class SupervisionService {
   expected<void, Error> set_diagnosis(monitor::DiagnosisConfig config);
   /// Clears latched units of the diagnosis graph ("": all); how many were cleared. Any thread.
   std::size_t clear_diagnosis(std::string_view name = {});
+  /// What the pipeline does about faults (vigil/service/reactions.hpp): register handlers and
+  /// CAN writers, add reactions before start(). Started and stopped with the service; status
+  /// triggers see every cycle's reports after the diagnosis graph. With reactions, every cycle
+  /// also has the reaction thread's unit (`vigil.reactions`).
+  [[nodiscard]] Reactions& reactions() noexcept { return reactions_; }
 
   // --- the parts ---
 
@@ -215,6 +226,10 @@ class SupervisionService {
 
  private:
   void on_cycle(const ReportSet& monitor_reports);
+  // The supervisor's side of the cross-check (its thread, each drain): a monitor that stopped
+  // cycling raises `thread_stalled`. The monitor's side is in on_cycle().
+  void watch_monitor(Nanos now);
+  void watch_threads(const ReportSet& reports);
   void stop_outputs(const exporter::Snapshot& final_snapshot, std::size_t count);
 
   SupervisionServiceOptions options_;
@@ -236,7 +251,13 @@ class SupervisionService {
   std::atomic<bool> publishing_{false};  // set by the control thread, read by the monitor's
   std::mutex diagnosis_mutex_;  // guards diagnosis_: the monitor's thread and set/clear callers
   monitor::DiagnosisGraph diagnosis_;
-  mutable std::mutex latest_mutex_;  // guards latest_: held for a pointer copy
+  Reactions reactions_;
+  // The cross-check of the pipeline's threads: when the monitor's latest cycle ended (its
+  // clock), and which threads were last reported stalled (set on the watching thread).
+  std::atomic<Nanos> monitor_heartbeat_{0};
+  std::atomic<bool> monitor_stalled_{false};
+  std::vector<std::string> stalled_;  // the monitor's thread: units reported stalled
+  mutable std::mutex latest_mutex_;   // guards latest_: held for a pointer copy
   std::shared_ptr<const exporter::Snapshot> latest_;
   ReportSet final_;
   bool running_ = false;

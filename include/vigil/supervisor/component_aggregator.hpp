@@ -249,6 +249,10 @@ class ComponentAggregator {
   /// Where drained log records go (null: dropped). Any thread; the consumer must outlive the
   /// supervisor's cycles (set null before destroying it).
   void set_log_consumer(log::RecordConsumer* c) noexcept { log_consumer_.store(c); }
+  /// Called at the end of every supervisor cycle, on the supervisor's thread, with the
+  /// aggregator's clock (the service's cross-check of its monitor). Set it before the supervisor
+  /// starts; it must not block.
+  void set_cycle_hook(std::function<void(Nanos)> hook) { cycle_hook_ = std::move(hook); }
 
   // --- events, latches, flight recorder (any thread) ---
   /// The events raised by this aggregator: subscribe there (thread-safe, hence usable through
@@ -324,6 +328,7 @@ class ComponentAggregator {
   std::uint32_t clock_reads_ = 0;             // ports since the clock was read
   std::size_t drained_ = 0;                   // messages of the current port's drain so far
   std::atomic<log::RecordConsumer*> log_consumer_{nullptr};
+  std::function<void(Nanos)> cycle_hook_;
   std::unique_ptr<HealthSupervision> health_;  // supervise_health(); set while not draining
   std::vector<Event> health_events_;           // advance()'s output, reused
   std::size_t raise_health(Nanos now, Nanos drained_to);  // advance() health, raise what it found

@@ -22,6 +22,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -71,9 +72,22 @@ enum class EventKind : std::uint8_t {
   // `vigil supervise` again (appended: the values above keep their numbers):
   SegmentCorrupted,  ///< a segment being read was found corrupt; `detail` names the field (Error)
   SupervisorRestarted,  ///< this daemon took over from one that was killed; `detail`: the outage
+  // Reactions (vigil/service/reactions.hpp): `component` is "reaction <name>", `detail` the
+  // action and its outcome; `fault_ns` the trigger's fault, `detected_ns` when the action was
+  // taken (a handler: when it started). Info when done, Warn when it failed or the safe state
+  // was requested.
+  Reaction,
+  // The pipeline's own threads (the supervisor, the monitor, the reaction thread): one stopped
+  // making progress (Error), or runs again (Info). `component` is its unit ("vigil.supervisor").
+  ThreadStalled,
+  ThreadResumed,
 };
 /// Lower-case name of a kind ("exception", "overrun_limit", ...), as written in JSON.
 [[nodiscard]] const char* to_string(EventKind k) noexcept;
+/// The kind named `name` (to_string's spelling), or none.
+[[nodiscard]] std::optional<EventKind> parse_event_kind(std::string_view name) noexcept;
+/// Every kind's name, in order (for error messages and suggestions).
+[[nodiscard]] std::vector<std::string_view> event_kind_names();
 
 /// How bad it is. An Error event latches the component's fault (see `LatchedFault`).
 enum class EventSeverity : std::uint8_t { Info, Warn, Error };

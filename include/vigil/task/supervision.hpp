@@ -44,6 +44,10 @@ struct SupervisionOptions {
   /// (any count: the first cycle, then one in this many); 1 = every cycle, 0 = never. User time
   /// is measured on every cycle.
   std::uint32_t overhead_sample_every = 64;
+  /// While the safe state is requested (vigil/safe_state.hpp), stop the component (its
+  /// on_stop(), in its own thread, at its next cycle) instead of running on_update(). A component
+  /// that defines `on_safe_state()` runs that fallback instead and ignores this.
+  bool stop_on_safe_state = false;
 };
 
 namespace detail {

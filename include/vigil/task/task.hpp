@@ -8,6 +8,7 @@
 ///   Motor() : Task("motor") {}
 ///   void on_update() { /* the control law */ }   // required
 ///   bool on_configure() { return true; }           // optional: on_start, on_stop, on_cleanup
+///   void on_safe_state() { /* hold */ }            // optional: the fallback (safe_state.hpp)
 /// };
 /// ```
 ///
@@ -27,6 +28,7 @@
 #include <vector>
 
 #include "vigil/expected.hpp"
+#include "vigil/safe_state.hpp"
 #include "vigil/task/supervision.hpp"
 #include "vigil/task/task_core.hpp"
 
@@ -168,12 +170,28 @@ class Task : public TaskCore {
   /// One supervised cycle: the body of cycle_hook() and of update_running().
   [[gnu::always_inline]] void run_cycle(CycleContext& c) noexcept {
     check_author();
+    if constexpr (!requires(Derived & d) { d.on_safe_state(); }) {
+      if (recorder_.options().stop_on_safe_state && safe_state_requested()) [[unlikely]] {
+        (void)stop();  // in the component's own thread, as an activity's stop command does
+        return;
+      }
+    }
     enter_cycle(c);  // for cycle() in on_update() and in the transition below
     recorder_.pre(c);
     bool threw = false;
     try {
       // Guarded so that a missing or inaccessible on_update() is reported by check_author() alone.
-      if constexpr (requires(Derived & d) { d.on_update(); }) derived().on_update();
+      if constexpr (requires(Derived & d) { d.on_safe_state(); }) {
+        // The component's fallback while the safe state is requested (vigil/safe_state.hpp):
+        // one relaxed load per cycle, only in components that define one.
+        if (safe_state_requested()) {
+          derived().on_safe_state();
+        } else if constexpr (requires(Derived & d) { d.on_update(); }) {
+          derived().on_update();
+        }
+      } else if constexpr (requires(Derived & d) { d.on_update(); }) {
+        derived().on_update();
+      }
     } catch (const std::exception& e) {
       recorder_.on_exception(Hook::Update, typeid(e).name(), e.what());
       threw = true;
@@ -234,6 +252,11 @@ class Task : public TaskCore {
         requires(Derived & d) { d.on_update(); },
         "vigil::Task<Derived>: define `void on_update()` in your component (public, or "
         "private with `friend class vigil::Task<Derived>;`): it is the cycle's work");
+    if constexpr (requires(Derived & d) { d.on_safe_state(); }) {
+      static_assert(std::is_void_v<decltype(std::declval<Derived&>().on_safe_state())>,
+                    "vigil::Task<Derived>: on_safe_state() must return void (it runs instead of "
+                    "on_update() while the safe state is requested)");
+    }
     if constexpr (requires(Derived & d) { d.on_update(); }) {
       static_assert(std::is_void_v<decltype(std::declval<Derived&>().on_update())>,
                     "vigil::Task<Derived>: on_update() must return void; report problems by "
