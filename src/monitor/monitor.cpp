@@ -135,13 +135,10 @@ struct Monitor::Impl {
     return thresholds;
   }
 
-  Report supervisor_report(const supervisor::ComponentDrainLoop& sup, const ThresholdSet& th,
-                           Nanos /*cycle_start*/) {
-    const supervisor::DrainStats st = sup.stats();
-    // Its silence is judged at the time its statistics were read, not at the cycle's start: a
-    // cycle delayed after its start (its hooks, a loaded host) must not see the supervisor's
-    // latest cycles as old.
-    const Nanos now = options.clock.now();
+  // `st` was read at `now`, the cycle's start (before its hooks): a cycle delayed after its start
+  // (its hooks, a loaded host) must not judge statistics read later by an earlier time.
+  Report supervisor_report(const supervisor::ComponentDrainLoop& sup,
+                           const supervisor::DrainStats& st, const ThresholdSet& th, Nanos now) {
     const Thresholds& t = th.for_component(options.supervisor_name);
     Report r;
     r.kind = ReportKind::Supervisor;
@@ -327,6 +324,8 @@ ReportSet Monitor::step() {
   Impl& m = *impl_;
   std::lock_guard lock(m.step_mutex);
   const Nanos t0 = m.options.clock.now();
+  std::optional<supervisor::DrainStats> supervisor_stats;
+  if (m.supervisor != nullptr) supervisor_stats = m.supervisor->stats();
   for (auto& [id, hook] : m.hooks) {
     // A hook's failure must not stop the monitor or the other hooks.
     try {
@@ -387,8 +386,8 @@ ReportSet Monitor::step() {
   }
   std::erase_if(m.memory, [&](const auto& kv) { return kv.second.seen_cycle != set.cycle; });
 
-  if (m.supervisor != nullptr) {
-    set.components.push_back(m.supervisor_report(*m.supervisor, *th, t0));
+  if (m.supervisor != nullptr && supervisor_stats) {
+    set.components.push_back(m.supervisor_report(*m.supervisor, *supervisor_stats, *th, t0));
   }
   m.step_time.add(m.options.clock.now() - t0);
   if (m.options.self_report) set.components.push_back(m.monitor_report(*th, snaps.size()));

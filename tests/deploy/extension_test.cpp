@@ -81,7 +81,7 @@ TEST_CASE("A section is accepted only when an extension is registered under its 
   CHECK_THAT(e,
              Catch::StartsWith("d.yaml:5:8: lidar: unknown section 'lidar': not a deployment "
                                "key (name, activities, components, supervision, outputs, health, "
-                               "diagnosis) and "
+                               "diagnosis, reactions) and "
                                "no extension handles it in this program (registered: "));
   // A typo of a known key still gets a suggestion.
   auto typo = load_deployment_string(std::string(kBase) + "supervison: {}\n", "d.yaml", factory());
