@@ -66,7 +66,7 @@ expected<void, Error> Reactions::add(Reaction r) {
     return fail("a reaction cannot fire on reaction events");
   }
   if (!r.on.component.empty() && !r.on.event) return fail("`component` is for event triggers");
-  if (r.on.unit.size() > 0 && r.on.status == StatusLevel::Ok) {
+  if (!r.on.unit.empty() && r.on.status == StatusLevel::Ok) {
     return fail("a status trigger needs WARN, ERROR or STALE");
   }
   if (!r.safe_state && r.can.empty() && !r.watchdog && r.handlers.empty()) {
