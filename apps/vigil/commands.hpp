@@ -55,6 +55,7 @@ struct SuperviseOptions {
   std::string json;
   std::string http;       ///< [ADDR:]PORT: serve the reports over HTTP (docs/reference/http.md)
   std::string health;     ///< a YAML file with a `health:` section (or the section's keys)
+  std::string diagnosis;  ///< a YAML file with a `diagnosis:` section (or the section's keys)
   double duration_s = 0;  ///< 0: until Ctrl-C
   double period_ms = 10;
   std::string group;

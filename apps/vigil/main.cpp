@@ -94,6 +94,9 @@ int main(int argc, char** argv) {
   sup_cmd->add_option("--health", sup.health,
                       "Supervise the alive, deadline and logical supervisions of FILE's `health:` "
                       "section (a deployment file, or one with the section's keys)");
+  sup_cmd->add_option("--diagnosis", sup.diagnosis,
+                      "Apply FILE's `diagnosis:` section (dependencies, aggregates, hysteresis, "
+                      "start-up suppression, latches) to the processes' components");
   sup_cmd
       ->add_option("-d,--duration", sup.duration_s,
                    "Seconds to run; 0 runs until Ctrl-C (default: 0)")

@@ -12,6 +12,7 @@
 
 #include "commands.hpp"
 #include "vigil/config/load.hpp"
+#include "vigil/deploy/diagnosis_section.hpp"
 #include "vigil/deploy/health_section.hpp"
 #include "vigil/export/outputs.hpp"
 #include "vigil/export/ros2_diagnostics.hpp"
@@ -79,6 +80,26 @@ expected<health::HealthConfig, int> health_of(const std::string& file) {
   return std::move(spec.config);
 }
 
+// `--diagnosis FILE`: its `diagnosis:` section (or the whole file as one). Unit names are not
+// checked against a system (the components come and go with their processes).
+expected<monitor::DiagnosisConfig, int> diagnosis_of(const std::string& file) {
+  auto root = config::load_file(file);
+  if (!root) {
+    std::fprintf(stderr, "vigil supervise: --diagnosis %s\n",
+                 config::to_string(root.error()).c_str());
+    return unexpected(1);
+  }
+  const config::Node section =
+      root->is_mapping() && root->has("diagnosis") ? (*root)["diagnosis"] : *root;
+  deploy::DiagnosisSpec spec = deploy::parse_diagnosis(section);
+  if (root->has_errors()) {
+    std::fprintf(stderr, "vigil supervise: --diagnosis %s:\n%s\n", file.c_str(),
+                 config::to_string(root->errors()).c_str());
+    return unexpected(1);
+  }
+  return std::move(spec.config);
+}
+
 }  // namespace
 
 int run_supervise(const SuperviseOptions& o) {
@@ -90,7 +111,20 @@ int run_supervise(const SuperviseOptions& o) {
     if (!h) return h.error();
     health = std::move(*h);
   }
+  std::optional<monitor::DiagnosisConfig> diagnosis;
+  if (!o.diagnosis.empty()) {
+    auto d = diagnosis_of(o.diagnosis);
+    if (!d) return d.error();
+    diagnosis = std::move(*d);
+  }
   service::SupervisionService daemon(std::move(*opts));
+  if (diagnosis) {
+    if (auto r = daemon.set_diagnosis(std::move(*diagnosis)); !r) {
+      std::fprintf(stderr, "vigil supervise: --diagnosis %s: %s\n", o.diagnosis.c_str(),
+                   r.error().message.c_str());
+      return 1;
+    }
+  }
   if (health) {
     if (auto r = daemon.aggregator().supervise_health(std::move(*health)); !r) {
       std::fprintf(stderr, "vigil supervise: --health %s: %s\n", o.health.c_str(),

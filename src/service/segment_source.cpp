@@ -71,6 +71,11 @@ struct Placement {
   Nanos forget_at = 0;  // 0: still a member
 };
 
+// The name of a process's unit: "process <name> (pid <pid>)".
+std::string process_unit_name(const std::string& name, std::int32_t pid) {
+  return fmt::format("process {} (pid {})", name, pid);
+}
+
 std::optional<std::int32_t> pid_of_segment(const std::string& name) {
   // "/vigil.<name>.<pid>.<index>"
   const auto last = name.rfind('.');
@@ -804,6 +809,30 @@ struct SegmentSource::Impl {
     }
   }
 
+  // A process of the daemon as a unit of the diagnosis graph (kind `process`): ERROR while it is
+  // stopped, traced or a zombie, its components depending on it.
+  static Report process_unit(const ProcessInfo& info, Nanos t) {
+    Report r;
+    r.kind = ReportKind::Unit;
+    r.unit_kind = "process";
+    r.name = process_unit_name(info.name, info.pid);
+    r.configured = true;
+    r.state_label = platform::to_string(info.run_state);
+    if (info.run_state != platform::RunState::Running) {
+      r.merge(
+          StatusLevel::Error,
+          fmt::format("{}{}: its components cannot run", platform::to_string(info.run_state),
+                      info.run_state_since > 0 && t > info.run_state_since
+                          ? " for " + format_nanos(static_cast<double>(t - info.run_state_since))
+                          : std::string()));
+    }
+    r.add_field(monitor::Field::of_count("pid", static_cast<std::uint64_t>(info.pid)));
+    r.add_field(monitor::Field::of_count("components", info.components.size()));
+    r.add_field(monitor::Field::of_count("incarnation", info.incarnation));
+    r.add_field(monitor::Field::of_text("command", info.command_line));
+    return r;
+  }
+
   static void add_placement(Report& r, const Placement& pl) {
     r.add("process", pl.process);
     r.add("pid", std::to_string(pl.pid));
@@ -872,6 +901,9 @@ struct SegmentSource::Impl {
       if (it != placements.end()) {
         add_placement(c, it->second);
         name_a_stop(c, it->second.pid, base.time_ns);
+        // The diagnosis graph: a component needs its process (a stopped process explains its
+        // components' silence).
+        c.depends_on.push_back(process_unit_name(it->second.process, it->second.pid));
       }
       if (const auto bad = corrupt_now.find(r.id); bad != corrupt_now.end()) {
         c.alive = false;
@@ -882,6 +914,9 @@ struct SegmentSource::Impl {
     }
     for (const auto& [key, p] : processes) {
       for (const Report& r : p->dead_reports) out.components.push_back(r);
+    }
+    for (const auto& [key, p] : processes) {
+      if (p->info.alive) out.components.push_back(process_unit(p->info, base.time_ns));
     }
     out.components.push_back(self_report(base.time_ns));
     for (const Report& r : base.components) {

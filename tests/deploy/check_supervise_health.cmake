@@ -21,4 +21,22 @@ string(FIND "${out}" "supervision ghost_alive" unit)
 if(NOT rc EQUAL 0 OR kind EQUAL -1 OR text EQUAL -1 OR unit EQUAL -1)
   message(FATAL_ERROR "good.yaml: expected the never-started event and the unit, got ${rc}:\n${out}${err}")
 endif()
-message(STATUS "vigil supervise --health: bad section refused, good one supervised")
+# `--diagnosis FILE`: a cycle is refused with its place; an aggregate is reported, its member named
+# as its root cause.
+execute_process(COMMAND ${VIGIL} supervise --name ${NAME} --diagnosis ${dir}/diagnosis_bad.yaml
+                        --duration 1 --no-live --color never
+                RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+string(FIND "${err}" "diagnosis_bad.yaml:3:" at)
+string(FIND "${err}" "the dependencies form a cycle" why)
+if(NOT rc EQUAL 1 OR at EQUAL -1 OR why EQUAL -1)
+  message(FATAL_ERROR "diagnosis_bad.yaml: expected exit 1 naming the cycle, got ${rc}:\n${out}${err}")
+endif()
+execute_process(COMMAND ${VIGIL} supervise --name ${NAME} --health ${dir}/good.yaml
+                        --diagnosis ${dir}/diagnosis_good.yaml --duration 1.5 --no-live --color never
+                RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+string(FIND "${out}" "ghosts" aggregate)
+string(FIND "${out}" "ROOT CAUSE" root)
+if(NOT rc EQUAL 0 OR aggregate EQUAL -1 OR root EQUAL -1)
+  message(FATAL_ERROR "diagnosis_good.yaml: expected the aggregate and a root cause, got ${rc}:\n${out}${err}")
+endif()
+message(STATUS "vigil supervise --health, --diagnosis: bad sections refused, good ones applied")

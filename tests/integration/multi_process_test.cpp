@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <catch2/catch.hpp>
 #include <chrono>
@@ -208,6 +209,17 @@ TEST_CASE("A stopped process is named stopped, its stop and its continue are eve
   REQUIRE(x != nullptr);
   INFO(x->status.summary());
   CHECK(x->status.summary().find("is stopped for") != std::string::npos);
+  // The process is a unit of the diagnosis graph: ERROR while stopped, the cause of its
+  // component's status, named once as the root cause.
+  const std::string unit = "process " + procs[0].name + " (pid " + std::to_string(a->pid) + ")";
+  const Report* p = r.find(unit);
+  REQUIRE(p != nullptr);
+  CHECK(p->is_unit("process"));
+  CHECK(p->status.level() == StatusLevel::Error);
+  CHECK(p->state_label == "stopped");
+  CHECK(x->caused_by == std::vector<std::string>{unit});
+  CHECK(std::find(r.root_causes.begin(), r.root_causes.end(), unit) != r.root_causes.end());
+  CHECK(std::find(r.root_causes.begin(), r.root_causes.end(), "s.x") == r.root_causes.end());
   ::kill(a->pid, SIGCONT);
   const auto resumed = d.wait_event(EventKind::ProcessContinued, a->pid);
   REQUIRE(resumed.has_value());
