@@ -8,6 +8,7 @@
 
 #include "vigil/export/metrics_snapshot.hpp"
 #include "vigil/service/health_units.hpp"
+#include "vigil/service/thread_units.hpp"
 
 namespace vigil::service {
 
@@ -70,6 +71,8 @@ SupervisionService::SupervisionService(SupervisionServiceOptions options)
   aggregator_.set_cycle_hook([this](Nanos now) { watch_monitor(now); });
   // Health supervisions as units (none until `aggregator().supervise_health()` is called).
   add_contributor(std::make_unique<HealthUnits>(aggregator_));
+  // Threads shared by several components, as units their components depend on.
+  add_contributor(std::make_unique<ThreadUnits>());
   if (options_.summary_file != nullptr) {
     add_output<exporter::TextOutput>(
         exporter::TextOutputOptions{.file = options_.summary_file,
