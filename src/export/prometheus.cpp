@@ -328,6 +328,7 @@ bool is_monitor(const Report& r) { return r.kind == ReportKind::Monitor; }
 bool is_can_node(const Report& r) { return r.is_unit(can::kNodeUnit); }
 bool is_can_group(const Report& r) { return r.is_unit(can::kGroupUnit); }
 bool is_supervision(const Report& r) { return r.is_unit(health::kSupervisionUnit); }
+bool is_reactions(const Report& r) { return r.is_unit("reactions"); }
 
 // A unit's count field, if it has it.
 std::optional<std::uint64_t> count_field(const Report& r, std::string_view name) {
@@ -807,6 +808,35 @@ void supervision_families(const Section& s) {
   });
 }
 
+// Reactions (vigil/service/reactions.hpp): the reaction thread's unit, `vigil.reactions`.
+void reaction_families(const Section& s) {
+  Writer& w = s.w;
+  const auto counter = [&](std::string_view family, std::string_view field, const char* help) {
+    w.family(family, Type::Counter, help);
+    s.each(is_reactions, [&](const Report& r) {
+      if (auto n = count_field(r, field)) w.sample_u(family, r.name, {}, *n);
+    });
+  };
+  counter("vigil_reactions_fired_total", "fired",
+          "Reactions fired (each may take several actions), rate-limited ones not included.");
+  counter("vigil_reactions_actions_total", "actions",
+          "Actions taken (or logged in dry run): safe state, CAN frames, watchdog, handler calls.");
+  counter("vigil_reactions_rate_limited_total", "rate_limited",
+          "Triggers a reaction's min_interval suppressed.");
+  counter("vigil_reactions_failed_total", "failed",
+          "Actions that failed: a CAN writer refused, no outer watchdog, a handler threw.");
+  counter("vigil_reactions_over_budget_total", "over_budget",
+          "Handler calls that ran over their budget.");
+  counter("vigil_reactions_dropped_total", "dropped",
+          "Handler calls dropped because the reaction thread's queue was full.");
+  w.family("vigil_safe_state_requested", Type::Gauge,
+           "1 while the process's safe-state request stands (vigil/safe_state.hpp), else 0.");
+  s.each(is_reactions, [&](const Report& r) {
+    const Field* f = r.field("safe_state");
+    if (f != nullptr) w.sample_u("vigil_safe_state_requested", r.name, {}, f->text == "no" ? 0 : 1);
+  });
+}
+
 // Every family, section by section, in the order they are exposed.
 using SectionWriter = void (*)(const Section&);
 constexpr SectionWriter kSections[] = {
@@ -816,7 +846,7 @@ constexpr SectionWriter kSections[] = {
     component_gauge_families,   thread_families,
     supervisor_families,        monitor_families,
     can_node_families,          can_group_families,
-    supervision_families,
+    supervision_families,       reaction_families,
 };
 
 }  // namespace
