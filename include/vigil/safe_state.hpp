@@ -17,7 +17,7 @@
 /// A `Task` that defines `on_safe_state()` runs it instead of `on_update()` while the request
 /// stands (its fallback); a `Task` without it goes on with `on_update()`, which may read
 /// `safe_state_requested()` itself. Only `clear_safe_state()` (a program's or an operator's
-/// decision, `POST /api/v1/safe-state/clear`) ends the request: vigil never clears it on its
+/// decision, `POST /api/v1/clear?safe_state=1`) ends the request: vigil never clears it on its
 /// own. docs/guide/reactions.md.
 
 #include <atomic>

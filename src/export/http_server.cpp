@@ -32,6 +32,7 @@
 #include "vigil/export/prometheus.hpp"
 #include "vigil/export/trace_event.hpp"
 #include "vigil/platform/thread.hpp"
+#include "vigil/safe_state.hpp"
 #include "vigil/version.hpp"
 
 namespace vigil::exporter {
@@ -683,7 +684,19 @@ void HttpServer::Impl::clear_faults(const detail::HttpRequest& req, detail::Http
     return;
   }
   const std::string* name = req.param("component");
+  const std::string* safe = req.param("safe_state");
+  if (safe != nullptr && *safe != "1") {
+    res.status = 400;
+    res.set(error_json("safe_state must be 1 (end the safe-state request) or absent"), kJson);
+    return;
+  }
   const std::size_t n = options.clear(name != nullptr ? *name : std::string());
+  if (safe != nullptr) {
+    // The operator's decision to leave the safe state (vigil/safe_state.hpp): never vigil's own.
+    const bool ended = vigil::clear_safe_state();
+    res.set(fmt::format(R"({{"cleared":{},"safe_state_cleared":{}}})", n, ended) + "\n", kJson);
+    return;
+  }
   res.set(fmt::format(R"({{"cleared":{}}})", n) + "\n", kJson);
 }
 

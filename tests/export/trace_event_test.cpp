@@ -10,6 +10,7 @@
 
 #include "support/json_reader.hpp"
 #include "vigil/export/http_server.hpp"
+#include "vigil/safe_state.hpp"
 
 using namespace vigil;
 using namespace vigil::exporter;
@@ -235,6 +236,17 @@ TEST_CASE("HTTP: events by long poll, on-demand traces, and the clear endpoint w
   CHECK(r->status == 200);
   CHECK(cleared == "encoder");
   CHECK(JsonParser::parse(r->body)["cleared"].number() == 1);
+  // `safe_state=1` also ends the safe-state request (the operator's decision).
+  REQUIRE(vigil::request_safe_state("test"));
+  r = c.Post("/api/v1/clear?safe_state=1", httplib::Headers{{"X-Vigil-Clear", "1"}}, "",
+             "text/plain");
+  REQUIRE(r);
+  CHECK(r->status == 200);
+  CHECK(JsonParser::parse(r->body)["safe_state_cleared"].boolean());
+  CHECK_FALSE(vigil::safe_state_requested());
+  CHECK(c.Post("/api/v1/clear?safe_state=yes", httplib::Headers{{"X-Vigil-Clear", "1"}}, "",
+               "text/plain")
+            ->status == 400);
   CHECK(c.Post("/api/v1/other", "", "text/plain")->status == 405);
   s.stop();
 
