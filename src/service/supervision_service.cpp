@@ -248,6 +248,17 @@ void SupervisionService::on_cycle(const ReportSet& monitor_reports) {
     last_event_seq_ = s->events.back().seq;
   }
   for (Contributor* c : contributors_) guarded("a contributor", [&] { c->contribute(*s); });
+  // The default graph: the components and the shared threads need the supervisor that drains
+  // them (a supervisor that stops draining explains their silence).
+  std::vector<std::string> supervisors;
+  for (const monitor::Report& r : s->reports.components) {
+    if (r.kind == monitor::ReportKind::Supervisor) supervisors.push_back(r.name);
+  }
+  for (monitor::Report& r : s->reports.components) {
+    if (r.kind == monitor::ReportKind::Component || r.is_unit(kThreadUnit)) {
+      r.depends_on.insert(r.depends_on.end(), supervisors.begin(), supervisors.end());
+    }
+  }
   if (!reactions_.reactions().empty()) {
     guarded("the reactions' unit",
             [&] { s->reports.components.push_back(reactions_.unit(options_.clock.now())); });

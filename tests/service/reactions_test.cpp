@@ -8,9 +8,11 @@
 #include <thread>
 #include <vector>
 
+#include "vigil/exec/periodic_activity.hpp"
 #include "vigil/safe_state.hpp"
 #include "vigil/service/reactions.hpp"
 #include "vigil/service/supervision_service.hpp"
+#include "vigil/task/task.hpp"
 
 using namespace vigil;
 using namespace vigil::service;
@@ -57,6 +59,12 @@ Event fault(EventKind kind, std::string component) {
   e.detail = "test fault";
   return e;
 }
+
+class Ticker : public Task<Ticker> {
+ public:
+  Ticker(std::string name, Registry<task::Message>& reg) : Task(std::move(name), {}, reg) {}
+  void on_update() {}
+};
 
 struct SafeStateCleared {
   SafeStateCleared() { (void)clear_safe_state(); }
@@ -415,10 +423,23 @@ TEST_CASE("The monitor reports a supervisor thread that stalls, and its return",
   s.aggregator().set_cycle_hook([&](Nanos) {
     if (++drains == 20) std::this_thread::sleep_for(std::chrono::seconds(1));
   });
+  Ticker ticker("ticker", reg);
+  PeriodicActivity act(ticker, {.name = "ticker", .period_ns = kNanosPerMilli});
+  REQUIRE(ticker.configure());
+  REQUIRE(act.start().has_value());
   REQUIRE(s.start().has_value());
+  bool explained = false;  // the component's staleness named as the supervisor's
   for (int i = 0; i < 300 && drains.load() < 60; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    const ReportSet r = s.reports();
+    const Report* t = r.find("ticker");
+    if (t != nullptr && !t->status.ok() && !t->caused_by.empty()) {
+      explained = explained || (t->caused_by == std::vector<std::string>{"vigil.supervisor"} &&
+                                r.root_causes == std::vector<std::string>{"vigil.supervisor"});
+    }
   }
+  act.stop();
+  CHECK(explained);
   std::this_thread::sleep_for(std::chrono::milliseconds(150));
   (void)s.stop();
   s.events().unsubscribe(id);
