@@ -22,6 +22,7 @@ struct DemoOptions {
   std::string trace_dir;           ///< write flight-recorder traces to DIR (empty: none)
   bool http_clear = false;         ///< enable POST /api/v1/clear on the HTTP endpoint
   bool ros2 = false;  ///< publish ROS 2 /diagnostics over DDS (adds the deployment's outputs.ros2)
+  bool dry_run_reactions = false;  ///< the reactions log what they would do (reactions.dry_run)
 };
 /// Runs `vigil demo`. Exit codes (docs/guide/faults.md):
 ///  0 ran for --duration or was stopped by SIGINT/SIGTERM; final report printed, JSON written;

@@ -77,6 +77,7 @@ expected<deploy::DeploymentSpec, int> load_spec(const DemoOptions& o) {
   if (!o.json.empty()) spec->outputs.json = o.json;
   if (o.http_clear && spec->outputs.http) spec->outputs.http->clear = true;
   if (o.ros2 && !spec->outputs.ros2) spec->outputs.ros2.emplace();  // ROS_DOMAIN_ID, else 0
+  if (o.dry_run_reactions) spec->reactions.dry_run = true;
   return std::move(*spec);
 }
 

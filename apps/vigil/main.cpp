@@ -63,6 +63,9 @@ int main(int argc, char** argv) {
                      "Enable POST /api/v1/clear (clears latched faults) on the HTTP endpoint");
   demo_cmd->add_flag("--ros2", demo.ros2,
                      "Publish ROS 2 /diagnostics over DDS (domain: ROS_DOMAIN_ID, else 0)");
+  demo_cmd->add_flag(
+      "--dry-run-reactions", demo.dry_run_reactions,
+      "The reactions log what they would do (safe state, CAN frames) and do nothing");
 
   vigil::app::CheckConfigOptions check;
   auto* check_cmd = app.add_subcommand(

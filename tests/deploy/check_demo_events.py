@@ -95,8 +95,26 @@ never = health_event("lidar", "alive_supervision", "never_started")
 if never and never[0]["severity"] != "error":
     failures.append(f"a component that never started is not an error: {never[0]}")
 
+# Reactions (issue 46): the encoder's exception requests the safe state at once, an event whose
+# fault time is the exception's, and the final report says the request stands.
+safe = [e for e in by("reaction encoder_fault", "reaction") if "request the safe state" in e["detail"]]
+if len(safe) != 1:
+    failures.append(f"expected one safe-state reaction for the encoder, got {safe}")
+elif ex:
+    act_ms = (safe[0]["detected_ns"] - ex[0]["fault_ns"]) / 1e6
+    print(f"safe state requested {act_ms:.2f} ms after the encoder's fault")
+    if safe[0]["fault_ns"] != ex[0]["fault_ns"] or not (0 <= act_ms <= 25):
+        failures.append(f"the safe-state reaction is not tied to the fault or late: {safe[0]}")
+
 final = json.load(open(final_path))
 comps = {c["name"]: c for c in final["components"] if c["kind"] == "component"}
+units = {c["name"]: c for c in final.get("units", []) + final["components"] if "fields" in c}
+reactions_unit = units.get("vigil.reactions")
+if reactions_unit is None:
+    failures.append("no vigil.reactions unit in the final report")
+else:
+    if reactions_unit["fields"].get("safe_state") != "requested":
+        failures.append(f"the final report does not say the safe state stands: {reactions_unit}")
 traced = {e["component"] for e in events if e["traced"]}
 for name in ("encoder", "gripper"):
     if name not in traced:
