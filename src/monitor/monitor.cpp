@@ -231,8 +231,12 @@ struct Monitor::Impl {
 
   void run() {
     thread_tid.store(platform::current_tid(), std::memory_order_relaxed);
-    Nanos next = platform::now_ns();
+    // The first cycle comes one period after the start, not at once: a cycle at the start sees
+    // components that have not configured yet and nodes that could not have sent anything, and
+    // a table of such findings is a false alarm (the status flips of issue 46).
+    Nanos next = platform::now_ns() + options.period_ns;
     std::unique_lock lock(wake_mutex);
+    wake.wait_for(lock, std::chrono::nanoseconds(options.period_ns), [this] { return quit; });
     while (!quit) {
       lock.unlock();
       owner.step();

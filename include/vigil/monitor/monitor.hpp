@@ -134,8 +134,9 @@ class Monitor {
   /// Runs one cycle in the calling thread and returns its reports. Serialised with the thread's
   /// cycles (safe to call while the monitor runs).
   ReportSet step();
-  /// Starts the monitor's thread (SCHED_OTHER), which runs a cycle every period. Fails when the
-  /// thread cannot be created. Idempotent.
+  /// Starts the monitor's thread (SCHED_OTHER), which runs a cycle every period, the first one
+  /// period after the start (not at once: nothing has configured yet). Fails when the thread
+  /// cannot be created. Idempotent.
   expected<void, Error> start();
   /// Stops and joins the thread (wakes it at once). Idempotent.
   void stop();
