@@ -53,10 +53,17 @@ class Parser {
   }
 
   static monitor::Hysteresis hysteresis(const config::Node& h) {
-    h.reject_unknown_keys({"raise_after", "clear_after"});
+    h.reject_unknown_keys(
+        {"raise_after", "clear_after", "raise_after_cycles", "clear_after_cycles"});
     monitor::Hysteresis out;
     out.raise_after_ns = h.optional_duration("raise_after", 0, config::duration_in_range(0, kDay));
     out.clear_after_ns = h.optional_duration("clear_after", 0, config::duration_in_range(0, kDay));
+    const auto cycles = [](std::uint32_t v) -> std::optional<std::string> {
+      if (v > 86400) return "must be at most 86400 cycles";
+      return std::nullopt;
+    };
+    out.raise_after_cycles = h.optional<std::uint32_t>("raise_after_cycles", 0, cycles);
+    out.clear_after_cycles = h.optional<std::uint32_t>("clear_after_cycles", 0, cycles);
     return out;
   }
 

@@ -123,13 +123,18 @@ void DiagnosisGraph::filter(Report& r, const Hysteresis& h, bool latch, Nanos no
   if (raw == st.shown) {
     st.pending = raw;
     st.pending_since = now;
+    st.pending_cycles = 1;
   } else {
     if (raw != st.pending) {
       st.pending = raw;
       st.pending_since = now;
+      st.pending_cycles = 0;
     }
-    const Nanos need = rank(raw) > rank(st.shown) ? h.raise_after_ns : h.clear_after_ns;
-    if (now - st.pending_since >= need) st.shown = raw;
+    ++st.pending_cycles;
+    const bool raising = rank(raw) > rank(st.shown);
+    const Nanos need = raising ? h.raise_after_ns : h.clear_after_ns;
+    const std::uint32_t need_cycles = raising ? h.raise_after_cycles : h.clear_after_cycles;
+    if (now - st.pending_since >= need && st.pending_cycles >= need_cycles) st.shown = raw;
   }
   if (latch && st.shown == StatusLevel::Error && !st.latched) {
     st.latched = true;
@@ -145,13 +150,23 @@ void DiagnosisGraph::filter(Report& r, const Hysteresis& h, bool latch, Nanos no
   } else if (rank(shown) < rank(raw)) {
     // Raised, but not for long enough yet: the shown status holds, the new one is said.
     s.merge(shown);
-    s.merge(StatusLevel::Ok, fmt::format("{} for {} (shown after {})", to_string(raw),
-                                         ns(now - st.pending_since), ns(h.raise_after_ns)));
+    s.merge(StatusLevel::Ok,
+            h.raise_after_cycles > 0
+                ? fmt::format("{} for {} and {} cycles (shown after {} and {} cycles)",
+                              to_string(raw), ns(now - st.pending_since), st.pending_cycles,
+                              ns(h.raise_after_ns), h.raise_after_cycles)
+                : fmt::format("{} for {} (shown after {})", to_string(raw),
+                              ns(now - st.pending_since), ns(h.raise_after_ns)));
     for (const auto& m : r.status.messages()) s.merge(StatusLevel::Ok, m.text);
   } else {
     // Better, but not for long enough yet: the worse status holds, with its last reasons.
-    s.merge(shown, fmt::format("clearing: {} for {} (cleared after {})", to_string(raw),
-                               ns(now - st.pending_since), ns(h.clear_after_ns)));
+    s.merge(shown, h.clear_after_cycles > 0
+                       ? fmt::format("clearing: {} for {} and {} cycles (cleared after {} and {} "
+                                     "cycles)",
+                                     to_string(raw), ns(now - st.pending_since), st.pending_cycles,
+                                     ns(h.clear_after_ns), h.clear_after_cycles)
+                       : fmt::format("clearing: {} for {} (cleared after {})", to_string(raw),
+                                     ns(now - st.pending_since), ns(h.clear_after_ns)));
     for (const auto& m : st.last_messages) {
       s.merge(rank(m.level) > rank(shown) ? shown : m.level, m.text);
     }

@@ -56,7 +56,8 @@ TEST_CASE("A diagnosis section parses into the graph's configuration", "[deploy]
   startup: 2s
   hysteresis: {raise_after: 100ms, clear_after: 3s}
   units:
-    - {name: planner, depends_on: [sensor], latch: true, hysteresis: {clear_after: 1s}}
+    - {name: planner, depends_on: [sensor], latch: true,
+       hysteresis: {clear_after: 1s, raise_after_cycles: 2, clear_after_cycles: 3}}
   aggregates:
     - {name: inputs, op: k_of_n, k: 1, members: [sensor, logger], depends_on: [planner]}
     - {name: all, members: [sensor, planner, logger]}
@@ -73,6 +74,8 @@ TEST_CASE("A diagnosis section parses into the graph's configuration", "[deploy]
   CHECK(c.units[0].latch);
   REQUIRE(c.units[0].hysteresis.has_value());
   CHECK(c.units[0].hysteresis->clear_after_ns == kNanosPerSecond);
+  CHECK(c.units[0].hysteresis->raise_after_cycles == 2);
+  CHECK(c.units[0].hysteresis->clear_after_cycles == 3);
   REQUIRE(c.aggregates.size() == 2);
   CHECK(c.aggregates[0].op == monitor::AggregateOp::KOfN);
   CHECK(c.aggregates[0].k == 1);

@@ -149,6 +149,30 @@ TEST_CASE("Hysteresis: a status must hold before it is shown, and its end before
   CHECK(shown(StatusLevel::Ok, 9 * kS).level() == StatusLevel::Ok);
 }
 
+TEST_CASE("Hysteresis by monitor cycles: a status must hold for N cycles", "[monitor][diagnosis]") {
+  DiagnosisConfig c;
+  c.hysteresis = {.raise_after_cycles = 3, .clear_after_cycles = 2};
+  DiagnosisGraph g(c);
+  Nanos t = 0;
+  const auto shown = [&](StatusLevel raw) {
+    ReportSet s;
+    s.components.push_back(unit("node", raw));
+    g.apply(s, t += kS / 10);
+    return get(s, "node").status;
+  };
+  CHECK(shown(StatusLevel::Ok).ok());
+  CHECK(shown(StatusLevel::Error).ok());         // 1 cycle
+  const Status two = shown(StatusLevel::Error);  // 2 cycles
+  CHECK(two.ok());
+  CHECK_THAT(two.summary(), Catch::Contains("ERROR for 100ms and 2 cycles (shown after 0ns and 3 "
+                                            "cycles)"));
+  CHECK(shown(StatusLevel::Error).level() == StatusLevel::Error);  // 3 cycles: shown
+  CHECK(shown(StatusLevel::Ok).level() == StatusLevel::Error);     // clearing, 1 cycle
+  CHECK(shown(StatusLevel::Error).level() == StatusLevel::Error);  // back: the count restarts
+  CHECK(shown(StatusLevel::Ok).level() == StatusLevel::Error);
+  CHECK(shown(StatusLevel::Ok).ok());  // 2 cycles OK: cleared
+}
+
 TEST_CASE("Start-up suppression and latches", "[monitor][diagnosis]") {
   DiagnosisConfig c;
   c.startup_ns = 5 * kS;

@@ -25,6 +25,7 @@
 /// from one cycle to the next. Not RT-safe, not thread-safe: the monitor's thread applies it.
 
 #include <cstddef>
+#include <cstdint>
 #include <map>
 #include <optional>
 #include <string>
@@ -38,10 +39,14 @@
 namespace vigil::monitor {
 
 /// How long a status must hold before it is shown. A worse status than the one shown is shown
-/// once it has held `raise_after_ns`; a better one once it has held `clear_after_ns`. 0: at once.
+/// once it has held `raise_after_ns` and `raise_after_cycles` monitor cycles (the cycle it first
+/// appears in is the first); a better one once it has held `clear_after_ns` and
+/// `clear_after_cycles`. 0: at once.
 struct Hysteresis {
   Nanos raise_after_ns = 0;
   Nanos clear_after_ns = 0;
+  std::uint32_t raise_after_cycles = 0;
+  std::uint32_t clear_after_cycles = 0;
   friend bool operator==(const Hysteresis&, const Hysteresis&) = default;
 };
 
@@ -121,6 +126,7 @@ class DiagnosisGraph {
     StatusLevel shown = StatusLevel::Ok;
     StatusLevel pending = StatusLevel::Ok;
     Nanos pending_since = 0;
+    std::uint32_t pending_cycles = 0;  // consecutive cycles `pending` has held, this one included
     std::vector<StatusMessage> last_messages;  // of the latest status not OK
     bool latched = false;
     std::vector<StatusMessage> latched_messages;
