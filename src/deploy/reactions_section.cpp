@@ -99,11 +99,19 @@ ReactionsSpec parse_reactions(const config::Node& node) {
   ReactionsSpec spec;
   spec.defined = true;
   if (!node.is_mapping()) {
-    node.error("expected a mapping with dry_run and rules");
+    node.error("expected a mapping with dry_run, policy, priority and rules");
     return spec;
   }
-  node.reject_unknown_keys({"dry_run", "rules"});
+  node.reject_unknown_keys({"dry_run", "policy", "priority", "rules"});
   spec.dry_run = node.optional("dry_run", false);
+  static constexpr config::EnumName<platform::SchedPolicy> kPolicies[] = {
+      {"FIFO", platform::SchedPolicy::Fifo}, {"OTHER", platform::SchedPolicy::Other}};
+  spec.policy = node.optional_enum("policy", platform::SchedPolicy::Other, kPolicies);
+  if (spec.policy == platform::SchedPolicy::Fifo) {
+    spec.priority = node.required<int>("priority", config::in_range(1, 99));
+  } else {
+    spec.priority = node.optional("priority", 0, config::in_range(0, 0));
+  }
   const config::Node rules = node["rules"];
   if (!rules.defined() || rules.is_null()) return spec;
   if (!rules.is_sequence()) {

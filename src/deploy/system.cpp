@@ -193,6 +193,7 @@ void System::configure_reactions(const ComponentFactory& factory) {
     reactions.add_handler(h.name, h.fn, h.budget_ns);
   }
   reactions.set_dry_run(spec.dry_run);
+  reactions.set_scheduling(spec.policy, spec.priority);
   std::vector<std::string> known = known_units();
   for (const auto& a : spec_.diagnosis.config.aggregates) known.push_back(a.name);
   const std::vector<std::string_view> units(known.begin(), known.end());

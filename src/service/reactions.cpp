@@ -98,14 +98,24 @@ expected<void, Error> Reactions::start(supervisor::EventHub& events,
   platform::ThreadConfig tc;
   tc.name = "vigil-react";
   tc.stack_bytes = options_.stack_bytes;
+  tc.policy = options_.policy;
+  tc.priority = options_.priority;
   auto t = platform::Thread::spawn(tc, [this] { run(); });
+  realtime_ = t.has_value() && options_.policy == platform::SchedPolicy::Fifo;
+  if (!t && options_.policy == platform::SchedPolicy::Fifo) {
+    tc.policy = platform::SchedPolicy::Other;  // refused: run, and say so in the unit
+    tc.priority = 0;
+    t = platform::Thread::spawn(tc, [this] { run(); });
+  }
   if (!t) return unexpected(Error{"reactions: " + t.error().message});
   thread_ = std::move(*t);
   const bool wants_events = std::any_of(reactions_.begin(), reactions_.end(),
                                         [](const Reaction& r) { return r.on.event.has_value(); });
   events_ = &events;
   if (wants_events) {
-    subscription_ = events.subscribe([this](const supervisor::Event& e) { on_event(e); });
+    // The dispatcher that takes the immediate actions runs as the reaction thread does.
+    subscription_ = events.subscribe([this](const supervisor::Event& e) { on_event(e); }, 0,
+                                     options_.policy, options_.priority);
   }
   return {};
 }
@@ -376,6 +386,10 @@ monitor::Report Reactions::unit(Nanos now) const {
   r.add_field(Field::of_count("queued", queue_.size()));
   r.add_field(Field::of_text("safe_state", safe_state_requested() ? "requested" : "no"));
   if (dry_run()) r.add_field(Field::of_text("mode", "dry run"));
+  r.add_field(Field::of_text("policy", realtime_ ? fmt::format("FIFO {}", options_.priority)
+                                       : options_.policy == platform::SchedPolicy::Fifo
+                                           ? "OTHER (FIFO refused)"
+                                           : "OTHER"));
   return r;
 }
 

@@ -212,6 +212,11 @@ EventHub::~EventHub() {
 }
 
 std::uint64_t EventHub::subscribe(EventCallback callback, std::size_t capacity) {
+  return subscribe(std::move(callback), capacity, platform::SchedPolicy::Other, 0);
+}
+
+std::uint64_t EventHub::subscribe(EventCallback callback, std::size_t capacity,
+                                  platform::SchedPolicy policy, int priority) {
   auto s = std::make_shared<Subscriber>();
   s->callback = std::move(callback);
   s->ring.resize(capacity != 0 ? capacity : options_.queue_capacity);
@@ -219,7 +224,16 @@ std::uint64_t EventHub::subscribe(EventCallback callback, std::size_t capacity) 
     std::lock_guard lock(mutex_);
     s->id = next_id_++;
   }
-  auto t = platform::Thread::spawn({.name = "vigil-events"}, [raw = s.get()] { raw->run(); });
+  platform::ThreadConfig tc;
+  tc.name = "vigil-events";
+  tc.policy = policy;
+  tc.priority = policy == platform::SchedPolicy::Fifo ? priority : 0;
+  auto t = platform::Thread::spawn(tc, [raw = s.get()] { raw->run(); });
+  if (!t && policy == platform::SchedPolicy::Fifo) {  // refused: SCHED_OTHER
+    tc.policy = platform::SchedPolicy::Other;
+    tc.priority = 0;
+    t = platform::Thread::spawn(tc, [raw = s.get()] { raw->run(); });
+  }
   if (!t) throw std::system_error(t.error().code, std::generic_category(), t.error().message);
   s->thread = std::move(*t);
   std::lock_guard lock(mutex_);

@@ -6,6 +6,8 @@
 /// ```yaml
 /// reactions:
 ///   dry_run: false                    # true: log what would be done, do nothing
+///   policy: FIFO                      # the reaction thread (default OTHER)
+///   priority: 30
 ///   rules:
 ///     - name: encoder_fault
 ///       on: {event: exception, component: encoder}
@@ -35,6 +37,9 @@ namespace vigil::deploy {
 struct ReactionsSpec {
   bool defined = false;
   bool dry_run = false;
+  /// The reaction thread's scheduling (`policy`, `priority`).
+  platform::SchedPolicy policy = platform::SchedPolicy::Other;
+  int priority = 0;
   std::vector<service::Reaction> rules;
   /// Per rule, its node (for the errors found when the system is built).
   std::vector<config::Node> nodes;

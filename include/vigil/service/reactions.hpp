@@ -129,6 +129,13 @@ struct ReactionsOptions {
   Nanos default_budget_ns = 10 * kNanosPerMilli;
   /// The reaction thread's stack.
   std::size_t stack_bytes = std::size_t{256} * 1024;
+  /// The scheduling of the reaction thread and of the event dispatcher that takes the immediate
+  /// actions: SCHED_OTHER by default; SCHED_FIFO (with `priority` 1..99, below the real-time
+  /// components') wakes them at once on a loaded host. When FIFO
+  /// is refused (no privilege) the thread runs SCHED_OTHER and start() says nothing: the
+  /// `vigil.reactions` unit shows the policy it got.
+  platform::SchedPolicy policy = platform::SchedPolicy::Other;
+  int priority = 0;
 };
 
 /// Counters, exact. Any thread.
@@ -163,6 +170,11 @@ class Reactions {
   expected<void, Error> add(Reaction reaction);
   [[nodiscard]] const std::vector<Reaction>& reactions() const noexcept { return reactions_; }
   void set_dry_run(bool dry_run) noexcept { dry_run_.store(dry_run, std::memory_order_relaxed); }
+  /// The reaction thread's scheduling (before start()).
+  void set_scheduling(platform::SchedPolicy policy, int priority) noexcept {
+    options_.policy = policy;
+    options_.priority = priority;
+  }
   [[nodiscard]] bool dry_run() const noexcept { return dry_run_.load(std::memory_order_relaxed); }
 
   /// Starts the reaction thread and subscribes to `events` (when any reaction needs it).
@@ -222,6 +234,7 @@ class Reactions {
   Nanos running_since_ = 0;
   Nanos running_budget_ = 0;
   bool stopping_ = false;
+  bool realtime_ = false;  // the thread got SCHED_FIFO
   platform::Thread thread_;
 };
 

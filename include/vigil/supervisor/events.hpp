@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "vigil/platform/clock.hpp"
+#include "vigil/platform/thread.hpp"
 
 namespace vigil::supervisor {
 
@@ -161,6 +162,11 @@ class EventHub {
   /// (0: the hub's default). Returns its id (never 0). Throws std::system_error if the thread
   /// cannot be created.
   std::uint64_t subscribe(EventCallback callback, std::size_t capacity = 0);
+  /// The same, the dispatcher thread on `policy` (SCHED_FIFO with `priority` 1..99: the
+  /// reactions' subscriber, woken at once on a loaded host); a refused SCHED_FIFO falls back to
+  /// SCHED_OTHER.
+  std::uint64_t subscribe(EventCallback callback, std::size_t capacity,
+                          platform::SchedPolicy policy, int priority);
   /// Removes a subscriber: waits for the callback under way, joins its thread; events still
   /// queued are dropped. Unknown ids are ignored. Must not be called from that callback.
   void unsubscribe(std::uint64_t id);
