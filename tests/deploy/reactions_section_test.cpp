@@ -130,6 +130,13 @@ TEST_CASE("A bad reactions section is an error at its line and column", "[deploy
                       Catch::Contains("'a' is configured twice (first at line 10)"));
     CHECK_THAT(e, Catch::Contains("r.yaml:13:") && Catch::Contains("OK"));
   }
+  SECTION("a FIFO reaction thread without its priority") {
+    const std::string e = errors_of(R"(reactions:
+  policy: FIFO
+  rules: [{name: x, on: {event: exception}, safe_state: true}]
+)");
+    CHECK_THAT(e, Catch::Contains("r.yaml:9:3: reactions.priority: required key is missing"));
+  }
   SECTION("a reaction on reactions") {
     const std::string e = errors_of(R"(reactions:
   rules: [{name: loop, on: {event: reaction}, safe_state: true}]
