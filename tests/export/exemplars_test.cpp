@@ -38,6 +38,18 @@ std::shared_ptr<const supervisor::FlightRecord> record(std::uint32_t id, std::ui
   return r;
 }
 
+Event event(std::uint64_t seq, EventKind kind, std::uint32_t id, std::uint64_t cycle,
+            Nanos fault_ns = 0, bool traced = false) {
+  Event e;
+  e.seq = seq;
+  e.kind = kind;
+  e.component_id = id;
+  e.cycle = cycle;
+  e.fault_ns = fault_ns;
+  e.traced = traced;
+  return e;
+}
+
 const BucketExemplar* find(const ComponentHistograms& h, TimingHistogram which,
                            std::uint8_t bucket) {
   for (const BucketExemplar& b : h.exemplars) {
@@ -110,19 +122,10 @@ TEST_CASE("The overrun counter's exemplar is the latest overrun event, traced wh
           "[export][exemplar]") {
   ExemplarBook book;
   std::vector<ComponentHistograms> hs{component(3, "planner")};
-  std::vector<Event> events(3);
-  events[0] = Event{.seq = 4,
-                    .kind = EventKind::Overrun,
-                    .component_id = 3,
-                    .cycle = 40,
-                    .fault_ns = 9 * kNanosPerSecond};
-  events[1] = Event{.seq = 5, .kind = EventKind::Exception, .component_id = 3, .cycle = 41};
-  events[2] = Event{.seq = 6,
-                    .kind = EventKind::OverrunLimit,
-                    .component_id = 3,
-                    .cycle = 44,
-                    .fault_ns = 9'250 * kNanosPerMilli,
-                    .traced = true};
+  const std::vector<Event> events{
+      event(4, EventKind::Overrun, 3, 40, 9 * kNanosPerSecond),
+      event(5, EventKind::Exception, 3, 41),
+      event(6, EventKind::OverrunLimit, 3, 44, 9'250 * kNanosPerMilli, true)};
   book.update(hs, events, {}, kClock);
   CHECK(hs[0].overrun.cycle == 44);
   CHECK(hs[0].overrun.value == 1);
@@ -130,8 +133,7 @@ TEST_CASE("The overrun counter's exemplar is the latest overrun event, traced wh
   CHECK(hs[0].overrun.unix_ns == 1'700'000'009'250'000'000);
   // An older overrun reported later (another drain's) does not move it back.
   hs = {component(3, "planner")};
-  const std::vector<Event> older{
-      Event{.seq = 7, .kind = EventKind::Overrun, .component_id = 3, .cycle = 43}};
+  const std::vector<Event> older{event(7, EventKind::Overrun, 3, 43)};
   book.update(hs, older, {}, kClock);
   CHECK(hs[0].overrun.cycle == 44);
 }
@@ -153,11 +155,7 @@ TEST_CASE("OpenMetrics writes the exemplars on buckets and the overrun counter, 
   REQUIRE(s.histograms[0].worst[exec].current.cycle == 121);
   const std::uint32_t id = s.histograms[0].id;
   ExemplarBook book;
-  const std::vector<Event> events{Event{.seq = 3,
-                                        .kind = EventKind::Overrun,
-                                        .component_id = id,
-                                        .cycle = 77,
-                                        .fault_ns = h.clock.now()}};
+  const std::vector<Event> events{event(3, EventKind::Overrun, id, 77, h.clock.now())};
   const std::vector<std::shared_ptr<const supervisor::FlightRecord>> frozen{
       record(id, 12, 100, 130)};
   book.update(s.histograms, events, frozen, ExemplarClock::now());
