@@ -110,6 +110,13 @@ struct AggregatorFrozenClock : supervisor::ComponentAggregator {
             supervisor::AggregatorOptions{.clock = Clock{&frozen_now}}) {}
 };
 
+/// An experiment: the aggregator without the worst cycles per window (the exemplars' source,
+/// AggregatorOptions::worst_window_ns = 0), to show what finding them costs the catch-up.
+struct AggregatorWithoutWorstCycles : supervisor::ComponentAggregator {
+  AggregatorWithoutWorstCycles()
+      : supervisor::ComponentAggregator(supervisor::AggregatorOptions{.worst_window_ns = 0}) {}
+};
+
 template <class Handler>
 void throughput(benchmark::State& state) {
   const auto n = static_cast<std::size_t>(state.range(0));
@@ -278,6 +285,13 @@ BENCHMARK(vigil::bench::throughput<vigil::bench::AggregatorFrozenClock>)
     ->Name("supervisor/experiment:aggregator_without_clock_reads")
     ->ArgNames({"components", "per_port"})
     ->ArgsProduct({{1'000}, {10}})
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond);
+
+BENCHMARK(vigil::bench::throughput<vigil::bench::AggregatorWithoutWorstCycles>)
+    ->Name("supervisor/experiment:aggregator_without_worst_cycles")
+    ->ArgNames({"components", "per_port"})
+    ->ArgsProduct({{1'000}, {10, 256}})
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond);
 

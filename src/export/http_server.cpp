@@ -512,6 +512,7 @@ struct HttpServer::Impl {
   bool json_document(const std::string& path, detail::HttpResponse& res) const;
   void report_of(const std::string& name, detail::HttpResponse& res) const;
   void trace_of(const std::string& name, detail::HttpResponse& res) const;
+  void event_trace(std::string_view seq, detail::HttpResponse& res) const;
   void events(const detail::HttpRequest& req, detail::HttpResponse& res);
   void healthz(detail::HttpResponse& res);
 };
@@ -664,6 +665,15 @@ void HttpServer::Impl::route(const detail::HttpRequest& req, detail::HttpRespons
     events(req, res);
     return;
   }
+  constexpr std::string_view kEventPrefix = "/api/v1/events/";
+  constexpr std::string_view kTraceSuffix = "/trace";
+  if (options.event_trace && path.size() > kEventPrefix.size() + kTraceSuffix.size() &&
+      path.starts_with(kEventPrefix) && path.ends_with(kTraceSuffix)) {
+    const std::string_view p(path);
+    event_trace(p.substr(kEventPrefix.size(), p.size() - kEventPrefix.size() - kTraceSuffix.size()),
+                res);
+    return;
+  }
   constexpr std::string_view kTraceOf = "/api/v1/trace/";
   if (options.trace && path.size() > kTraceOf.size() && path.starts_with(kTraceOf)) {
     trace_of(path.substr(kTraceOf.size()), res);
@@ -770,6 +780,25 @@ void HttpServer::Impl::trace_of(const std::string& name, detail::HttpResponse& r
     return;
   }
   res.headers.emplace_back("Content-Disposition", "attachment; filename=\"vigil-trace.json\"");
+  res.set(std::move(*body), kJson);
+}
+
+void HttpServer::Impl::event_trace(std::string_view seq, detail::HttpResponse& res) const {
+  std::uint64_t n = 0;
+  const auto [end, ec] = std::from_chars(seq.data(), seq.data() + seq.size(), n);
+  if (ec != std::errc{} || end != seq.data() + seq.size() || n == 0) {
+    res.status = 404;
+    res.set(error_json("not an event sequence number: '" + std::string(seq) + "'"), kJson);
+    return;
+  }
+  auto body = options.event_trace(n);
+  if (!body) {
+    res.status = 404;
+    res.set(error_json(fmt::format("no flight record kept for event {}", n)), kJson);
+    return;
+  }
+  res.headers.emplace_back("Content-Disposition",
+                           fmt::format("attachment; filename=\"vigil-event-{}.trace.json\"", n));
   res.set(std::move(*body), kJson);
 }
 

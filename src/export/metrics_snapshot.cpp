@@ -20,6 +20,7 @@ std::vector<ComponentHistograms> collect_histograms(
                                 d.total.mean * static_cast<double>(d.total.count));
     h.latency = reduce_to_buckets(*d.latency);
     h.measured_period = reduce_to_buckets(*d.measured_period);
+    h.worst = {d.execution_worst, d.total_worst, d.latency_worst, d.measured_period_worst};
     out.push_back(std::move(h));
   });
   // visit_distributions() visits in id order: nothing to sort.

@@ -170,16 +170,28 @@ expected<void, Error> HttpOutput::start(OutputContext& context) {
         return trace_event_json(*r);
       };
     }
+    if (!o.event_trace) {
+      o.event_trace = [aggregator](std::uint64_t seq) -> std::optional<std::string> {
+        auto r = aggregator->frozen_record(seq);
+        if (!r) return std::nullopt;
+        return trace_event_json(*r);
+      };
+    }
   }
   auto server = std::make_unique<HttpServer>(std::move(o));
   if (auto ok = server->start(); !ok) return ok;
   server_ = std::move(server);
+  aggregator_ = &context.aggregator;
   return {};
 }
 
 void HttpOutput::publish(const Snapshot& snapshot) {
   if (!server_) return;
-  server_->publish(snapshot.reports, snapshot.histograms, snapshot.can_histograms);
+  std::vector<ComponentHistograms> histograms = snapshot.histograms;
+  std::vector<std::shared_ptr<const supervisor::FlightRecord>> frozen;
+  if (aggregator_ != nullptr) frozen = aggregator_->frozen_records();
+  exemplars_.update(histograms, snapshot.events, frozen, ExemplarClock::now());
+  server_->publish(snapshot.reports, std::move(histograms), snapshot.can_histograms);
 }
 
 void HttpOutput::stop(const Snapshot& final_snapshot) {
@@ -187,6 +199,7 @@ void HttpOutput::stop(const Snapshot& final_snapshot) {
   publish(final_snapshot);
   server_->stop();
   server_.reset();
+  aggregator_ = nullptr;
 }
 
 // --- textfile ----------------------------------------------------------------------------------

@@ -9,6 +9,7 @@
 #include <initializer_list>
 #include <iterator>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "utf8.hpp"
@@ -116,10 +117,14 @@ class Writer {
     append_number(out_, value);
     out_ += '\n';
   }
+  // `exemplar` (when not null and naming a cycle) is written in OpenMetrics only; the caller
+  // gives one only on a counter's `_total` or a histogram's `_bucket` sample.
   void sample_u(std::string_view name, std::string_view component,
-                std::initializer_list<Label> extra, std::uint64_t value) {
+                std::initializer_list<Label> extra, std::uint64_t value,
+                const CycleExemplar* exemplar = nullptr) {
     head(name, component, extra);
     fmt::format_to(std::back_inserter(out_), "{}", value);
+    if (om_ && exemplar != nullptr && exemplar->cycle != 0) append_exemplar(*exemplar);
     out_ += '\n';
   }
 
@@ -149,6 +154,21 @@ class Writer {
     out_ += ' ';
   }
 
+  // ` # {cycle="N",trace="M"} value [timestamp]`. The label set is two names of 5 characters
+  // and two 64-bit integers (at most 20 digits each): at most 50 code points, within
+  // OpenMetrics' 128.
+  void append_exemplar(const CycleExemplar& e) {
+    fmt::format_to(std::back_inserter(out_), " # {{cycle=\"{}\"", e.cycle);
+    if (e.trace != 0) fmt::format_to(std::back_inserter(out_), ",trace=\"{}\"", e.trace);
+    out_ += "} ";
+    append_number(out_, e.value);
+    if (e.unix_ns > 0) {
+      // Milliseconds: what Prometheus keeps.
+      const std::int64_t ms = e.unix_ns / 1'000'000;
+      fmt::format_to(std::back_inserter(out_), " {}.{:03}", ms / 1000, ms % 1000);
+    }
+  }
+
   std::string& out_;
   bool om_;
   std::string pending_;
@@ -166,20 +186,46 @@ const std::array<std::string, kBucketBounds>& le_labels() {
   return labels;
 }
 
+// The exemplars of one histogram: `exemplars` (sorted by histogram, bucket) narrowed to those of
+// `histogram`; `at(i)` is bucket i's, or null.
+class HistogramExemplars {
+ public:
+  HistogramExemplars() = default;
+  HistogramExemplars(std::span<const BucketExemplar> exemplars, TimingHistogram histogram) {
+    const auto first =
+        std::find_if(exemplars.begin(), exemplars.end(),
+                     [&](const BucketExemplar& b) { return b.histogram == histogram; });
+    const auto last = std::find_if(
+        first, exemplars.end(), [&](const BucketExemplar& b) { return b.histogram != histogram; });
+    of_ = exemplars.subspan(static_cast<std::size_t>(first - exemplars.begin()),
+                            static_cast<std::size_t>(last - first));
+  }
+  [[nodiscard]] const CycleExemplar* at(std::size_t bucket) {
+    while (next_ < of_.size() && of_[next_].bucket < bucket) ++next_;
+    return next_ < of_.size() && of_[next_].bucket == bucket ? &of_[next_].exemplar : nullptr;
+  }
+
+ private:
+  std::span<const BucketExemplar> of_;
+  std::size_t next_ = 0;  // buckets are asked for in order
+};
+
 void histogram_samples(Writer& w, std::string_view base, std::string_view component,
-                       const BucketCounts* buckets, const StatsSummary& stats) {
+                       const BucketCounts* buckets, const StatsSummary& stats,
+                       HistogramExemplars exemplars = {}) {
   const std::string bucket = std::string(base) + "_bucket";
   std::uint64_t count = stats.count;
   double sum_ns = stats.mean * static_cast<double>(stats.count);
   if (buckets != nullptr) {
     const auto& le = le_labels();
     for (std::size_t i = 0; i < kBucketBounds; ++i) {
-      w.sample_u(bucket, component, {{"le", le[i]}}, buckets->cumulative[i]);
+      w.sample_u(bucket, component, {{"le", le[i]}}, buckets->cumulative[i], exemplars.at(i));
     }
     count = buckets->count;
     sum_ns = buckets->sum_ns;
   }
-  w.sample_u(bucket, component, {{"le", "+Inf"}}, count);
+  w.sample_u(bucket, component, {{"le", "+Inf"}}, count,
+             buckets != nullptr ? exemplars.at(kBucketBounds) : nullptr);
   w.sample(std::string(base) + "_sum", component, {}, seconds(sum_ns));
   w.sample_u(std::string(base) + "_count", component, {}, count);
 }
@@ -484,9 +530,13 @@ void component_counter_families(const Section& s) {
       s, "vigil_component_samples_total",
       "Cycle samples the supervisor received (fewer than cycles when the port dropped some).",
       [](const Report& r) { return r.samples; });
-  component_counter(s, "vigil_component_overruns_total",
-                    "Cycles that ended after the next release.",
-                    [](const Report& r) { return r.counters.overruns; });
+  s.w.family("vigil_component_overruns_total", Type::Counter,
+             "Cycles that ended after the next release.");
+  s.each(is_component, [&](const Report& r) {
+    const ComponentHistograms* h = s.snap.histograms_of(r);
+    s.w.sample_u("vigil_component_overruns_total", r.name, {}, r.counters.overruns,
+                 h != nullptr ? &h->overrun : nullptr);
+  });
   component_counter(s, "vigil_component_missed_cycles_total",
                     "Releases skipped or run late because of overruns.",
                     [](const Report& r) { return r.counters.missed_cycles; });
@@ -512,33 +562,37 @@ void component_counter_families(const Section& s) {
 // the snapshot has them, else the count and sum of `pick_stats(report)`.
 template <class PickBuckets, class PickStats>
 void component_histogram(const Section& s, std::string_view base, std::string_view help,
-                         PickBuckets pick_buckets, PickStats pick_stats) {
+                         TimingHistogram which, PickBuckets pick_buckets, PickStats pick_stats) {
   s.w.family(base, Type::Histogram, help);
   s.each(is_component, [&](const Report& r) {
     const ComponentHistograms* h = s.snap.histograms_of(r);
-    histogram_samples(s.w, base, r.name, h != nullptr ? &pick_buckets(*h) : nullptr, pick_stats(r));
+    histogram_samples(
+        s.w, base, r.name, h != nullptr ? &pick_buckets(*h) : nullptr, pick_stats(r),
+        h != nullptr ? HistogramExemplars(h->exemplars, which) : HistogramExemplars());
   });
 }
 
 void component_histogram_families(const Section& s) {
   component_histogram(
       s, "vigil_component_execution_seconds",
-      "Time spent in the component's on_update(), per cycle.",
+      "Time spent in the component's on_update(), per cycle.", TimingHistogram::Execution,
       [](const ComponentHistograms& h) -> const BucketCounts& { return h.execution; },
       [](const Report& r) -> const StatsSummary& { return r.execution_ns; });
   component_histogram(
       s, "vigil_component_total_seconds",
       "Time per cycle including supervision (on_update() plus the latest measured overhead).",
+      TimingHistogram::Total,
       [](const ComponentHistograms& h) -> const BucketCounts& { return h.total; },
       [](const Report& r) -> const StatsSummary& { return r.total_ns; });
   component_histogram(
       s, "vigil_component_wakeup_latency_seconds",
-      "Wake-up latency: start of a cycle minus its scheduled release.",
+      "Wake-up latency: start of a cycle minus its scheduled release.", TimingHistogram::Latency,
       [](const ComponentHistograms& h) -> const BucketCounts& { return h.latency; },
       [](const Report& r) -> const StatsSummary& { return r.latency_ns; });
   component_histogram(
       s, "vigil_component_measured_period_seconds",
       "Measured period: start-to-start time of consecutive cycles.",
+      TimingHistogram::MeasuredPeriod,
       [](const ComponentHistograms& h) -> const BucketCounts& { return h.measured_period; },
       [](const Report& r) -> const StatsSummary& { return r.measured_period_ns; });
 }

@@ -102,6 +102,11 @@ struct ComponentAggregator::Slot {
   mutable Nanos last_overhead = 0;     // latest measured supervision overhead (statistics' order)
   mutable Nanos stats_last_start = 0;  // start of the latest cycle in the statistics
   mutable bool stats_has_prev = false;
+  // The worst cycle of each distribution (execution, total, latency, period) by window of
+  // worst_window_ns (0: not kept), taken at each flush: note_worst().
+  mutable std::array<WorstCycles, 4> worst{};
+  mutable Nanos worst_window_end = 0;  // component clock; 0: before the first window
+  Nanos worst_window_ns = 0;
 
   // Cycles on their way into the statistics: the values of a run of up to kRun cycles, staged,
   // then each statistic takes its run at once (its EWMA chain and histogram increments
@@ -111,7 +116,13 @@ struct ComponentAggregator::Slot {
   // could alias it). The staging loop has no flush in it: it stages a whole run, then flushes.
   struct Staging {
     static constexpr std::size_t kRun = 64;
+    static_assert(kRun <= 256, "period_of holds indices as bytes");
     std::array<Nanos, kRun> user, total, latency, period, overhead;
+    // Each staged cycle's number and start (by the index of user/total/latency), and which of
+    // them each staged period ends: for the worst cycles (note_worst).
+    std::array<std::uint64_t, kRun> cycle;
+    std::array<Nanos, kRun> start;
+    std::array<std::uint8_t, kRun> period_of;
   };
   struct Run {
     std::size_t n = 0, np = 0, no = 0;
@@ -129,6 +140,7 @@ struct ComponentAggregator::Slot {
     if ((r.flags & CycleRecord::kWarmup) != 0) [[unlikely]]
       return;  // kept out of the statistics; still the start of the next period
     if (had_prev && (r.flags & CycleRecord::kGap) == 0) {
+      st.period_of[run.np] = static_cast<std::uint8_t>(run.n);
       st.period[run.np++] = r.start_ns - before;
     }
     if (r.overhead_ns > 0) {
@@ -139,6 +151,8 @@ struct ComponentAggregator::Slot {
     st.user[run.n] = execution_ns;
     st.total[run.n] = execution_ns + run.last_overhead;
     st.latency[run.n] = r.start_ns - r.release_ns;
+    st.cycle[run.n] = r.cycle;
+    st.start[run.n] = r.start_ns;
     ++run.n;
   }
   [[gnu::always_inline]] void flush(const Staging& st, Run& run) const noexcept {
@@ -147,7 +161,37 @@ struct ComponentAggregator::Slot {
         {st.user.data(), st.latency.data(), st.period.data(), st.total.data()},
         {run.n, run.n, run.np, run.n});
     overhead.add_all(st.overhead.data(), run.no);
+    if (worst_window_ns > 0 && run.n > 0) note_worst(st, run);
     run.n = run.np = run.no = 0;
+  }
+  // Keeps the worst cycle of each distribution in the current window: a run's cycles count in
+  // the window its first cycle started in (a run is at most kRun cycles). A pass over each
+  // staged array; the worst's number is looked up only when it beats the window's.
+  [[gnu::always_inline]] void note_worst(const Staging& st, const Run& run) const noexcept {
+    const Nanos first = st.start[0];
+    if (worst_window_end == 0) {
+      worst_window_end = first + worst_window_ns;
+    } else if (first >= worst_window_end) {
+      const Nanos behind = first - worst_window_end;  // a window without cycles: none previous
+      for (WorstCycles& w : worst) {
+        w.previous = behind < worst_window_ns ? w.current : WorstCycle{};
+        w.current = WorstCycle{};
+      }
+      worst_window_end += (behind / worst_window_ns + 1) * worst_window_ns;
+    }
+    const auto keep = [&](WorstCycles& w, const std::array<Nanos, Staging::kRun>& v, std::size_t n,
+                          bool of_periods) {
+      if (n == 0) return;
+      std::size_t best = 0;
+      for (std::size_t i = 1; i < n; ++i) best = v[i] > v[best] ? i : best;
+      if (w.current.cycle != 0 && v[best] <= w.current.value_ns) return;
+      const std::size_t at = of_periods ? st.period_of[best] : best;
+      w.current = WorstCycle{.cycle = st.cycle[at], .value_ns = v[best], .start_ns = st.start[at]};
+    };
+    keep(worst[0], st.user, run.n, false);
+    keep(worst[1], st.total, run.n, false);
+    keep(worst[2], st.latency, run.n, false);
+    keep(worst[3], st.period, run.np, true);
   }
   // Takes cycles into the statistics, in order (the period is from the previous one): `feed`
   // stages them, flushing at least every kRun cycles. Under the mutex. Inlined into the
@@ -454,6 +498,7 @@ void ComponentAggregator::on_join(const Entry& e) {
   const std::size_t quarter = options_.recorder.cycles / 4;
   slot->catch_up_at = quarter == 0 ? options_.recorder.cycles
                                    : 2 * quarter + static_cast<std::size_t>(e.id) % quarter;
+  slot->worst_window_ns = options_.worst_window_ns > 0 ? options_.worst_window_ns : 0;
   slot->data.id = e.id;
   slot->data.name = e.name;
   slot->data.joined_at = options_.clock.now();
@@ -1119,6 +1164,10 @@ void ComponentAggregator::visit_distributions(
     d.overhead = &s->overhead;
     d.total_shift_ns = s->last_overhead;
     d.total = s->total.summary(StatsSummary{}, 0);
+    d.execution_worst = s->worst[0];
+    d.total_worst = s->worst[1];
+    d.latency_worst = s->worst[2];
+    d.measured_period_worst = s->worst[3];
     visit(d);
   }
 }

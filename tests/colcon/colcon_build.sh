@@ -55,6 +55,17 @@ if [[ "$listed" != "vigil (ros.cmake) vigil_colcon_consumer (ros.cmake) " ]]; th
   exit 1
 fi
 
+# Cyclone DDS is an optional dependency (package.xml, a REP 149 condition): declared only when
+# the environment sets VIGIL_WITH_CYCLONEDDS=1.
+build_deps() { colcon info --base-paths src vigil | sed -n 's/^ *build: //p'; }
+without=" $(build_deps) "
+with=" $(VIGIL_WITH_CYCLONEDDS=1 build_deps) "
+if [[ "$without" == *" cyclonedds "* || "$with" != *" cyclonedds "* ]]; then
+  echo "cyclonedds: expected only with VIGIL_WITH_CYCLONEDDS=1; build dependencies were" \
+    "'$without' without it, '$with' with it" >&2
+  exit 1
+fi
+
 jobs="${VIGIL_COLCON_JOBS:-$(nproc)}"
 # The library targets only: the options of cmake/VigilOptions.cmake that default to ON for a
 # top-level project (which vigil is here) are turned off, apart from the install.

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <map>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -11,11 +12,26 @@
 
 namespace vigil::test {
 
+// An OpenMetrics exemplar: `# {labels} value [timestamp]` after a sample's value.
+struct Exemplar {
+  std::vector<std::pair<std::string, std::string>> labels;  // unescaped values
+  double value = 0;
+  std::optional<double> timestamp;
+
+  [[nodiscard]] std::string label(std::string_view n) const {
+    for (const auto& [k, v] : labels) {
+      if (k == n) return v;
+    }
+    return {};
+  }
+};
+
 struct Sample {
   std::string name;
   std::vector<std::pair<std::string, std::string>> labels;  // unescaped values
   std::string value_text;
   double value = 0;
+  std::optional<Exemplar> exemplar;
 
   [[nodiscard]] std::string label(std::string_view n) const {
     for (const auto& [k, v] : labels) {
@@ -67,6 +83,41 @@ inline std::string unescape(std::string_view s, bool quotes) {
   }
   return out;
 }
+
+// Code points of UTF-8 text (the exemplar's length limit counts them).
+inline std::size_t code_points(std::string_view s) {
+  std::size_t n = 0;
+  for (char c : s) n += (static_cast<unsigned char>(c) & 0xC0U) != 0x80U ? 1 : 0;
+  return n;
+}
+
+inline bool valid_label_name(std::string_view n) {
+  if (n.empty()) return false;
+  for (std::size_t i = 0; i < n.size(); ++i) {
+    const char c = n[i];
+    const bool alpha = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_';
+    if (!alpha && !(i > 0 && c >= '0' && c <= '9')) return false;
+  }
+  return true;
+}
+
+// A number as the formats write it ("+Inf", "-Inf", "NaN" or a decimal); throws otherwise.
+inline double parse_number(const std::string& text) {
+  if (text == "+Inf") return INFINITY;
+  if (text == "-Inf") return -INFINITY;
+  if (text == "NaN") return NAN;
+  char* endp = nullptr;
+  const double v = std::strtod(text.c_str(), &endp);
+  if (text.empty() || endp == nullptr || *endp != '\0' || text.find_first_of(" \t") != text.npos) {
+    throw std::runtime_error("bad number '" + text + "'");
+  }
+  return v;
+}
+
+// Reads `{name="value",...}` from `line` at `i` (which is at '{'); leaves `i` after the '}'.
+// Label names must be valid and unique.
+inline std::vector<std::pair<std::string, std::string>> parse_labels(const std::string& line,
+                                                                     std::size_t& i);
 
 // Which family a sample belongs to, given the declared families.
 inline bool belongs(const Family& f, std::string_view sample, bool om) {
@@ -128,56 +179,105 @@ inline Exposition parse_exposition(const std::string& text, bool om) {
       }
       continue;
     }
-    // A sample: name{labels} value
+    // A sample: name{labels} value [# {labels} value [timestamp]]
     Sample s;
     std::size_t i = 0;
     while (i < line.size() && line[i] != '{' && line[i] != ' ') ++i;
     s.name = line.substr(0, i);
-    if (i < line.size() && line[i] == '{') {
-      ++i;
-      while (true) {
-        const std::size_t eq = line.find('=', i);
-        if (eq == std::string::npos || line[eq + 1] != '"') fail("bad label");
-        const std::string key = line.substr(i, eq - i);
-        std::size_t j = eq + 2;
-        std::string raw;
-        while (j < line.size() && line[j] != '"') {
-          if (line[j] == '\\') raw += line[j++];
-          if (j < line.size()) raw += line[j++];
-        }
-        if (j >= line.size()) fail("unterminated label value");
-        s.labels.emplace_back(key, unescape(raw, true));
-        i = j + 1;
-        if (line[i] == ',') {
-          ++i;
-          continue;
-        }
-        if (line[i] == '}') {
-          ++i;
-          break;
-        }
-        fail("bad label separator");
-      }
+    try {
+      if (i < line.size() && line[i] == '{') s.labels = parse_labels(line, i);
+    } catch (const std::runtime_error& err) {
+      fail(err.what());
     }
     if (i >= line.size() || line[i] != ' ') fail("no value");
-    s.value_text = line.substr(i + 1);
-    if (s.value_text == "+Inf") {
-      s.value = INFINITY;
-    } else if (s.value_text == "-Inf") {
-      s.value = -INFINITY;
-    } else if (s.value_text == "NaN") {
-      s.value = NAN;
-    } else {
-      char* endp = nullptr;
-      s.value = std::strtod(s.value_text.c_str(), &endp);
-      if (endp == nullptr || *endp != '\0' || s.value_text.empty()) fail("bad value");
+    const std::size_t hash = line.find(" # ", i);
+    s.value_text = line.substr(i + 1, hash == std::string::npos ? hash : hash - i - 1);
+    try {
+      s.value = parse_number(s.value_text);
+    } catch (const std::runtime_error&) {
+      fail("bad value");
     }
     if (e.families.empty() || !belongs(e.families.back(), s.name, om)) {
       fail("sample outside its family (or family without TYPE)");
     }
+    if (hash != std::string::npos) {
+      // An exemplar: OpenMetrics only, on a counter's _total or a histogram's _bucket.
+      const Family& f = e.families.back();
+      if (!om) fail("exemplar in the 0.0.4 text format");
+      const bool total = f.type == "counter" && s.name == f.name + "_total";
+      const bool bucket = f.type == "histogram" && s.name == f.name + "_bucket";
+      if (!total && !bucket) fail("exemplar outside a counter's _total or a histogram's _bucket");
+      Exemplar x;
+      std::size_t j = hash + 3;
+      if (j >= line.size() || line[j] != '{') fail("exemplar without its label set");
+      try {
+        x.labels = parse_labels(line, j);
+      } catch (const std::runtime_error& err) {
+        fail(std::string("exemplar: ") + err.what());
+      }
+      std::size_t length = 0;
+      for (const auto& [k, v] : x.labels) length += code_points(k) + code_points(v);
+      if (length > 128) fail("exemplar label set longer than 128 code points");
+      if (j >= line.size() || line[j] != ' ') fail("exemplar without a value");
+      const std::string rest = line.substr(j + 1);
+      const std::size_t sp = rest.find(' ');
+      try {
+        x.value = parse_number(rest.substr(0, sp));
+        if (sp != std::string::npos) x.timestamp = parse_number(rest.substr(sp + 1));
+      } catch (const std::runtime_error& err) {
+        fail(std::string("exemplar: ") + err.what());
+      }
+      if (std::isnan(x.value)) fail("exemplar value NaN");
+      if (x.timestamp && !std::isfinite(*x.timestamp)) fail("exemplar timestamp not finite");
+      if (bucket) {
+        const std::string le = s.label("le");
+        if (le.empty()) fail("bucket without le");
+        if (!(x.value <= parse_number(le))) fail("exemplar value above its bucket's le");
+      }
+      s.exemplar = std::move(x);
+    }
     e.families.back().samples.push_back(std::move(s));
   }
   return e;
+}
+
+inline std::vector<std::pair<std::string, std::string>> parse_labels(const std::string& line,
+                                                                     std::size_t& i) {
+  std::vector<std::pair<std::string, std::string>> labels;
+  ++i;  // '{'
+  if (i < line.size() && line[i] == '}') {
+    ++i;
+    return labels;
+  }
+  while (true) {
+    const std::size_t eq = line.find('=', i);
+    if (eq == std::string::npos || eq + 1 >= line.size() || line[eq + 1] != '"') {
+      throw std::runtime_error("bad label");
+    }
+    const std::string key = line.substr(i, eq - i);
+    if (!valid_label_name(key)) throw std::runtime_error("bad label name '" + key + "'");
+    for (const auto& l : labels) {
+      if (l.first == key) throw std::runtime_error("label '" + key + "' twice");
+    }
+    std::size_t j = eq + 2;
+    std::string raw;
+    while (j < line.size() && line[j] != '"') {
+      if (line[j] == '\\') raw += line[j++];
+      if (j < line.size()) raw += line[j++];
+    }
+    if (j >= line.size()) throw std::runtime_error("unterminated label value");
+    labels.emplace_back(key, unescape(raw, true));
+    i = j + 1;
+    if (i < line.size() && line[i] == ',') {
+      ++i;
+      continue;
+    }
+    if (i < line.size() && line[i] == '}') {
+      ++i;
+      return labels;
+    }
+    throw std::runtime_error("bad label separator");
+  }
 }
 
 }  // namespace vigil::test

@@ -8,7 +8,8 @@ CHECK is one of:
   openmetrics  prometheus_client's OpenMetrics parser accepts the OpenMetrics body
   reference    every metric of docs/reference/metrics.md is exposed, every exposed one documented
   chromium     headless Chromium shows every component with the JSON API's status; screenshot
-  prometheus   a real Prometheus scrapes the demo: components, histogram_quantile, an alert
+  prometheus   a real Prometheus scrapes the demo: components, histogram_quantile, an alert,
+               the exemplars (exemplar storage on): a worst cycle's, and the trace one names
   fleet        docs/fleet/: agent mode + remote write + the documented alerts, the Grafana JSON
   requests     bad requests get 4xx, 100 concurrent scrapers are served, slow clients are bounded,
                a second server on the port fails, the default listener is on 127.0.0.1 only
@@ -398,6 +399,7 @@ scrape_configs:
         web = free_port()
         log = open(os.path.join(args.out, "prometheus.log"), "w")
         prom = subprocess.Popen([prometheus, f"--config.file={tmp}/prometheus.yml",
+                                 "--enable-feature=exemplar-storage",
                                  f"--web.listen-address=127.0.0.1:{web}",
                                  f"--storage.tsdb.path={tmp}/data"],
                                 stdout=log, stderr=subprocess.STDOUT)
@@ -458,6 +460,7 @@ scrape_configs:
             targets = query("/api/v1/targets")["activeTargets"]
             if not targets or targets[0]["health"] != "up":
                 fail(f"target not up: {targets}")
+            exemplars, traced = check_exemplars(demo, query, poll)
         finally:
             prom.send_signal(signal.SIGTERM)
             try:
@@ -467,7 +470,45 @@ scrape_configs:
             log.close()
     demo.finish()
     print(f"Prometheus: {len(components)} components, p99(motor_left execution) = "
-          f"{p99 * 1e6:.1f} us, alert firing for {sorted(fired)}")
+          f"{p99 * 1e6:.1f} us, alert firing for {sorted(fired)}; {exemplars} exemplars stored, "
+          f"{traced}")
+
+
+def check_exemplars(demo, query, poll):
+    """The exemplars arrive in Prometheus' exemplar storage: on the timing histograms' buckets
+    (each within its bucket, naming a cycle), and one names a flight record that the demo serves
+    as a Perfetto trace."""
+    def stored():
+        now = time.time()
+        found = []
+        for family in ("vigil_component_execution_seconds_bucket",
+                       "vigil_component_wakeup_latency_seconds_bucket",
+                       "vigil_component_total_seconds_bucket",
+                       "vigil_component_measured_period_seconds_bucket",
+                       "vigil_component_overruns_total"):
+            for series in query("/api/v1/query_exemplars", query=family,
+                                start=now - 600, end=now + 60):
+                for e in series["exemplars"]:
+                    found.append((series["seriesLabels"], e))
+        traced = [(s, e) for s, e in found if "trace" in e["labels"]]
+        return (found, traced) if traced else None
+    found, traced = poll("an exemplar naming a flight-recorder trace", stored, timeout=60)
+    for series, e in found:
+        if not re.fullmatch(r"[1-9][0-9]*", e["labels"].get("cycle", "")):
+            fail(f"exemplar without a cycle: {series} {e}")
+        le = series.get("le")
+        if le is not None and float(e["value"]) > float(le):
+            fail(f"exemplar above its bucket: {series} {e}")
+        if abs(float(e["timestamp"]) - time.time()) > 600:
+            fail(f"exemplar timestamp not the cycle's time: {series} {e}")
+    series, e = traced[0]
+    status, headers, body = demo.get(f"/api/v1/events/{e['labels']['trace']}/trace")
+    events = json.loads(body)["traceEvents"]
+    cycles = {str(ev.get("args", {}).get("cycle")) for ev in events}
+    if e["labels"]["cycle"] not in cycles:
+        fail(f"the trace of {series} {e} does not hold cycle {e['labels']['cycle']}")
+    return len(found), (f"{series['component']} cycle {e['labels']['cycle']} -> trace "
+                        f"{e['labels']['trace']} ({len(events)} trace events)")
 
 
 def check_fleet(args):
@@ -515,10 +556,11 @@ def check_fleet(args):
         procs = [
             subprocess.Popen([prometheus, f"--config.file={tmp}/central.yml",
                               "--web.enable-remote-write-receiver",
+                              "--enable-feature=exemplar-storage",
                               f"--web.listen-address=127.0.0.1:{central_port}",
                               f"--storage.tsdb.path={tmp}/central"], stdout=log,
                              stderr=subprocess.STDOUT),
-            subprocess.Popen([prometheus, "--enable-feature=agent",
+            subprocess.Popen([prometheus, "--enable-feature=agent,exemplar-storage",
                               f"--config.file={tmp}/agent.yml",
                               f"--web.listen-address=127.0.0.1:{agent_port}",
                               f"--storage.agent.path={tmp}/agent"], stdout=log,
@@ -562,6 +604,8 @@ def check_fleet(args):
                         if a["state"] == "firing" and a["labels"]["alertname"] == "VigilComponentError"}
             fired = poll("VigilComponentError for robot-01/encoder",
                          lambda: (lambda f: f if ("robot-01", "encoder") in f else None)(firing()))
+            # The exemplars travel with the samples (send_exemplars), robot label included.
+            exemplars, traced = check_exemplars(demo, query, poll)
         finally:
             for p in procs:
                 p.send_signal(signal.SIGTERM)
@@ -573,7 +617,8 @@ def check_fleet(args):
             log.close()
     demo.finish()
     print(f"fleet: agent -> remote write -> central; robot identity {sorted(robots)}; "
-          f"alerts firing {sorted(fired)}")
+          f"alerts firing {sorted(fired)}; {exemplars} exemplars on the central Prometheus, "
+          f"{traced}")
 
 
 def raw_request(port, data, timeout=10):

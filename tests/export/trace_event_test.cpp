@@ -189,6 +189,10 @@ TEST_CASE("HTTP: events by long poll, on-demand traces, and the clear endpoint w
     if (name != "encoder") return std::nullopt;
     return trace_event_json(sample_record());
   };
+  o.event_trace = [](std::uint64_t seq) -> std::optional<std::string> {
+    if (seq != 17) return std::nullopt;
+    return trace_event_json(sample_record());
+  };
   o.clear = [&](const std::string& name) -> std::size_t {
     cleared = name;
     return 1;
@@ -227,6 +231,20 @@ TEST_CASE("HTTP: events by long poll, on-demand traces, and the clear endpoint w
   CHECK(r->status == 200);
   CHECK(JsonParser::parse(r->body)["traceEvents"].array().size() > 10);
   CHECK(c.Get("/api/v1/trace/nobody")->status == 404);
+  // The record frozen with an event (an exemplar's trace).
+  r = c.Get("/api/v1/events/17/trace");
+  REQUIRE(r);
+  CHECK(r->status == 200);
+  CHECK(r->get_header_value("Content-Disposition").find("vigil-event-17.trace.json") !=
+        std::string::npos);
+  CHECK(JsonParser::parse(r->body)["traceEvents"].array().size() > 10);
+  CHECK(c.Get("/api/v1/events/18/trace")->status == 404);
+  for (const char* bad :
+       {"/api/v1/events/x/trace", "/api/v1/events/0/trace", "/api/v1/events/17x/trace",
+        "/api/v1/events/-1/trace", "/api/v1/events//trace"}) {
+    INFO(bad);
+    CHECK(c.Get(bad)->status == 404);
+  }
 
   CHECK(c.Post("/api/v1/clear?component=encoder", "", "text/plain")->status == 403);  // no header
   CHECK(cleared == "-");

@@ -595,3 +595,94 @@ TEST_CASE("Rings stream when the drains sweep far more than the last-level cache
   CHECK_FALSE(automatic.streams_rings());
   CHECK(streaming.streams_rings());
 }
+
+namespace {
+// The worst cycles of component `name`, by window.
+std::array<WorstCycles, 4> worst_of(const ComponentAggregator& agg, std::string_view name) {
+  std::array<WorstCycles, 4> out{};
+  agg.visit_distributions([&](const ComponentDistributions& d) {
+    if (d.name == name) {
+      out = {d.execution_worst, d.total_worst, d.latency_worst, d.measured_period_worst};
+    }
+  });
+  return out;
+}
+}  // namespace
+
+TEST_CASE("The aggregator keeps the worst cycle of each distribution per window",
+          "[supervisor][aggregator][exemplar]") {
+  Registry<task::Message> reg;
+  vigil::test::FakeClock fc;
+  vigil::test::Probe p("p", {.overhead_sample_every = 0}, reg);
+  Nanos work = 100;
+  p.work = [&] { fc.advance(work); };
+  ManualActivity act(p, {.name = "m", .period_ns = kNanosPerMilli, .clock = fc.clock()});
+  REQUIRE(p.configure());
+  REQUIRE(act.start(fc.now()));
+  ComponentAggregator agg({.warmup_ns = 0, .worst_window_ns = 100 * kNanosPerMilli});
+  ComponentDrainLoop sup(reg, agg);
+  // Window 1: cycles 1..100; cycle 37 works longest, cycle 52 wakes latest, and the period
+  // ending at cycle 52 (from 51) is the longest.
+  const auto run = [&](int from, int to, int long_work, int late) {
+    for (int c = from; c <= to; ++c) {
+      work = c == long_work ? 700 * kNanosPerMicro : 100 + c;
+      fc.set(act.next_release() + (c == late ? 300 * kNanosPerMicro : 10));
+      act.step();
+      if (c % 10 == 0) sup.step();  // drains of 10 cycles, taken in runs
+    }
+    sup.step();
+  };
+  run(1, 100, 37, 52);
+  auto w = worst_of(agg, "p");
+  CHECK(w[0].previous.cycle == 0);
+  CHECK(w[0].current.cycle == 37);
+  CHECK(w[0].current.value_ns == 700 * kNanosPerMicro);
+  CHECK(w[1].current.cycle == 37);  // total: execution plus the (zero) overhead
+  CHECK(w[2].current.cycle == 52);
+  CHECK(w[2].current.value_ns == 300 * kNanosPerMicro);
+  CHECK(w[3].current.cycle == 52);
+  CHECK(w[3].current.value_ns == kNanosPerMilli + 300 * kNanosPerMicro - 10);
+  CHECK(w[2].current.start_ns > w[0].current.start_ns);
+
+  // Window 2 (cycles 101..200, in runs that start in it): the first window becomes previous,
+  // its worst cycles are this window's own even when smaller.
+  run(101, 200, 150, 180);
+  w = worst_of(agg, "p");
+  CHECK(w[0].previous.cycle == 37);
+  CHECK(w[0].current.cycle == 150);
+  CHECK(w[2].previous.cycle == 52);
+  CHECK(w[2].current.cycle == 180);
+
+  // A cycle half a second late: the windows in between had no cycle, so nothing is previous.
+  work = 100;
+  fc.set(act.next_release() + 500 * kNanosPerMilli);
+  act.step();
+  sup.step();
+  w = worst_of(agg, "p");
+  CHECK(w[2].previous.cycle == 0);
+  CHECK(w[2].current.cycle == 201);
+  CHECK(w[2].current.value_ns == 500 * kNanosPerMilli);
+}
+
+TEST_CASE("The aggregator keeps no worst cycles when their window is 0",
+          "[supervisor][aggregator][exemplar]") {
+  Registry<task::Message> reg;
+  vigil::test::FakeClock fc;
+  vigil::test::Probe p("p", {.overhead_sample_every = 0}, reg);
+  p.work = [&] { fc.advance(100); };
+  ManualActivity act(p, {.name = "m", .period_ns = kNanosPerMilli, .clock = fc.clock()});
+  REQUIRE(p.configure());
+  REQUIRE(act.start(fc.now()));
+  ComponentAggregator agg({.warmup_ns = 0, .worst_window_ns = 0});
+  ComponentDrainLoop sup(reg, agg);
+  for (int c = 0; c < 50; ++c) {
+    fc.set(act.next_release() + 10);
+    act.step();
+  }
+  sup.step();
+  REQUIRE(agg.find("p")->execution_ns.count == 50);
+  for (const WorstCycles& w : worst_of(agg, "p")) {
+    CHECK(w.current.cycle == 0);
+    CHECK(w.previous.cycle == 0);
+  }
+}

@@ -118,6 +118,10 @@ struct HttpOptions {
   /// `GET /api/v1/trace/<name>`: the component's flight recorder now, as trace-event JSON
   /// (empty optional: unknown component, 404). Null: the endpoint answers 404.
   std::function<std::optional<std::string>(const std::string&)> trace;
+  /// `GET /api/v1/events/<seq>/trace`: the flight record frozen with event `seq` (the `trace`
+  /// of an OpenMetrics exemplar) as trace-event JSON (empty optional: no such record kept,
+  /// 404). Null: the endpoint answers 404.
+  std::function<std::optional<std::string>(std::uint64_t)> event_trace;
   /// Where start() writes what it did ("serving on ..." and, for a non-loopback address, a
   /// warning). Empty: standard error.
   std::function<void(const std::string&)> log;

@@ -8,6 +8,7 @@
 /// builds a new snapshot and swaps a `shared_ptr<const MetricsSnapshot>`; HTTP threads only read
 /// snapshots they hold a reference to. Nothing here touches the real-time side.
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -22,6 +23,32 @@
 
 namespace vigil::exporter {
 
+/// An OpenMetrics exemplar that names one cycle of a component: `# {cycle="4711",trace="17"}
+/// 0.00125 1764423135.123` (docs/reference/metrics.md, "Exemplars").
+struct CycleExemplar {
+  std::uint64_t cycle = 0;  ///< the component's cycle number (0: no exemplar)
+  /// The value it stands for: the cycle's time in the histogram, in seconds; 1 on the overrun
+  /// counter (one overrun).
+  double value = 0;
+  std::int64_t unix_ns = 0;  ///< when the cycle started (the overrun: ended), Unix time; 0: unknown
+  /// The sequence number of the event whose flight record holds the cycle (served at
+  /// `/api/v1/events/<trace>/trace`, written as `<component>-<trace>.trace.json`); 0: none.
+  std::uint64_t trace = 0;
+};
+
+/// A component's timing histograms, in the order of `ComponentHistograms::worst`.
+enum class TimingHistogram : std::uint8_t { Execution, Total, Latency, MeasuredPeriod };
+inline constexpr std::size_t kTimingHistograms = 4;
+
+/// The exemplar of one bucket of one of a component's histograms.
+struct BucketExemplar {
+  TimingHistogram histogram = TimingHistogram::Execution;
+  /// The bucket: an index into kBucketBoundsNs, or kBucketBounds for `+Inf`. The exemplar's
+  /// value is within it (above the bound before, at most its own).
+  std::uint8_t bucket = 0;
+  CycleExemplar exemplar;
+};
+
 /// The timing distributions of one component as Prometheus buckets.
 struct ComponentHistograms {
   std::uint32_t id = 0;  ///< the registry id (`Report::id`)
@@ -32,6 +59,14 @@ struct ComponentHistograms {
   BucketCounts total;            ///< execution + supervision overhead (`Report::total_ns`)
   BucketCounts latency;          ///< wake-up latency (`Report::latency_ns`)
   BucketCounts measured_period;  ///< measured start-to-start period (`Report::measured_period_ns`)
+  /// The worst cycles of each histogram by window, by `TimingHistogram` (collect_histograms):
+  /// what the exemplars are chosen from.
+  std::array<supervisor::WorstCycles, kTimingHistograms> worst{};
+  /// The buckets' exemplars, sorted by histogram then bucket, at most one per bucket (an
+  /// `ExemplarBook` fills them in; empty: none, as in the 0.0.4 text format).
+  std::vector<BucketExemplar> exemplars;
+  /// The exemplar of the overrun counter: the latest overrun (cycle 0: none).
+  CycleExemplar overrun;
 };
 
 /// The buckets of every component of `aggregator`, by id. Takes each record's lock for the

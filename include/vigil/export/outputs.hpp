@@ -18,6 +18,7 @@
 
 #include "vigil/error.hpp"
 #include "vigil/expected.hpp"
+#include "vigil/export/exemplars.hpp"
 #include "vigil/export/http_server.hpp"
 #include "vigil/export/output.hpp"
 #include "vigil/export/text_report.hpp"
@@ -128,7 +129,9 @@ class JsonFileOutput final : public Output {
 
 /// The HTTP server (Prometheus `/metrics`, `/api/v1/reports`, events, traces, the dashboard;
 /// docs/reference/http.md) publishing every snapshot. Unless the options name their own, it
-/// serves the pipeline's events and its components' flight records on demand.
+/// serves the pipeline's events, its components' flight records on demand and the records
+/// frozen with events. Its OpenMetrics exposition carries exemplars (`ExemplarBook`): the worst
+/// cycles and the latest overrun of each component, with the frozen record that holds them.
 class HttpOutput final : public Output {
  public:
   explicit HttpOutput(HttpOptions options, bool serve_events = true)
@@ -147,6 +150,9 @@ class HttpOutput final : public Output {
   HttpOptions options_;
   bool serve_events_;
   std::unique_ptr<HttpServer> server_;
+  // The OpenMetrics exemplars (worst cycles, overruns, their traces); publish() only.
+  ExemplarBook exemplars_;
+  supervisor::ComponentAggregator* aggregator_ = nullptr;  // from start() to stop()
 };
 
 /// Rewrites a node-exporter textfile (`.prom`, docs/guide/fleet.md) atomically after every

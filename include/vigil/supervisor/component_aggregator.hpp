@@ -118,6 +118,22 @@ struct ComponentSnapshot {
   }
 };
 
+/// One cycle that was the worst of a distribution over a window (an exemplar's candidate:
+/// vigil/export/exemplars.hpp).
+struct WorstCycle {
+  std::uint64_t cycle = 0;  ///< the component's cycle number (0: none in that window)
+  Nanos value_ns = 0;       ///< its value in that distribution
+  Nanos start_ns = 0;       ///< when on_update() began (the component's clock)
+};
+
+/// The worst cycles of one distribution: of the latest complete window and of the current one
+/// (`AggregatorOptions::worst_window_ns`, on the component's clock; the warm-up's cycles are
+/// not in them, as in the statistics).
+struct WorstCycles {
+  WorstCycle previous;  ///< the latest complete window (cycle 0: no cycle in it)
+  WorstCycle current;   ///< the window under way so far
+};
+
 /// One component's distributions, lent to a `ComponentAggregator::visit_distributions` callback
 /// for the duration of the call (the pointers are valid only then). For exporters that need the
 /// histograms behind the percentiles (Prometheus buckets).
@@ -132,6 +148,9 @@ struct ComponentDistributions {
   /// overhead), as for `ComponentSnapshot::total_ns`' percentiles.
   Nanos total_shift_ns = 0;
   StatsSummary total;  ///< total time's exact count, min, max, mean, EWMA
+  /// The worst cycles of each distribution, by window (none when
+  /// `AggregatorOptions::worst_window_ns` is 0).
+  WorstCycles execution_worst, total_worst, latency_worst, measured_period_worst;
 };
 
 /// Options of the watchdog (part of `AggregatorOptions`).
@@ -175,6 +194,10 @@ struct AggregatorOptions {
   /// Raise an Info event for every lifecycle transition (Exception/FatalError are always
   /// raised, as Error).
   bool state_events = true;
+  /// The worst cycle of each distribution is kept per window of this length, on the
+  /// component's clock (`WorstCycles`: the exemplars of the OpenMetrics histograms name them).
+  /// 0: not kept.
+  Nanos worst_window_ns = kNanosPerSecond;
 };
 
 /// The supervisor handler for `Message`. Not RT-safe (supervisor thread and readers only).
