@@ -16,7 +16,19 @@
 // producers wake at 100 Hz to keep the machine usable, the daemon's work is the same). The daemon
 // (the `vigil supervise` pipeline started: drain thread at 10 ms + monitor at 1 s) runs in this
 // process, which does nothing else; value = this process's CPU time / wall time over 3 s, in % of
-// one core.
+// one core. VIGIL_BENCH_DAEMON_SECONDS=N measures N s instead of 3 (to attach a profiler to the
+// steady state: `perf record -g -p <pid> -- sleep 5`).
+//
+// daemon_vs_in_process: the daemon's CPU per message against the in-process supervisor's, in the
+// same run, for the same components and messages (processes x components segments or ports, 10
+// samples each every 10 ms: 1,000 components at 1 kHz). Each iteration measures both, 3 s each,
+// order alternating, each a fresh SupervisionService (drain thread, monitor at 1 s, event hub):
+// the daemon over the forked children's segments (the children stopped with SIGSTOP while the
+// other phase runs), and one over this process's registry of as many ports, filled by a producer
+// thread of this process whose CPU time is subtracted. Value: the daemon's CPU ns per message;
+// floor: the in-process supervisor's; ratio: daemon / in-process, median of the iterations
+// (goal <= 1.25, issue 49). processes:10/components:100 shows what the number of processes
+// costs. VIGIL_BENCH_CHILDREN_RUN=1 keeps the children running during the in-process phase.
 //
 // drain_checks: the daemon's per-segment work on one segment, without the aggregator: the writer
 // pushes 10 CycleSamples (what a 1 kHz component queues between two 10 ms drains), then the reader
@@ -478,7 +490,11 @@ void daemon_vs_in_process(benchmark::State& state) {
     signal_children(SIGSTOP);
     return p;
   };
+  // VIGIL_BENCH_CHILDREN_RUN=1: the children keep running (into full rings) while the in-process
+  // supervisor is measured: the machine as busy with processes as in the daemon's phase.
+  const bool children_run = std::getenv("VIGIL_BENCH_CHILDREN_RUN") != nullptr;
   auto in_process_phase = [&] {
+    if (children_run) signal_children(SIGCONT);
     load.set_active(true);
     service::SupervisionServiceOptions o;
     o.registry = &load.registry();
@@ -488,6 +504,7 @@ void daemon_vs_in_process(benchmark::State& state) {
     const Phase p = measure_service(
         s, [&] { return s.supervisor()->stats().messages; }, [&] { return load.cpu_ns(); });
     load.set_active(false);
+    if (children_run) signal_children(SIGSTOP);
     return p;
   };
 
@@ -717,6 +734,7 @@ void register_all() {
       ->Unit(benchmark::kMillisecond);
   benchmark::RegisterBenchmark("bus/shm/daemon_vs_in_process", daemon_vs_in_process)
       ->Args({100, 10})
+      ->Args({10, 100})
       ->ArgNames({"processes", "components"})
       ->Iterations(3)
       ->UseManualTime()
