@@ -60,8 +60,8 @@ struct Segment {
 struct Process {
   ProcessInfo info;
   platform::ProcessWatch watch;
-  bool watched = false;  // watch holds a pidfd or /proc fallback for this process
-  bool in_set = false;   // its pidfd is in the source's ReadySet
+  bool watched = false;       // watch holds a pidfd or /proc fallback for this process
+  std::uint64_t set_tag = 0;  // its tag in the source's ReadySet while its pidfd is there; 0: not
   std::vector<Segment*> segments;
   std::vector<Report> dead_reports;           // its components at its death, or corrupted, ERROR
   std::vector<std::string> corrupt_segments;  // its segments found corrupt (removed at its end)
@@ -143,11 +143,13 @@ struct SegmentSource::Impl {
   std::map<std::string, std::uint32_t> incarnations;  // by component name
   std::map<std::string, std::uint32_t> process_runs;  // by command line
   std::optional<platform::ShmDirectoryWatch> dir_watch;
-  // The live processes' pidfds (tag: the Process) and the directory watch (tag 0), waited on
+  // The live processes' pidfds (tags 1, 2...) and the directory watch (tag 0), waited on
   // with epoll: a wait costs what is ready, not the number of processes (two ppoll calls over
   // 100 pidfds per cycle were about 9 % of the daemon's CPU). Empty where epoll is unavailable:
   // then every descriptor is polled as before.
   std::optional<platform::ReadySet> ready_set;
+  std::unordered_map<std::uint64_t, Process*> in_set;  // the processes in the set, by tag
+  std::uint64_t next_tag = 1;
   bool dir_in_set = false;
   std::size_t outside_set = 0;  // live processes whose death the ready set does not report
   bool scanned = false;
@@ -459,10 +461,12 @@ struct SegmentSource::Impl {
     if (w) {
       p->watch = std::move(*w);
       p->watched = true;
-      p->in_set =
-          ready_set && p->watch.fd() >= 0 &&
-          ready_set->add(p->watch.fd(), reinterpret_cast<std::uintptr_t>(p.get())).has_value();
-      if (!p->in_set) ++outside_set;
+      if (ready_set && p->watch.fd() >= 0 && ready_set->add(p->watch.fd(), next_tag)) {
+        p->set_tag = next_tag++;
+        in_set.emplace(p->set_tag, p.get());
+      } else {
+        ++outside_set;
+      }
     } else {
       p->info.alive = false;
       p->info.ended_at = now();
@@ -595,9 +599,10 @@ struct SegmentSource::Impl {
 
   // `p` ended: its pidfd stays readable, so it leaves the ready set (or the count of the others).
   void leave_set(Process& p) {
-    if (p.in_set) {
+    if (p.set_tag != 0) {
       ready_set->remove(p.watch.fd());
-      p.in_set = false;
+      in_set.erase(p.set_tag);
+      p.set_tag = 0;
     } else if (p.info.alive && outside_set > 0) {
       --outside_set;
     }
@@ -670,12 +675,13 @@ struct SegmentSource::Impl {
         const int n = ready_set->wait(0, tags, std::size(tags));
         bool died = false;
         for (int i = 0; i < n; ++i) {
-          if (tags[i] == 0) continue;  // the directory: discover() reads it
-          auto* p = reinterpret_cast<Process*>(static_cast<std::uintptr_t>(tags[i]));
-          if (p->info.alive) {
-            process_died(*p);
+          const auto it = tags[i] == 0 ? in_set.end() : in_set.find(tags[i]);
+          if (it == in_set.end()) continue;  // the directory (discover() reads it), or gone
+          Process& p = *it->second;
+          if (p.info.alive) {
+            process_died(p);
           } else {
-            leave_set(*p);
+            leave_set(p);
           }
           died = true;
         }
@@ -688,7 +694,7 @@ struct SegmentSource::Impl {
     fds.clear();
     owners.clear();
     for (auto& [key, p] : processes) {
-      if (!p->info.alive || p->in_set) continue;
+      if (!p->info.alive || p->set_tag != 0) continue;
       if (p->watch.fd() >= 0) {
         fds.push_back(p->watch.fd());
         owners.push_back(p.get());
