@@ -16,7 +16,19 @@
 // producers wake at 100 Hz to keep the machine usable, the daemon's work is the same). The daemon
 // (the `vigil supervise` pipeline started: drain thread at 10 ms + monitor at 1 s) runs in this
 // process, which does nothing else; value = this process's CPU time / wall time over 3 s, in % of
-// one core.
+// one core. VIGIL_BENCH_DAEMON_SECONDS=N measures N s instead of 3 (to attach a profiler to the
+// steady state: `perf record -g -p <pid> -- sleep 5`).
+//
+// daemon_vs_in_process: the daemon's CPU per message against the in-process supervisor's, in the
+// same run, for the same components and messages (processes x components segments or ports, 10
+// samples each every 10 ms: 1,000 components at 1 kHz). Each iteration measures both, 3 s each,
+// order alternating, each a fresh SupervisionService (drain thread, monitor at 1 s, event hub):
+// the daemon over the forked children's segments (the children stopped with SIGSTOP while the
+// other phase runs), and one over this process's registry of as many ports, filled by a producer
+// thread of this process whose CPU time is subtracted. Value: the daemon's CPU ns per message;
+// floor: the in-process supervisor's; ratio: daemon / in-process, median of the iterations
+// (goal <= 1.25, issue 49). processes:10/components:100 shows what the number of processes
+// costs. VIGIL_BENCH_CHILDREN_RUN=1 keeps the children running during the in-process phase.
 //
 // drain_checks: the daemon's per-segment work on one segment, without the aggregator: the writer
 // pushes 10 CycleSamples (what a 1 kHz component queues between two 10 ms drains), then the reader
@@ -29,6 +41,7 @@
 // process is killed with SIGKILL (and reaped at once, as a shell would); value = time from the
 // kill() call to the daemon's Exited event, which it emits after building the ERROR reports.
 // Goal: <= 2 supervisor periods (20 ms). 100 kills per repetition; p50, p99 and max reported.
+#include <pthread.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <time.h>
@@ -38,6 +51,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -52,6 +66,7 @@
 #include "vigil/exec/periodic_activity.hpp"
 #include "vigil/platform/process_watch.hpp"
 #include "vigil/service/supervision_service.hpp"
+#include "vigil/task/default_registry.hpp"
 #include "vigil/task/shm_messages.hpp"
 #include "vigil/task/task.hpp"
 
@@ -217,6 +232,9 @@ struct Children {
     next += 10 * kNanosPerMilli;
     platform::sleep_until(next);
     const Nanos now = platform::now_ns();
+    // Continued after a stop (daemon_vs_in_process stops the children while the in-process
+    // supervisor is measured): resume the 10 ms rhythm from now, not a burst of missed rounds.
+    if (now - next > 10 * kNanosPerMilli) next = now;
     for (int k = 0; k < 10; ++k) {
       ++cycle;
       for (std::size_t i = 0; i < ports.size(); ++i) {
@@ -284,15 +302,18 @@ void daemon_cpu(benchmark::State& state) {
   });
   if (!d->start()) std::abort();
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // discovery, first monitor cycle
+  // VIGIL_BENCH_DAEMON_SECONDS: a longer window, to attach a profiler to the steady state.
+  const char* env_seconds = std::getenv("VIGIL_BENCH_DAEMON_SECONDS");
+  const int seconds = env_seconds != nullptr ? std::max(1, std::atoi(env_seconds)) : 3;
   std::vector<double> shares;
   for (auto _ : state) {
     const Nanos c0 = process_cpu_ns();
     const Nanos t0 = platform::now_ns();
-    std::this_thread::sleep_for(std::chrono::seconds(3));
+    std::this_thread::sleep_for(std::chrono::seconds(seconds));
     const double share = 100.0 * static_cast<double>(process_cpu_ns() - c0) /
                          static_cast<double>(platform::now_ns() - t0);
     shares.push_back(share);
-    state.SetIterationTime(3.0);
+    state.SetIterationTime(static_cast<double>(seconds));
   }
   const auto st = d->segments()->stats();
   (void)d->stop();
@@ -318,6 +339,214 @@ void daemon_cpu(benchmark::State& state) {
   state.counters["deaths_step_ms"] = static_cast<double>(deaths_ns) / 1e6;
   state.counters["deaths_seen"] = static_cast<double>(after.dead_processes);
   state.counters["goal_value_max"] = 10.0;
+}
+
+// --- the daemon against the in-process supervisor ----------------------------------------------
+
+// 1,000 in-process ports of a Task's capacity and a thread that pushes into them what the children
+// push into their segments: 10 CycleSamples per port every 10 ms, while `active` (first each
+// port's TaskInfo, as a joining Task sends it).
+class InProcessLoad {
+ public:
+  explicit InProcessLoad(int n) {
+    members_.reserve(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) {
+      members_.push_back(registry_.join<kDefaultPortCapacity>("c" + std::to_string(i)));
+    }
+    thread_ = std::thread([this] { run(); });
+  }
+  ~InProcessLoad() {
+    quit_.store(true, std::memory_order_release);
+    thread_.join();
+  }
+  InProcessLoad(const InProcessLoad&) = delete;
+  InProcessLoad& operator=(const InProcessLoad&) = delete;
+
+  void set_active(bool on) { active_.store(on, std::memory_order_release); }
+  /// CPU time of the producer thread: not the supervisor's, subtracted from the process's.
+  Nanos cpu_ns() {
+    clockid_t id{};
+    if (pthread_getcpuclockid(thread_.native_handle(), &id) != 0) return 0;
+    timespec ts{};
+    clock_gettime(id, &ts);
+    return static_cast<Nanos>(ts.tv_sec) * kNanosPerSecond + ts.tv_nsec;
+  }
+  ComponentRegistry& registry() { return registry_; }
+  [[nodiscard]] std::uint64_t dropped() const { return dropped_.load(std::memory_order_relaxed); }
+
+ private:
+  void run() {
+    std::uint64_t cycle = 0;
+    bool was_active = false;
+    Nanos next = platform::now_ns();
+    while (!quit_.load(std::memory_order_acquire)) {
+      next += 10 * kNanosPerMilli;
+      platform::sleep_until(next);
+      const Nanos now = platform::now_ns();
+      if (now - next > 10 * kNanosPerMilli) next = now;
+      const bool active = active_.load(std::memory_order_acquire);
+      if (active && !was_active) {
+        for (std::size_t i = 0; i < members_.size(); ++i) {
+          task::TaskInfo info;
+          info.name.assign("c" + std::to_string(i));
+          info.period_ns = kNanosPerMilli;
+          info.threaded = true;
+          (void)members_[i].port()->try_push(task::Message{info});
+        }
+      }
+      was_active = active;
+      if (!active) continue;
+      for (int k = 0; k < 10; ++k) {
+        ++cycle;
+        for (auto& m : members_) {
+          task::CycleSample s;
+          s.counters.cycles = cycle;
+          s.release_ns = now - (10 - k) * kNanosPerMilli;
+          s.start_ns = s.release_ns + 2'000;
+          s.end_ns = s.start_ns + 20'000 + static_cast<Nanos>(cycle % 13) * 1'000;
+          s.overhead_ns = cycle % 64 == 1 ? 150 : 0;
+          s.state = TaskState::Running;
+          if (!m.port()->try_push(task::Message{s}))
+            dropped_.fetch_add(1, std::memory_order_relaxed);
+        }
+      }
+    }
+  }
+
+  ComponentRegistry registry_;
+  std::vector<bus::Membership<task::Message, kDefaultPortCapacity>> members_;
+  std::atomic<bool> active_{false};
+  std::atomic<bool> quit_{false};
+  std::atomic<std::uint64_t> dropped_{0};
+  std::thread thread_;
+};
+
+struct Phase {
+  double cpu_ns = 0;  // the supervisor's threads
+  double wall_ns = 0;
+  double messages = 0;  // visited
+};
+
+// Starts `s`, lets it find its components and run its first monitor cycle (1.5 s), then measures
+// 3 s: this process's CPU time minus `other_cpu` (a producer thread of this process), and the
+// messages visited (`messages()`).
+template <class Messages, class OtherCpu>
+Phase measure_service(service::SupervisionService& s, Messages messages, OtherCpu other_cpu) {
+  if (!s.start()) std::abort();
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  const Nanos c0 = process_cpu_ns() - other_cpu();
+  const std::uint64_t m0 = messages();
+  const Nanos t0 = platform::now_ns();
+  std::this_thread::sleep_for(std::chrono::seconds(3));
+  const Nanos c1 = process_cpu_ns() - other_cpu();
+  const std::uint64_t m1 = messages();
+  const Nanos t1 = platform::now_ns();
+  (void)s.stop();
+  return Phase{static_cast<double>(c1 - c0), static_cast<double>(t1 - t0),
+               static_cast<double>(m1 - m0)};
+}
+
+// The `vigil supervise` daemon (its whole process: drain thread, monitor, event hub) against the
+// in-process supervisor (a SupervisionService over this process's registry, the same threads),
+// for the same components and messages, in the same run: per iteration one 3 s phase of each
+// (order alternating), each service fresh; the children are stopped (SIGSTOP) while the
+// in-process one runs and its producer thread idles while the daemon runs, so that each phase has
+// the machine to itself but for its own producers. Value: the daemon's CPU ns per message; floor:
+// the in-process supervisor's; ratio: daemon / in-process (median of the iterations' ratios).
+void daemon_vs_in_process(benchmark::State& state) {
+  const int processes = static_cast<int>(state.range(0));
+  const int components = static_cast<int>(state.range(1));
+  const std::string name = bench_name("v");
+  remove_segments(name);
+  Children children;
+  int fds[2];
+  if (::pipe(fds) != 0) std::abort();
+  for (int i = 0; i < processes; ++i) {
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      ::close(fds[0]);
+      producer_child(name, components, fds[1]);
+    }
+    children.pids.push_back(pid);
+  }
+  ::close(fds[1]);
+  for (int i = 0; i < processes; ++i) {
+    char c = 0;
+    if (::read(fds[0], &c, 1) != 1) std::abort();
+  }
+  ::close(fds[0]);
+  auto signal_children = [&](int sig) {
+    for (pid_t p : children.pids) ::kill(p, sig);
+  };
+  signal_children(SIGSTOP);
+  InProcessLoad load(processes * components);
+
+  auto daemon_phase = [&] {
+    signal_children(SIGCONT);
+    auto d = make_daemon(name);
+    const Phase p = measure_service(
+        *d, [&] { return d->segments()->stats().messages; }, [] { return Nanos{0}; });
+    d.reset();
+    signal_children(SIGSTOP);
+    return p;
+  };
+  // VIGIL_BENCH_CHILDREN_RUN=1: the children keep running (into full rings) while the in-process
+  // supervisor is measured: the machine as busy with processes as in the daemon's phase.
+  const bool children_run = std::getenv("VIGIL_BENCH_CHILDREN_RUN") != nullptr;
+  auto in_process_phase = [&] {
+    if (children_run) signal_children(SIGCONT);
+    load.set_active(true);
+    service::SupervisionServiceOptions o;
+    o.registry = &load.registry();
+    o.monitor.read_thread_stats = false;
+    o.summary_file = nullptr;
+    service::SupervisionService s(std::move(o));
+    const Phase p = measure_service(
+        s, [&] { return s.supervisor()->stats().messages; }, [&] { return load.cpu_ns(); });
+    load.set_active(false);
+    if (children_run) signal_children(SIGSTOP);
+    return p;
+  };
+
+  std::vector<double> daemon_ns;
+  std::vector<double> in_process_ns;
+  std::vector<double> ratios;
+  std::vector<double> daemon_share;
+  std::vector<double> in_process_share;
+  std::vector<double> daemon_rate;
+  std::vector<double> in_process_rate;
+  bool daemon_first = true;
+  for (auto _ : state) {
+    Phase d;
+    Phase in;
+    if (daemon_first) {
+      d = daemon_phase();
+      in = in_process_phase();
+    } else {
+      in = in_process_phase();
+      d = daemon_phase();
+    }
+    daemon_first = !daemon_first;
+    const double dn = d.cpu_ns / std::max(d.messages, 1.0);
+    const double in_ns = in.cpu_ns / std::max(in.messages, 1.0);
+    daemon_ns.push_back(dn);
+    in_process_ns.push_back(in_ns);
+    ratios.push_back(dn / in_ns);
+    daemon_share.push_back(100.0 * d.cpu_ns / d.wall_ns);
+    in_process_share.push_back(100.0 * in.cpu_ns / in.wall_ns);
+    daemon_rate.push_back(d.messages * 1e9 / d.wall_ns);
+    in_process_rate.push_back(in.messages * 1e9 / in.wall_ns);
+    state.SetIterationTime((d.wall_ns + in.wall_ns) * 1e-9);
+  }
+  children.kill_all();
+  remove_segments(name);
+  report_vs(state, "ns/msg", median(daemon_ns), median(in_process_ns), median(ratios));
+  state.counters["daemon_share"] = median(daemon_share);
+  state.counters["in_process_share"] = median(in_process_share);
+  state.counters["daemon_msg_per_s"] = median(daemon_rate);
+  state.counters["in_process_msg_per_s"] = median(in_process_rate);
+  state.counters["in_process_dropped"] = static_cast<double>(load.dropped());
+  state.counters["goal_ratio_max"] = 1.25;
 }
 
 // --- SIGKILL to ERROR ----------------------------------------------------------------------------
@@ -501,6 +730,13 @@ void register_all() {
       ->Args({100, 10})
       ->ArgNames({"processes", "components"})
       ->Iterations(1)
+      ->UseManualTime()
+      ->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark("bus/shm/daemon_vs_in_process", daemon_vs_in_process)
+      ->Args({100, 10})
+      ->Args({10, 100})
+      ->ArgNames({"processes", "components"})
+      ->Iterations(3)
       ->UseManualTime()
       ->Unit(benchmark::kMillisecond);
   benchmark::RegisterBenchmark("bus/shm/sigkill_to_error", sigkill_to_error)

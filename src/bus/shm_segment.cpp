@@ -273,6 +273,11 @@ const char* shm_header_field(std::size_t offset) noexcept {
 const char* shm_constant_difference(const ShmSegmentHeader& a, const ShmSegmentHeader& b) noexcept {
   const auto* x = reinterpret_cast<const unsigned char*>(&a);
   const auto* y = reinterpret_cast<const unsigned char*>(&b);
+  // The usual case first, word-wide (a byte loop over 512 bytes for every segment every 100 ms
+  // was about 2 % of the daemon's CPU); the loop only names the field that differs.
+  if (std::memcmp(x, y, kShmConstantBytes) == 0) {
+    return a.header_checksum != b.header_checksum ? "header_checksum" : nullptr;
+  }
   for (std::size_t i = 0; i < kShmConstantBytes; ++i) {
     if (x[i] != y[i]) return shm_header_field(i);
   }
@@ -476,7 +481,12 @@ expected<void, ShmError> ShmRingReader::verify_header(const ShmSegmentHeader& re
                    : std::string("changed after the segment was created (written over; the writer "
                                  "sets it once)")));
   }
-  if (auto x = integrity_error(h)) return unexpected<ShmError>(std::move(*x));
+  // The constant part and its checksum equal the reference's, whose checksum was verified at
+  // open: the checksum holds without being computed again. The reserved fields are not in the
+  // constant part: checked here.
+  if (const char* f = reserved_not_zero(h)) {
+    return unexpected<ShmError>(err(f, "not zero (reserved: no writer sets it)"));
+  }
   return {};
 }
 

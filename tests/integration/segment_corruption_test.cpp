@@ -254,6 +254,7 @@ TEST_CASE("Every header field and record of a live segment, written over, is fou
   const ReportSet set = d.reports();
   const Report* spare_report = find_report(set, spare);
   REQUIRE(spare_report != nullptr);
+  INFO("the spare component's report: " << spare_report->status.summary());
   CHECK(spare_report->status.level() != StatusLevel::Error);
   CHECK(d.stats().corrupted == all.size());
   CHECK(events_of(d, events, EventKind::SegmentCorrupted).size() == all.size());

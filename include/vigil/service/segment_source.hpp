@@ -70,7 +70,9 @@ struct SegmentSourceOptions {
   /// milliseconds: the shm_segment fuzzer makes one per input).
   bool watch_directory = true;
   /// How often each live process's run state is read from /proc (running, stopped by a signal,
-  /// stopped by a tracer): a stop and a continue are events found within this time. 0: never.
+  /// stopped by a tracer): a stop and a continue are events found within this time (a process
+  /// whose records arrived at the previous drain was running then and is not read: its stop is
+  /// found within this time and two periods). 0: never.
   Nanos state_check_ns = 100 * kNanosPerMilli;
   /// How often what each writer set once in its segment's header (the constant part under its
   /// checksum, the reserved fields) is verified again; it is also verified at every report
