@@ -17,6 +17,7 @@
 #include "vigil/platform/rt_loss.hpp"
 
 #include "platform/cobalt/build_check.hpp"
+#include "platform/cobalt/core.hpp"
 
 #include <pthread.h>
 #include <signal.h>
@@ -125,6 +126,9 @@ ThreadUsage thread_usage() noexcept {
 }
 
 bool arm_mode_switch_detection() noexcept {
+  // No Cobalt thread exists before libcobalt starts (initialize()), and libcobalt installs its own
+  // SIGDEBUG handler when it starts: ours must come after it (it saves libcobalt's to chain to).
+  if (!detail::cobalt_ready()) return false;
   // Once per process: a function-local static is initialised exactly once even when several
   // threads arm at the same time (the others block until it is done; this is not RT code).
   static const bool installed = install_handler();
