@@ -8,7 +8,8 @@
 // already in secondary mode; it only does async-signal-safe work (atomic increments, sigaction,
 // raise), never I/O or allocation.
 //
-// The handler replaces libcobalt's (installed before main()), saved at install time. It chains to
+// The handler replaces libcobalt's (installed when libcobalt starts, initialize()), saved at install
+// time. It chains to
 // the saved one for NOMLOCK and WATCHDOG, where libcobalt reports and ends the process, as
 // Xenomai intends. It does not chain for relaxes and debug reports: libcobalt's handler would
 // restore the default action of SIGXCPU and re-raise, i.e. kill the process, while vigil's job
