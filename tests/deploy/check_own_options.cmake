@@ -31,13 +31,15 @@ run(0 "^vigil [0-9]+\\.[0-9]+\\.[0-9]+" -V)
 run(0 "vigil supervises real-time components.*demo.*check-config" --help)
 run(0 "Run a supervised system" demo --help)
 run(0 "Supervise the components of other processes" supervise --help)
-# Xenomai's options and their prefixes are not vigil's: vigil's parser refuses each, naming it.
+# Xenomai's options and their prefixes are not vigil's: vigil's parser refuses each, alone (no
+# command given) and after a command (naming it).
 foreach(opt --vers --verbose --verb --quiet --silent --trace --dump-config --cpu-affinity=0
             --main-prio=1 --print-buffer-size=1024 --no-sanity)
   string(REGEX REPLACE "=.*" "" name "${opt}")
-  run(fail "${name}" ${opt})
+  run(fail "A subcommand is required" ${opt})
+  run(fail "not expected: ${name}" check-config ${opt} deployment.yaml)
 endforeach()
-run(fail "--verbose" demo --verbose)
+run(fail "not expected: --verbose" demo --verbose)
 # A command that needs no real-time core runs to its end.
 run(0 "name: " demo --print-config)
 

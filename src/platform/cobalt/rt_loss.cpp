@@ -8,13 +8,13 @@
 // already in secondary mode; it only does async-signal-safe work (atomic increments, sigaction,
 // raise), never I/O or allocation.
 //
-// The handler replaces libcobalt's (installed when libcobalt starts, initialize()), saved at install
-// time. It chains to
-// the saved one for NOMLOCK and WATCHDOG, where libcobalt reports and ends the process, as
-// Xenomai intends. It does not chain for relaxes and debug reports: libcobalt's handler would
-// restore the default action of SIGXCPU and re-raise, i.e. kill the process, while vigil's job
-// is to count and report. Unmarked SIGXCPU (libcobalt's mode check of malloc/free in primary
-// mode, RLIMIT_CPU, kill) is counted and ignored, as XENOMAI.md §1.3 sketches.
+// The handler replaces libcobalt's (installed when libcobalt starts, initialize()), saved at
+// install time. It chains to the saved one for NOMLOCK and WATCHDOG, where libcobalt reports and
+// ends the process, as Xenomai intends. It does not chain for relaxes and debug reports:
+// libcobalt's handler would restore the default action of SIGXCPU and re-raise, i.e. kill the
+// process, while vigil's job is to count and report. Unmarked SIGXCPU (libcobalt's mode check of
+// malloc/free in primary mode, RLIMIT_CPU, kill) is counted and ignored, as XENOMAI.md §1.3
+// sketches.
 #include "vigil/platform/rt_loss.hpp"
 
 #include "platform/cobalt/build_check.hpp"
