@@ -12,11 +12,16 @@
 #                          definitions (__COBALT__, _GNU_SOURCE, _REENTRANT) and options. For the
 #                          platform implementation only (src/platform/cobalt/): libcobalt's
 #                          include directory shadows <pthread.h>, <time.h>, ...
-#   Xenomai::cobalt_link - link flags of `xeno-config --cobalt --ldflags` for executables
-#                          (libcobalt, libmodechk's --wrap of malloc/free, bootstrap.o that runs
-#                          xenomai_init() before main()); `... --auto-init-solib` (bootstrap-pic.o,
-#                          no --wrap=main) for a shared or module library; nothing for static
-#                          libraries. Deliberately not `--posix`: libcobalt's POSIX --wrap list
+#   Xenomai::cobalt_link - link flags of `xeno-config --cobalt --ldflags --no-auto-init` for
+#                          executables, shared and module libraries (libcobalt, libmodechk's --wrap
+#                          of malloc/free), nothing for static libraries, and a RUNPATH entry for
+#                          Xenomai's library folder (libcobalt.so and libmodechk.so are found there
+#                          by the built and by the installed binaries). No automatic start-up
+#                          (bootstrap.o, --wrap=main): it would read the command line before main()
+#                          and act on --help, --version, --verbose, ... itself; vigil starts
+#                          libcobalt with vigil::platform::initialize() (src/platform/cobalt/
+#                          core.cpp), after the program has parsed its own command line.
+#                          Deliberately not `--posix`: libcobalt's POSIX --wrap list
 #                          would turn every pthread_mutex_lock of the link (std::mutex included)
 #                          into a Cobalt mutex while std::condition_variable and std::shared_mutex
 #                          stay glibc's (docs/design/platform.md, "One kind of thread, one kind
@@ -32,13 +37,10 @@ if(XENO_CONFIG)
                   OUTPUT_STRIP_TRAILING_WHITESPACE)
   execute_process(COMMAND ${XENO_CONFIG} --cobalt --cflags OUTPUT_VARIABLE _xeno_cflags
                   OUTPUT_STRIP_TRAILING_WHITESPACE)
-  execute_process(COMMAND ${XENO_CONFIG} --cobalt --ldflags OUTPUT_VARIABLE _xeno_ldflags
-                  OUTPUT_STRIP_TRAILING_WHITESPACE)
-  execute_process(COMMAND ${XENO_CONFIG} --cobalt --ldflags --auto-init-solib
-                  OUTPUT_VARIABLE _xeno_solib_ldflags OUTPUT_STRIP_TRAILING_WHITESPACE)
+  execute_process(COMMAND ${XENO_CONFIG} --cobalt --ldflags --no-auto-init
+                  OUTPUT_VARIABLE _xeno_ldflags OUTPUT_STRIP_TRAILING_WHITESPACE)
   separate_arguments(_xeno_cflags UNIX_COMMAND "${_xeno_cflags}")
   separate_arguments(_xeno_ldflags UNIX_COMMAND "${_xeno_ldflags}")
-  separate_arguments(_xeno_solib_ldflags UNIX_COMMAND "${_xeno_solib_ldflags}")
   set(Xenomai_INCLUDE_DIRS "")
   set(Xenomai_DEFINITIONS "")
   set(Xenomai_COMPILE_OPTIONS "")
@@ -52,9 +54,15 @@ if(XENO_CONFIG)
     endif()
   endforeach()
   set(Xenomai_LIBRARY_DIRS "")
+  set(_xeno_rpath "")
   foreach(_flag IN LISTS _xeno_ldflags)
     if(_flag MATCHES "^-L(.+)$")
       list(APPEND Xenomai_LIBRARY_DIRS "${CMAKE_MATCH_1}")
+      list(APPEND _xeno_rpath "LINKER:-rpath,${CMAKE_MATCH_1}")
+    elseif(_flag MATCHES "bootstrap|--wrap=main")
+      # xeno-config ignored --no-auto-init (not a 3.x xeno-config?): refuse rather than link a
+      # start-up that reads the program's command line.
+      message(FATAL_ERROR "${XENO_CONFIG} --cobalt --ldflags --no-auto-init still gives '${_flag}'")
     endif()
   endforeach()
 endif()
@@ -71,8 +79,10 @@ if(Xenomai_FOUND AND NOT TARGET Xenomai::cobalt)
     INTERFACE_COMPILE_DEFINITIONS "${Xenomai_DEFINITIONS}"
     INTERFACE_COMPILE_OPTIONS "${Xenomai_COMPILE_OPTIONS}")
   add_library(Xenomai::cobalt_link INTERFACE IMPORTED)
-  set(_is_exe "$<STREQUAL:$<TARGET_PROPERTY:TYPE>,EXECUTABLE>")
-  set(_is_solib "$<IN_LIST:$<TARGET_PROPERTY:TYPE>,SHARED_LIBRARY;MODULE_LIBRARY>")
+  # Executables, shared and module libraries: the same flags (no bootstrap object either way).
+  # The RUNPATH entry stays in installed binaries: CMake's install step replaces only the build
+  # RPATH it computed itself.
+  set(_is_linked "$<IN_LIST:$<TARGET_PROPERTY:TYPE>,EXECUTABLE;SHARED_LIBRARY;MODULE_LIBRARY>")
   set_target_properties(Xenomai::cobalt_link PROPERTIES INTERFACE_LINK_OPTIONS
-    "$<${_is_exe}:${_xeno_ldflags}>;$<${_is_solib}:${_xeno_solib_ldflags}>")
+    "$<${_is_linked}:${_xeno_ldflags};${_xeno_rpath}>")
 endif()

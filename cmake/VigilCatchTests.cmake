@@ -1,7 +1,7 @@
 # Registers the Catch2 test cases of a test executable with CTest from its sources, at configure
 # time, without running the executable: for builds whose binaries cannot run on the build machine
-# (VIGIL_TEST_DISCOVERY=sources, the cobalt preset: a Cobalt executable stops before main() on a
-# kernel without Cobalt). Each TEST_CASE("name", "[tags]") becomes one CTest test named `name`,
+# (VIGIL_TEST_DISCOVERY=sources, the cobalt preset: a Cobalt test binary stops when it starts
+# Cobalt on a kernel without Cobalt). Each TEST_CASE("name", "[tags]") becomes one CTest test named `name`,
 # with the same command line catch_discover_tests (Catch2's CatchAddTests.cmake) writes:
 # `<exe> <name with , [ ] escaped>`, in the same working directory, with the given properties.
 # So both modes list the same tests under the same names; tests/CMakeLists.txt chooses one.

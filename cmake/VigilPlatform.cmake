@@ -8,9 +8,8 @@ endif()
 
 if(VIGIL_PLATFORM STREQUAL "cobalt")
   list(APPEND CMAKE_MODULE_PATH ${CMAKE_CURRENT_LIST_DIR})
+  # Xenomai::cobalt_link gives every binary that links vigil::platform (built or installed, vigil's
+  # or a user's) a RUNPATH entry for Xenomai's library folder: libcobalt.so and libmodechk.so are
+  # found where vigil was built against (elsewhere on the target: ld.so.conf or LD_LIBRARY_PATH).
   find_package(Xenomai REQUIRED)
-  # The link flags name libcobalt with -L/-l, which CMake does not turn into an RPATH: give every
-  # binary of the build tree the library folder, so tests and tools find libcobalt.so where it
-  # was built against (on a Cobalt machine where it is elsewhere: LD_LIBRARY_PATH or ld.so.conf).
-  list(APPEND CMAKE_BUILD_RPATH ${Xenomai_LIBRARY_DIRS})
 endif()

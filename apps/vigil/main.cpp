@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "commands.hpp"
+#include "vigil/platform/process.hpp"
 #include "vigil/version.hpp"
 
 int main(int argc, char** argv) {
@@ -118,6 +119,17 @@ int main(int argc, char** argv) {
                     "Publish ROS 2 /diagnostics over DDS (domain: ROS_DOMAIN_ID, else 0)");
 
   CLI11_PARSE(app, argc, argv);
+
+  // Xenomai Cobalt: libcobalt starts here, after vigil has read its own command line (the build
+  // links no automatic start-up, which would act on --help, --version, --verbose, ... before
+  // main(); docs/guide/xenomai-cobalt.md). Only the commands that supervise need it: check-config,
+  // can-stats and `demo --print-config` read and print files. Linux: nothing to start.
+  if ((demo_cmd->parsed() && !demo.print_config) || sup_cmd->parsed()) {
+    if (auto core = vigil::platform::initialize(); !core) {
+      fmt::print(stderr, "vigil: {}\n", core.error().message);
+      return 1;
+    }
+  }
 
   if (demo_cmd->parsed()) return vigil::app::run_demo(demo);
   if (check_cmd->parsed()) return vigil::app::run_check_config(check);

@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "vigil/config/error.hpp"
+#include "vigil/platform/process.hpp"
 #include "vigil/task/shm_messages.hpp"
 
 namespace vigil::deploy {
@@ -240,6 +241,9 @@ void System::configure_reactions(const ComponentFactory& factory) {
 expected<void, Error> System::start() {
   if (running_) return {};
   log_.clear();
+  // Xenomai Cobalt: libcobalt starts before any thread of the system does, on the caller's thread
+  // (the main thread; unless the program started it already). Linux: nothing to start.
+  if (auto core = platform::initialize(); !core) return vigil::unexpected(core.error());
   // The malloc arenas are bounded before the pipeline starts its threads (glibc gives every
   // thread that allocates before the bound an arena of its own, for good); the rest of the
   // real-time set-up comes after it, so that a taken port fails before anything is locked (the

@@ -56,6 +56,7 @@ std::string RealtimeSetupReport::describe() const {
   s += can_use_fifo ? "yes" : "no";
   s += "\nzero CPU latency requested: ";
   s += cpu_latency_requested ? "yes" : "no";
+  if (!core_error.empty()) s += "\nreal-time core not started: " + core_error;
   s += '\n';
   return s;
 }

@@ -9,14 +9,17 @@
 /// `outputs.textfile`) are outputs of that service and its extensions (e.g. CAN) are
 /// contributors of it, run once per monitor cycle; the system keeps no exporter of its own.
 ///
-/// Start order: the service (its outputs first: a taken port fails start() here, before anything
-/// runs; then the supervisor and monitor threads, so that nothing a component sends is missed)
+/// Start order: the platform's real-time core (Xenomai Cobalt: libcobalt, unless the program
+/// started it with vigil::platform::initialize(); nothing on Linux) -> the service (its outputs
+/// first: a taken port fails start() here, before anything runs; then the supervisor and monitor
+/// threads, so that nothing a component sends is missed)
 /// -> process set-up for real time (memory locking, prefault) -> extensions -> every component
 /// configured, in file order (all before any starts: a failure leaves nothing running) -> every
 /// activity started, in file order of its components. Stop order: activities (reverse),
 /// extensions, a last supervisor drain, the monitor, the outputs.
 ///
-/// Not RT-safe; call from one control thread.
+/// Not RT-safe; call from one control thread (on Cobalt: the main thread, unless the program
+/// started Cobalt itself).
 
 #include <functional>
 #include <map>

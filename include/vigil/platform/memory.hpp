@@ -50,12 +50,17 @@ struct RealtimeSetupReport {
   bool can_use_fifo = false;
   /// The zero CPU latency request is in force (false when not asked for or refused).
   bool cpu_latency_requested = false;
+  /// Empty, or why the platform's real-time core could not be started (platform::initialize(),
+  /// process.hpp: Cobalt only, e.g. called from a thread other than main before Cobalt started).
+  std::string core_error;
 
   /// One line per step, e.g. "memory locked: yes", for logs and reports.
   [[nodiscard]] std::string describe() const;
 };
 
-/// Locks and prefaults memory as `options` says. Never throws; failures are in the report.
+/// Starts the platform's real-time core first (platform::initialize(): Cobalt's libcobalt; nothing
+/// on Linux), then locks and prefaults memory as `options` says. Never throws; failures are in
+/// the report.
 RealtimeSetupReport setup_realtime_process(const RealtimeSetupOptions& options = {});
 
 /// Bounds glibc's malloc arenas to `max` (mallopt M_ARENA_MAX), the step of

@@ -18,6 +18,7 @@
 #include "platform/posix/backend.hpp"
 
 #include "platform/cobalt/build_check.hpp"
+#include "platform/cobalt/core.hpp"
 
 #include <pthread.h>
 #include <sys/syscall.h>
@@ -60,15 +61,15 @@ int query_current_tid() noexcept {
 
 int current_sched_param(int* policy, sched_param* param) noexcept {
   // Cobalt's view for a Cobalt thread (libcobalt falls back to glibc's for other threads). A
-  // SCHED_OTHER Cobalt thread (main, shadowed by libcobalt's start-up) reports Cobalt's
-  // SCHED_WEAK class, which current_sched_info() maps to Other.
+  // SCHED_OTHER Cobalt thread (main, shadowed by libcobalt's start-up, initialize()) reports
+  // Cobalt's SCHED_WEAK class, which current_sched_info() maps to Other.
   return __RT(pthread_getschedparam)(pthread_self(), policy, param);
 }
 
-// libcobalt's initialisation (before main() with the default auto-init) calls
-// mlockall(MCL_CURRENT | MCL_FUTURE) and aborts the program if that fails; a thread shadowed while
-// memory is unlocked gets SIGDEBUG_NOMLOCK (XENOMAI.md §3.4). So memory is always locked here and
-// must stay locked: `lock_memory = false` cannot unlock it.
-bool memory_always_locked() noexcept { return true; }
+// libcobalt's initialisation (initialize(), core.cpp; setup_realtime_process() calls it first)
+// calls mlockall(MCL_CURRENT | MCL_FUTURE) and ends the program if that fails; a thread shadowed
+// while memory is unlocked gets SIGDEBUG_NOMLOCK (XENOMAI.md §3.4). So memory is locked once
+// Cobalt runs and must stay locked: `lock_memory = false` cannot unlock it.
+bool memory_always_locked() noexcept { return cobalt_ready(); }
 
 }  // namespace vigil::platform::detail

@@ -4,10 +4,13 @@
 // executables are linked without libcobalt's --wrap list, and this file would resolve to Cobalt
 // with it too.
 // With a Dovetail kernel (3.2+) Cobalt's CLOCK_MONOTONIC is Linux's; with an I-pipe kernel it is
-// Cobalt's own timebase, so vigil never mixes it with glibc's clock (XENOMAI.md §3.1).
+// Cobalt's own timebase, so vigil never mixes it with glibc's clock (XENOMAI.md §3.1) once
+// libcobalt runs. Before (a program that has not called vigil::platform::initialize() yet),
+// now_ns() reads glibc's: on an I-pipe kernel, start Cobalt before taking timestamps.
 #include "vigil/platform/clock.hpp"
 
 #include "platform/cobalt/build_check.hpp"
+#include "platform/cobalt/core.hpp"
 
 #include <sys/syscall.h>
 #include <unistd.h>
@@ -47,12 +50,20 @@ int sleep_until_linux(Nanos deadline_ns) noexcept {
 
 Nanos now_ns() noexcept {
   timespec ts{};
+  // Before libcobalt starts (initialize()) its clock_gettime must not be called (core.hpp): read
+  // Linux's CLOCK_MONOTONIC, which is Cobalt's on Dovetail kernels. One acquire load otherwise.
+  if (!detail::cobalt_ready()) [[unlikely]] {
+    ::clock_gettime(CLOCK_MONOTONIC, &ts);
+    return static_cast<Nanos>(ts.tv_sec) * kNanosPerSecond + ts.tv_nsec;
+  }
   __RT(clock_gettime)(CLOCK_MONOTONIC, &ts);
   return static_cast<Nanos>(ts.tv_sec) * kNanosPerSecond + ts.tv_nsec;
 }
 
 int sleep_until(Nanos deadline_ns) noexcept {
   if (deadline_ns < 0) return EINVAL;
+  // No Cobalt thread before libcobalt starts: the caller sleeps with Linux.
+  if (!detail::cobalt_ready()) return sleep_until_linux(deadline_ns);
   const timespec ts = to_timespec(deadline_ns);
   int rc = 0;
   // Cobalt's clock_nanosleep returns the error number itself, like POSIX's; an absolute deadline

@@ -8,15 +8,17 @@
 // already in secondary mode; it only does async-signal-safe work (atomic increments, sigaction,
 // raise), never I/O or allocation.
 //
-// The handler replaces libcobalt's (installed before main()), saved at install time. It chains to
-// the saved one for NOMLOCK and WATCHDOG, where libcobalt reports and ends the process, as
-// Xenomai intends. It does not chain for relaxes and debug reports: libcobalt's handler would
-// restore the default action of SIGXCPU and re-raise, i.e. kill the process, while vigil's job
-// is to count and report. Unmarked SIGXCPU (libcobalt's mode check of malloc/free in primary
-// mode, RLIMIT_CPU, kill) is counted and ignored, as XENOMAI.md §1.3 sketches.
+// The handler replaces libcobalt's (installed when libcobalt starts, initialize()), saved at
+// install time. It chains to the saved one for NOMLOCK and WATCHDOG, where libcobalt reports and
+// ends the process, as Xenomai intends. It does not chain for relaxes and debug reports:
+// libcobalt's handler would restore the default action of SIGXCPU and re-raise, i.e. kill the
+// process, while vigil's job is to count and report. Unmarked SIGXCPU (libcobalt's mode check of
+// malloc/free in primary mode, RLIMIT_CPU, kill) is counted and ignored, as XENOMAI.md §1.3
+// sketches.
 #include "vigil/platform/rt_loss.hpp"
 
 #include "platform/cobalt/build_check.hpp"
+#include "platform/cobalt/core.hpp"
 
 #include <pthread.h>
 #include <signal.h>
@@ -125,6 +127,9 @@ ThreadUsage thread_usage() noexcept {
 }
 
 bool arm_mode_switch_detection() noexcept {
+  // No Cobalt thread exists before libcobalt starts (initialize()), and libcobalt installs its own
+  // SIGDEBUG handler when it starts: ours must come after it (it saves libcobalt's to chain to).
+  if (!detail::cobalt_ready()) return false;
   // Once per process: a function-local static is initialised exactly once even when several
   // threads arm at the same time (the others block until it is done; this is not RT code).
   static const bool installed = install_handler();

@@ -1,6 +1,8 @@
 // Linux backend of the shared POSIX part (src/platform/posix/backend.hpp): glibc throughout.
 #include "platform/posix/backend.hpp"
 
+#include "vigil/platform/process.hpp"
+
 #include <sys/syscall.h>
 #include <unistd.h>
 
@@ -17,3 +19,12 @@ int current_sched_param(int* policy, sched_param* param) noexcept {
 bool memory_always_locked() noexcept { return false; }
 
 }  // namespace vigil::platform::detail
+
+namespace vigil::platform {
+
+// No real-time core to start on Linux: Thread::spawn, the clock and the waits are glibc's.
+expected<void, Error> initialize() noexcept { return {}; }
+expected<void, Error> initialize(int& /*argc*/, char**& /*argv*/) noexcept { return {}; }
+bool initialized() noexcept { return true; }
+
+}  // namespace vigil::platform

@@ -40,8 +40,8 @@ struct ThreadOps {
 /// pthread_getschedparam of the calling thread as the platform's scheduler sees it.
 [[nodiscard]] int current_sched_param(int* policy, sched_param* param) noexcept;
 
-/// True when memory is locked whatever RealtimeSetupOptions::lock_memory says (Cobalt: libcobalt
-/// locked it before main() and it must never be unlocked).
+/// True when memory is locked whatever RealtimeSetupOptions::lock_memory says (Cobalt: once
+/// libcobalt has started, initialize(): it locked memory, which must never be unlocked).
 [[nodiscard]] bool memory_always_locked() noexcept;
 
 }  // namespace vigil::platform::detail

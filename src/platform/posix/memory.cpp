@@ -1,6 +1,6 @@
 // Process set-up for real time on both platforms: mlockall, malloc tuning, stack and heap
 // prefaulting, the zero-CPU-latency request. The one difference, whether memory may stay
-// unlocked, comes from the backend (backend.hpp): libcobalt has locked it before main() already.
+// unlocked, comes from the backend (backend.hpp): libcobalt locks it when it starts (initialize()).
 #include "vigil/platform/memory.hpp"
 
 #include <alloca.h>
@@ -15,6 +15,7 @@
 #include <cstdlib>
 
 #include "platform/posix/backend.hpp"
+#include "vigil/platform/process.hpp"
 
 namespace vigil::platform {
 
@@ -48,6 +49,8 @@ int bound_malloc_arenas(int max) noexcept {
 
 RealtimeSetupReport setup_realtime_process(const RealtimeSetupOptions& options) {
   RealtimeSetupReport report;
+  // Cobalt: libcobalt starts here unless the program started it (it locks memory itself).
+  if (auto core = initialize(); !core) report.core_error = core.error().message;
   // Cobalt: repeating libcobalt's mlockall is harmless (same flags) and lets the report say what
   // the kernel answers now rather than assume it; it runs whatever `lock_memory` says, since
   // memory must never be unlocked under Cobalt (munlockall would break it).

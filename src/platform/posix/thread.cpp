@@ -18,6 +18,7 @@
 
 #include "platform/posix/backend.hpp"
 #include "vigil/platform/memory.hpp"
+#include "vigil/platform/process.hpp"
 #include "vigil/platform/wait.hpp"
 
 namespace vigil::platform {
@@ -88,6 +89,12 @@ Thread::~Thread() { join(); }
 expected<Thread, Error> Thread::spawn(const ThreadConfig& config, std::function<void()> body) {
   const detail::ThreadOps& ops = detail::thread_ops(config);
   if (config.policy == SchedPolicy::Fifo) {
+    // Cobalt: a SCHED_FIFO thread is a Cobalt thread, so libcobalt must have started (the first
+    // such thread starts it when the program has not: on the main thread only). Linux: no-op.
+    if (auto core = initialize(); !core) {
+      return unexpected(Error{core.error().code, fmt::format("{}: {}", describe(config, ops.label),
+                                                             core.error().message)});
+    }
     // 1..99 on both platforms: Cobalt's SCHED_FIFO accepts up to 256, but libcobalt also sets
     // the Linux side of the thread, where the range is 1..99 (XENOMAI.md §3.3).
     const int lo = sched_get_priority_min(SCHED_FIFO);

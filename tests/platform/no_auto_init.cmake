@@ -1,0 +1,125 @@
+# Proves, over the built binaries of a Cobalt build, that no program carries libcobalt's automatic
+# start-up and that every program linked with libcobalt finds it through its RUNPATH
+# (docs/design/platform.md, "Starting Cobalt after the command line"). Run with `cmake -P`;
+# registered by tests/platform/CMakeLists.txt.
+#
+#   -DVIGIL_BINARY_LIST=<file> -DVIGIL_NM=<nm> -DVIGIL_READELF=<readelf> -DVIGIL_XENOMAI_LIBDIRS=<dirs>
+#       <file> names one executable per line. For each:
+#         - `nm` must show no definition of libcobalt's start-up (bootstrap.o: xenomai_main,
+#           __wrap_main, xenomai_bootstrap, xenomai_auto_bootstrap). With it, libcobalt reads the
+#           command line before main() and acts on --help, --version, --verbose, ... itself.
+#         - when `readelf -d` lists libcobalt.so as NEEDED, its RUNPATH (or RPATH) must hold each of
+#           <dirs> (the Xenomai library folders, `;`-separated).
+#       Fails, naming the binary, on either; also when a listed binary does not exist (build
+#       first) or when no binary needs libcobalt (not a Cobalt build: nothing proven).
+#   -DVIGIL_SELF_TEST=ON
+#       checks the two classifications on made-up nm and readelf outputs.
+cmake_minimum_required(VERSION 3.25)
+
+# Sets <out> to the start-up symbols that `nm` output <text> defines ("" when none).
+function(vigil_startup_symbols text out)
+  string(REPLACE "\n" ";" lines "${text}")
+  set(found "")
+  foreach(line IN LISTS lines)
+    if(line MATCHES "^[0-9a-fA-F]* *[TtDdRrBbWwVv] (xenomai_main|__wrap_main|xenomai_bootstrap|xenomai_auto_bootstrap)$")
+      list(APPEND found "${CMAKE_MATCH_1}")
+    endif()
+  endforeach()
+  set(${out} "${found}" PARENT_SCOPE)
+endfunction()
+
+# From `readelf -d` output <text>: <needs> = TRUE when libcobalt.so is NEEDED, <missing> = the
+# folders of <dirs> absent from its RUNPATH/RPATH.
+function(vigil_runpath_check text dirs needs missing)
+  set(need FALSE)
+  if(text MATCHES "\\(NEEDED\\)[^\n]*\\[libcobalt\\.so")
+    set(need TRUE)
+  endif()
+  set(path "")
+  if(text MATCHES "\\((RUNPATH|RPATH)\\)[^\n]*\\[([^]\n]*)\\]")
+    string(REPLACE ":" ";" path "${CMAKE_MATCH_2}")
+  endif()
+  set(absent "")
+  foreach(d IN LISTS dirs)
+    if(NOT d IN_LIST path)
+      list(APPEND absent "${d}")
+    endif()
+  endforeach()
+  set(${needs} ${need} PARENT_SCOPE)
+  set(${missing} "${absent}" PARENT_SCOPE)
+endfunction()
+
+if(VIGIL_SELF_TEST)
+  set(failures "")
+  set(nm_auto "0000000000001139 T main\n0000000000001160 T xenomai_main\n0000000000001160 W __wrap_main\n0000000000001240 t xenomai_bootstrap\n0000000000002000 R xenomai_auto_bootstrap\n                 U __libc_start_main@GLIBC_2.34\n")
+  vigil_startup_symbols("${nm_auto}" found)
+  if(NOT found STREQUAL "xenomai_main;__wrap_main;xenomai_bootstrap;xenomai_auto_bootstrap")
+    list(APPEND failures "auto-init binary: found '${found}'")
+  endif()
+  set(nm_plain "0000000000001139 T main\n                 U xenomai_init\n                 U __cobalt_clock_gettime\n0000000000004010 B xenomai_main_count\n")
+  vigil_startup_symbols("${nm_plain}" found)
+  if(NOT found STREQUAL "")
+    list(APPEND failures "no-auto-init binary: found '${found}'")
+  endif()
+  set(re_ok " 0x0000000000000001 (NEEDED)             Shared library: [libcobalt.so.2]\n 0x000000000000001d (RUNPATH)            Library runpath: [/opt/x/lib:$ORIGIN/../lib/vigil]\n")
+  vigil_runpath_check("${re_ok}" "/opt/x/lib" needs missing)
+  if(NOT needs OR NOT missing STREQUAL "")
+    list(APPEND failures "RUNPATH with the folder: needs=${needs} missing='${missing}'")
+  endif()
+  set(re_bad " 0x0000000000000001 (NEEDED)             Shared library: [libcobalt.so.2]\n 0x000000000000001d (RUNPATH)            Library runpath: [$ORIGIN/../lib/vigil]\n")
+  vigil_runpath_check("${re_bad}" "/opt/x/lib" needs missing)
+  if(NOT needs OR NOT missing STREQUAL "/opt/x/lib")
+    list(APPEND failures "RUNPATH without the folder: needs=${needs} missing='${missing}'")
+  endif()
+  set(re_none " 0x0000000000000001 (NEEDED)             Shared library: [libc.so.6]\n")
+  vigil_runpath_check("${re_none}" "/opt/x/lib" needs missing)
+  if(needs)
+    list(APPEND failures "a binary without libcobalt counted as needing it")
+  endif()
+  if(failures)
+    list(JOIN failures "\n  " text)
+    message(FATAL_ERROR "self-test failed:\n  ${text}")
+  endif()
+  message(STATUS "self-test passed")
+  return()
+endif()
+
+foreach(var VIGIL_BINARY_LIST VIGIL_NM VIGIL_READELF VIGIL_XENOMAI_LIBDIRS)
+  if(NOT ${var})
+    message(FATAL_ERROR "${var} is not set")
+  endif()
+endforeach()
+file(STRINGS "${VIGIL_BINARY_LIST}" binaries)
+set(failures "")
+set(with_cobalt 0)
+foreach(bin IN LISTS binaries)
+  if(NOT EXISTS "${bin}")
+    list(APPEND failures "${bin}: not built (build the whole tree first)")
+    continue()
+  endif()
+  execute_process(COMMAND ${VIGIL_NM} "${bin}" OUTPUT_VARIABLE nm_out ERROR_QUIET)
+  vigil_startup_symbols("${nm_out}" found)
+  if(found)
+    list(JOIN found ", " found_text)
+    list(APPEND failures "${bin}: carries libcobalt's automatic start-up (${found_text})")
+  endif()
+  execute_process(COMMAND ${VIGIL_READELF} -d "${bin}" OUTPUT_VARIABLE re_out ERROR_QUIET)
+  vigil_runpath_check("${re_out}" "${VIGIL_XENOMAI_LIBDIRS}" needs missing)
+  if(needs)
+    math(EXPR with_cobalt "${with_cobalt} + 1")
+    if(missing)
+      list(JOIN missing ", " missing_text)
+      list(APPEND failures "${bin}: needs libcobalt.so, RUNPATH lacks ${missing_text}")
+    endif()
+  endif()
+endforeach()
+if(with_cobalt EQUAL 0)
+  list(APPEND failures "no binary needs libcobalt.so: not a Cobalt build, nothing proven")
+endif()
+if(failures)
+  list(JOIN failures "\n  " text)
+  message(FATAL_ERROR "${text}")
+endif()
+list(LENGTH binaries n)
+message(STATUS "${n} executables: no automatic start-up; ${with_cobalt} need libcobalt.so and "
+               "find it through their RUNPATH")
