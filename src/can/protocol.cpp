@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 
@@ -135,6 +136,119 @@ std::uint32_t stuff_bits(std::span<const std::uint8_t> bits) noexcept {
   return stuffed;
 }
 
+namespace {
+
+// CRC-15 one byte at a time (the bitwise register of `can_crc15` run 8 steps per table entry:
+// feeding byte b MSB first into register r equals feeding 8 zeros into r ^ (b << 7)).
+constexpr std::array<std::uint16_t, 256> make_crc15_table() {
+  std::array<std::uint16_t, 256> t{};
+  for (unsigned i = 0; i < 256; ++i) {
+    auto crc = static_cast<std::uint16_t>(i << 7);
+    for (int k = 0; k < 8; ++k) {
+      const bool top = ((crc >> 14) & 1U) != 0;
+      crc = static_cast<std::uint16_t>((crc << 1) & 0x7FFF);
+      if (top) crc ^= 0x4599;
+    }
+    t[i] = crc;
+  }
+  return t;
+}
+constexpr std::array<std::uint16_t, 256> kCrc15Table = make_crc15_table();
+
+// Feeds the low `count` bits of `value` (most significant first) into the CRC register.
+constexpr std::uint16_t crc15_bits(std::uint16_t crc, std::uint64_t value, unsigned count) {
+  unsigned left = count;
+  while (left % 8 != 0) {  // the odd bits one by one, the rest a byte at a time
+    --left;
+    const bool next = (((value >> left) & 1U) != 0) != (((crc >> 14) & 1U) != 0);
+    crc = static_cast<std::uint16_t>((crc << 1) & 0x7FFF);
+    if (next) crc ^= 0x4599;
+  }
+  while (left > 0) {
+    left -= 8;
+    const auto b = static_cast<unsigned>((value >> left) & 0xFFU);
+    crc = static_cast<std::uint16_t>(((crc << 8) & 0x7FFF) ^ kCrc15Table[((crc >> 7) ^ b) & 0xFFU]);
+  }
+  return crc;
+}
+
+// Up to 128 bits, first bit the most significant of word 0.
+struct BitString {
+  std::array<std::uint64_t, 2> w{};
+  unsigned n = 0;
+  void put(std::uint64_t value, unsigned count) {
+    for (unsigned done = 0; done < count;) {
+      const unsigned word = n / 64;
+      const unsigned room = 64 - n % 64;
+      const unsigned take = std::min(room, count - done);
+      const std::uint64_t part =
+          (value >> (count - done - take)) & (take == 64 ? ~0ULL : ((1ULL << take) - 1));
+      w[word] |= part << (room - take);
+      n += take;
+      done += take;
+    }
+  }
+  [[nodiscard]] bool bit(unsigned i) const { return ((w[i / 64] >> (63 - i % 64)) & 1U) != 0; }
+  // How many bits from `p` on equal bit `p` (at least 1).
+  [[nodiscard]] unsigned run(unsigned p) const {
+    const bool v = bit(p);
+    unsigned len = 0;
+    while (p < n) {
+      const unsigned off = p % 64;
+      std::uint64_t x = w[p / 64] << off;
+      if (v) x = ~x;
+      const unsigned avail = std::min(64 - off, n - p);
+      const unsigned z = std::min<unsigned>(x == 0 ? 64U : std::countl_zero(x), avail);
+      len += z;
+      p += z;
+      if (z < avail) break;
+    }
+    return len;
+  }
+};
+
+}  // namespace
+
+std::uint32_t exact_classic_bits(const FrameShape& f) noexcept {
+  // The frame from SOF to the end of the CRC sequence, as `classic_frame_bits` lays it out, packed;
+  // stuff bits counted run by run (a run of L equal bits, after a stuff bit of its value when the
+  // run before ended on one, holds (L + carry) / 5 stuff bits).
+  BitString s;
+  const std::uint32_t dlc = std::min<std::uint32_t>(f.length, kMaxDlc);
+  std::uint64_t head = 0;
+  unsigned head_bits = 0;
+  if (f.extended) {
+    head = (std::uint64_t{(f.id >> 18) & 0x7FFU} << 27) | (std::uint64_t{3} << 25) |
+           (std::uint64_t{f.id & 0x3FFFFU} << 7) | (std::uint64_t{f.rtr ? 1U : 0U} << 6) | dlc;
+    head_bits = 1 + 11 + 2 + 18 + 1 + 2 + 4;  // 39 with SOF
+  } else {
+    head = (std::uint64_t{f.id & 0x7FFU} << 7) | (std::uint64_t{f.rtr ? 1U : 0U} << 6) | dlc;
+    head_bits = 1 + 11 + 1 + 2 + 4;  // 19 with SOF
+  }
+  s.put(head, head_bits);  // SOF is the leading 0
+  std::uint16_t crc = crc15_bits(0, head, head_bits);
+  const std::size_t bytes = data_bytes(f);
+  std::uint64_t data = 0;
+  for (std::size_t i = 0; i < bytes; ++i) {
+    data = (data << 8) | (i < f.data.size() ? f.data[i] : 0U);
+  }
+  if (bytes > 0) {
+    s.put(data, static_cast<unsigned>(bytes * 8));
+    crc = crc15_bits(crc, data, static_cast<unsigned>(bytes * 8));
+  }
+  s.put(crc, 15);
+  std::uint32_t stuffed = 0;
+  unsigned carry = 0;
+  for (unsigned p = 0; p < s.n;) {
+    const unsigned len = s.run(p);
+    const unsigned eff = len + carry;
+    stuffed += eff / 5;
+    carry = eff % 5 == 0 ? 1 : 0;
+    p += len;
+  }
+  return s.n + stuffed;
+}
+
 FrameBits frame_bits(const FrameShape& f, Stuffing s) noexcept {
   const auto n = static_cast<std::uint32_t>(data_bytes(f));
   if (f.fd) {
@@ -153,13 +267,9 @@ FrameBits frame_bits(const FrameShape& f, Stuffing s) noexcept {
       return {(f.extended ? 67U : 47U) + n * 8, 0};
     case Stuffing::WorstCase:
       return {(f.extended ? 80U : 55U) + n * 10, 0};
-    case Stuffing::Exact: {
-      std::array<std::uint8_t, 128> bits{};
-      const std::size_t count = classic_frame_bits(f, bits);
-      const std::span<const std::uint8_t> used(bits.data(), count);
+    case Stuffing::Exact:
       // + CRC delimiter, ACK slot, ACK delimiter (3), EOF (7), intermission (3).
-      return {static_cast<std::uint32_t>(count) + stuff_bits(used) + 13, 0};
-    }
+      return {exact_classic_bits(f) + 13, 0};
   }
   return {};
 }
@@ -567,6 +677,8 @@ std::string_view to_string(BusProtocol p) noexcept {
       return "canopen";
     case BusProtocol::DroneCan:
       return "dronecan";
+    case BusProtocol::J1939:
+      return "j1939";
   }
   return "?";
 }
@@ -591,6 +703,12 @@ std::string_view to_string(ProtocolEventKind k) noexcept {
       return "error_active";
     case ProtocolEventKind::NodeHealth:
       return "node_health";
+    case ProtocolEventKind::DtcActive:
+      return "dtc_active";
+    case ProtocolEventKind::DtcCleared:
+      return "dtc_cleared";
+    case ProtocolEventKind::AddressClaim:
+      return "address_claim";
   }
   return "?";
 }
@@ -603,6 +721,7 @@ BusSettings ProtocolOptions::settings(std::uint8_t bus, NodeMapKind map) const n
   if (s.protocol == BusProtocol::Auto) {
     s.protocol = map == NodeMapKind::CanOpen    ? BusProtocol::CanOpen
                  : map == NodeMapKind::DroneCan ? BusProtocol::DroneCan
+                 : map == NodeMapKind::J1939    ? BusProtocol::J1939
                                                 : BusProtocol::None;
   }
   return s;
@@ -633,6 +752,14 @@ const dronecan::NodeStats* ProtocolSnapshot::find_dronecan(std::uint8_t bus,
                                                            std::uint32_t node) const noexcept {
   for (const auto& n : dronecan) {
     if (n.bus == bus && n.node == node) return &n;
+  }
+  return nullptr;
+}
+
+const j1939::NodeStats* ProtocolSnapshot::find_j1939(std::uint8_t bus,
+                                                     std::uint32_t node) const noexcept {
+  for (const auto& n : j1939) {
+    if (n.bus == bus && n.address == node) return &n;
   }
   return nullptr;
 }
@@ -763,12 +890,15 @@ void ProtocolTracker::on(const FrameRecord& r, NodeMapKind map) {
     on_canopen(b, r);
   } else if (r.extended && b.stats.settings.protocol == BusProtocol::DroneCan) {
     on_dronecan(r);
+  } else if (r.extended && b.stats.settings.protocol == BusProtocol::J1939) {
+    on_j1939(r);
   }
 }
 
 void ProtocolTracker::advance(Nanos t) {
   const std::int64_t upto = second_of(t);
   for (auto& [index, b] : buses_) close_windows(b, upto);
+  expire_sessions(t);
 }
 
 void ProtocolTracker::emit(ProtocolEventKind kind, std::uint8_t severity, Nanos t, std::uint8_t bus,
@@ -1090,6 +1220,9 @@ ProtocolSnapshot ProtocolTracker::snapshot() const {
   for (const auto& [key, n] : nodes_) out.canopen.push_back(n.stats);
   out.dronecan.reserve(dc_nodes_.size());
   for (const auto& [key, n] : dc_nodes_) out.dronecan.push_back(n);
+  out.j1939.reserve(j1939_nodes_.size());
+  for (const auto& [key, n] : j1939_nodes_) out.j1939.push_back(n);
+  out.tp_sessions_open = tp_.size();
   out.untracked_nodes = untracked_nodes_;
   out.events = seq_;
   out.events_dropped = events_dropped_;

@@ -179,7 +179,8 @@ expected<void, Error> HttpOutput::start(OutputContext& context) {
 
 void HttpOutput::publish(const Snapshot& snapshot) {
   if (!server_) return;
-  server_->publish(snapshot.reports, snapshot.histograms, snapshot.can_histograms);
+  server_->publish(snapshot.reports, snapshot.histograms, snapshot.can_histograms,
+                   snapshot.can_buses);
 }
 
 void HttpOutput::stop(const Snapshot& final_snapshot) {
@@ -197,6 +198,9 @@ void TextfileOutput::publish(const Snapshot& snapshot) {
   m.histograms = snapshot.histograms;
   m.can_histograms = snapshot.can_histograms;
   std::sort(m.can_histograms.begin(), m.can_histograms.end(),
+            [](const auto& a, const auto& b) { return a.name < b.name; });
+  m.can_buses = snapshot.can_buses;
+  std::sort(m.can_buses.begin(), m.can_buses.end(),
             [](const auto& a, const auto& b) { return a.name < b.name; });
   m.wall_time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                        std::chrono::system_clock::now().time_since_epoch())

@@ -71,6 +71,10 @@ enum class EventKind : std::uint8_t {
   // `vigil supervise` again (appended: the values above keep their numbers):
   SegmentCorrupted,  ///< a segment being read was found corrupt; `detail` names the field (Error)
   SupervisorRestarted,  ///< this daemon took over from one that was killed; `detail`: the outage
+  // SAE J1939 (vigil/can/protocol.hpp), appended:
+  DtcActive,     ///< a J1939 DM1 trouble code became active (Warn; Error with the red stop lamp)
+  DtcCleared,    ///< a J1939 DM1 trouble code is no longer active (Info)
+  AddressClaim,  ///< a J1939 address claim: first (Info), another NAME or cannot claim (Warn)
 };
 /// Lower-case name of a kind ("exception", "overrun_limit", ...), as written in JSON.
 [[nodiscard]] const char* to_string(EventKind k) noexcept;
