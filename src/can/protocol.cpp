@@ -172,81 +172,78 @@ constexpr std::uint16_t crc15_bits(std::uint16_t crc, std::uint64_t value, unsig
   return crc;
 }
 
-// Up to 128 bits, first bit the most significant of word 0.
-struct BitString {
-  std::array<std::uint64_t, 2> w{};
-  unsigned n = 0;
-  void put(std::uint64_t value, unsigned count) {
-    for (unsigned done = 0; done < count;) {
-      const unsigned word = n / 64;
-      const unsigned room = 64 - n % 64;
-      const unsigned take = std::min(room, count - done);
-      const std::uint64_t part =
-          (value >> (count - done - take)) & (take == 64 ? ~0ULL : ((1ULL << take) - 1));
-      w[word] |= part << (room - take);
-      n += take;
-      done += take;
-    }
+__extension__ using Bits128 = unsigned __int128;
+
+// The highest set bit of `v`, or -1.
+int highest_bit(Bits128 v) {
+  const auto hi = static_cast<std::uint64_t>(v >> 64);
+  if (hi != 0) return 127 - std::countl_zero(hi);
+  const auto lo = static_cast<std::uint64_t>(v);
+  return lo != 0 ? 63 - std::countl_zero(lo) : -1;
+}
+
+// Stuff bits ISO 11898-1 inserts in the `n` bits of `v` (n <= 128; the first bit is bit n - 1,
+// the last bit 0). A run of L equal bits holds (L + carry) / 5 stuff bits, carry being 1 when
+// the run just before it ended on a stuff bit (which has this run's value: L + carry of that run
+// a multiple of 5). Only runs of 4 bits or more can hold one or pass a carry on, so only those
+// are visited, found with masks (a frame has a few at most).
+std::uint32_t packed_stuff_bits(Bits128 v, unsigned n) {
+  if (n < 5) return 0;
+  const Bits128 all = n >= 128 ? ~Bits128{0} : (Bits128{1} << n) - 1;
+  // Bit i: stream bits i and i + 1 differ (a run boundary), for i < n - 1.
+  const Bits128 bounds = (v ^ (v >> 1)) & (all >> 1);
+  const Bits128 equal = ~bounds & (all >> 1);
+  // Bit i: bits i to i + 3 are equal (a run of at least 4 covers them).
+  Bits128 four = equal & (equal >> 1) & (equal >> 2);
+  std::uint32_t stuffed = 0;
+  int prev_bottom = -1;  // the previous long run's last bit
+  unsigned prev_carry = 0;
+  for (;;) {
+    const int h = highest_bit(four);
+    if (h < 0) break;
+    const int top = h + 2 + 1;  // the highest `four` bit starts the run's top 4 bits
+    const Bits128 below = h == 0 ? Bits128{0} : bounds & ((Bits128{1} << h) - 1);
+    const int bottom = highest_bit(below) + 1;  // 0 when the run goes to the last bit
+    const unsigned carry = prev_bottom == top + 1 ? prev_carry : 0;
+    const unsigned eff = static_cast<unsigned>(top - bottom + 1) + carry;
+    stuffed += eff / 5;
+    prev_carry = eff % 5 == 0 ? 1 : 0;
+    prev_bottom = bottom;
+    four &= bottom == 0 ? Bits128{0} : (Bits128{1} << bottom) - 1;
   }
-  [[nodiscard]] bool bit(unsigned i) const { return ((w[i / 64] >> (63 - i % 64)) & 1U) != 0; }
-  // How many bits from `p` on equal bit `p` (at least 1).
-  [[nodiscard]] unsigned run(unsigned p) const {
-    const bool v = bit(p);
-    unsigned len = 0;
-    while (p < n) {
-      const unsigned off = p % 64;
-      std::uint64_t x = w[p / 64] << off;
-      if (v) x = ~x;
-      const unsigned avail = std::min(64 - off, n - p);
-      const unsigned z = std::min<unsigned>(x == 0 ? 64U : std::countl_zero(x), avail);
-      len += z;
-      p += z;
-      if (z < avail) break;
-    }
-    return len;
-  }
-};
+  return stuffed;
+}
 
 }  // namespace
 
 std::uint32_t exact_classic_bits(const FrameShape& f) noexcept {
-  // The frame from SOF to the end of the CRC sequence, as `classic_frame_bits` lays it out, packed;
-  // stuff bits counted run by run (a run of L equal bits, after a stuff bit of its value when the
-  // run before ended on one, holds (L + carry) / 5 stuff bits).
-  BitString s;
+  // The frame from SOF to the end of the CRC sequence, as `classic_frame_bits` lays it out,
+  // packed in one 128-bit value (at most 1 + 38 + 64 + 15 = 118 bits).
   const std::uint32_t dlc = std::min<std::uint32_t>(f.length, kMaxDlc);
   std::uint64_t head = 0;
   unsigned head_bits = 0;
-  if (f.extended) {
+  if (f.extended) {  // SOF, base id, SRR 1, IDE 1, extension, RTR, r1, r0, DLC
     head = (std::uint64_t{(f.id >> 18) & 0x7FFU} << 27) | (std::uint64_t{3} << 25) |
            (std::uint64_t{f.id & 0x3FFFFU} << 7) | (std::uint64_t{f.rtr ? 1U : 0U} << 6) | dlc;
-    head_bits = 1 + 11 + 2 + 18 + 1 + 2 + 4;  // 39 with SOF
-  } else {
+    head_bits = 39;
+  } else {  // SOF, id, RTR, IDE 0, r0, DLC
     head = (std::uint64_t{f.id & 0x7FFU} << 7) | (std::uint64_t{f.rtr ? 1U : 0U} << 6) | dlc;
-    head_bits = 1 + 11 + 1 + 2 + 4;  // 19 with SOF
+    head_bits = 19;
   }
-  s.put(head, head_bits);  // SOF is the leading 0
-  std::uint16_t crc = crc15_bits(0, head, head_bits);
+  // Leading zeros leave a zero register zero: the header fed as whole bytes (24 or 40 bits).
+  std::uint16_t crc = crc15_bits(0, head, (head_bits + 7) & ~7U);
   const std::size_t bytes = data_bytes(f);
   std::uint64_t data = 0;
   for (std::size_t i = 0; i < bytes; ++i) {
     data = (data << 8) | (i < f.data.size() ? f.data[i] : 0U);
   }
-  if (bytes > 0) {
-    s.put(data, static_cast<unsigned>(bytes * 8));
-    crc = crc15_bits(crc, data, static_cast<unsigned>(bytes * 8));
-  }
-  s.put(crc, 15);
-  std::uint32_t stuffed = 0;
-  unsigned carry = 0;
-  for (unsigned p = 0; p < s.n;) {
-    const unsigned len = s.run(p);
-    const unsigned eff = len + carry;
-    stuffed += eff / 5;
-    carry = eff % 5 == 0 ? 1 : 0;
-    p += len;
-  }
-  return s.n + stuffed;
+  const auto data_bits = static_cast<unsigned>(bytes * 8);
+  if (bytes > 0) crc = crc15_bits(crc, data, data_bits);
+  Bits128 v = head;
+  if (data_bits > 0) v = (v << data_bits) | data;
+  v = (v << 15) | crc;
+  const unsigned n = head_bits + data_bits + 15;
+  return n + packed_stuff_bits(v, n);
 }
 
 FrameBits frame_bits(const FrameShape& f, Stuffing s) noexcept {
