@@ -633,6 +633,14 @@ class ProtocolTracker {
   Bus& bus(std::uint8_t index, NodeMapKind map);
   void close_windows(Bus& b, std::int64_t upto);
   void count_load(Bus& b, const FrameRecord& r);
+  struct ExactCacheEntry {
+    std::uint64_t data = 0;
+    std::uint32_t id = 0;
+    std::uint32_t bits = 0;
+    std::uint16_t shape = 0xFFFF;  // length, extended, rtr, a valid bit; 0xFFFF: empty
+  };
+  FrameBits exact_bits(const FrameRecord& r, const FrameShape& shape);
+  std::array<ExactCacheEntry, 256> exact_cache_{};
   void on_error(Bus& b, const FrameRecord& r);
   void on_canopen(Bus& b, const FrameRecord& r);
   void on_dronecan(const FrameRecord& r);
