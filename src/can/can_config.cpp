@@ -562,7 +562,16 @@ CanConfig load_can_config(const cfg::Node& root) {
     }
     gc.expected = g.optional("expected", true);
     gc.thresholds = load_thresholds(g["thresholds"]);
-    if (g.has("protocol")) gc.protocol = g.required_enum("protocol", kProtocols);
+    if (g.has("protocol")) {
+      gc.protocol = g.required_enum("protocol", kProtocols);
+      if (gc.protocol == BusProtocol::DroneCan || gc.protocol == BusProtocol::J1939) {
+        // DroneCAN and J1939 are a bus's protocol (`buses:`), not a group's.
+        g["protocol"].error(
+            fmt::format("a group's protocol is canopen, none or auto, got '{}' "
+                        "(set it on the bus: buses: {{0: {{protocol: {}}}}})",
+                        to_string(gc.protocol), to_string(gc.protocol)));
+      }
+    }
     c.groups.push_back(std::move(gc));
   }
   for (const auto& [key, b] : root["buses"].entries()) {

@@ -757,7 +757,7 @@ void can_bus_families(const Section& s) {
                  b->load[0][d].frames);
     }
   });
-  w.family("vigil_can_bus_bits_total", Type::Counter,
+  w.family("vigil_can_bus_bit_times_total", Type::Counter,
            "Bits the frames of a CAN bus occupied on the wire, by direction and stuffing count "
            "(none, worst, exact: canbusload's three modes).");
   s.each(is_can_bus, [&](const Report& r) {
@@ -766,7 +766,7 @@ void can_bus_families(const Section& s) {
     for (std::size_t m = 0; m < can::kStuffingModes; ++m) {
       const std::string_view stuffing = can::to_string(static_cast<can::Stuffing>(m));
       for (std::size_t d = 0; d < 3; ++d) {
-        w.sample_u("vigil_can_bus_bits_total", r.name,
+        w.sample_u("vigil_can_bus_bit_times_total", r.name,
                    {{"direction", kDirections[d]}, {"stuffing", stuffing}}, b->load[m][d].bits);
       }
     }

@@ -435,3 +435,14 @@ TEST_CASE("The J1939 truck capture with the default configuration: no false alar
   CHECK(std::string(to_string(vigil::supervisor::EventKind::DtcCleared)) == "dtc_cleared");
   CHECK(std::string(to_string(vigil::supervisor::EventKind::AddressClaim)) == "address_claim");
 }
+
+TEST_CASE("J1939 is a bus's protocol: a group asking for it is an error at its line",
+          "[can][j1939][config]") {
+  const auto ok = load_can_config_string("buses: {0: {protocol: j1939}}\n");
+  REQUIRE(ok.has_value());
+  CHECK(ok->protocol_options().settings(0, NodeMapKind::Identity).protocol == BusProtocol::J1939);
+  const auto bad = load_can_config_string("groups: {trucks: {nodes: [0], protocol: j1939}}\n");
+  REQUIRE_FALSE(bad.has_value());
+  CHECK(bad.error().front().to_string().find("a group's protocol is canopen, none or auto, got "
+                                             "'j1939'") != std::string::npos);
+}

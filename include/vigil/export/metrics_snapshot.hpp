@@ -54,8 +54,8 @@ struct CanHistograms {
 };
 
 /// The bus load of one CAN bus report (`can bus 0`) as numbers, for the bus families
-/// (`vigil_can_bus_load_ratio`, `vigil_can_bus_bits_total`, `vigil_can_bus_frames_total`): the
-/// report's own fields give the loads as text.
+/// (`vigil_can_bus_load_ratio`, `vigil_can_bus_bit_times_total`, `vigil_can_bus_frames_total`):
+/// the report's own fields give the loads as text.
 struct CanBusLoads {
   std::string name;                             ///< the bus report's name: "can bus 0"
   can::Stuffing judged = can::Stuffing::Exact;  ///< the count the bus is judged by
