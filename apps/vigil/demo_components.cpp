@@ -543,6 +543,7 @@ supervision:
 can:
   node_map: canopen
   filter: {not: {ids: [0x080]}}   # SYNC is nobody's traffic
+  buses: {all: {bitrate: 500k}}   # bus load in percent (vigil_can_bus_load_ratio)
   defaults:
     not_responding: {after: 100ms}
     rx_gap: {warn: 5ms, error: 50ms, stat: p99}

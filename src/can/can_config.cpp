@@ -89,6 +89,9 @@ void ThresholdOverrides::apply_to(NodeThresholds& t) const {
   }
   if (canopen_reset_window_ns) t.canopen_reset_window_ns = *canopen_reset_window_ns;
   if (canopen_emergency_level) t.canopen_emergency_level = *canopen_emergency_level;
+  if (j1939_dtc_level) t.j1939_dtc_level = *j1939_dtc_level;
+  if (j1939_lamp_level) t.j1939_lamp_level = *j1939_lamp_level;
+  if (j1939_stop_lamp_level) t.j1939_stop_lamp_level = *j1939_stop_lamp_level;
   read_time.apply_to(t.read_time);
   write_time.apply_to(t.write_time);
   rx_gap.apply_to(t.rx_gap);
@@ -183,11 +186,12 @@ ProtocolOptions CanConfig::protocol_options() const {
 
 namespace {
 
-constexpr std::array<cfg::EnumName<BusProtocol>, 4> kProtocols{{
+constexpr std::array<cfg::EnumName<BusProtocol>, 5> kProtocols{{
     {"auto", BusProtocol::Auto},
     {"none", BusProtocol::None},
     {"canopen", BusProtocol::CanOpen},
     {"dronecan", BusProtocol::DroneCan},
+    {"j1939", BusProtocol::J1939},
 }};
 
 constexpr std::array<cfg::EnumName<Stuffing>, 3> kStuffings{{
@@ -438,8 +442,16 @@ FilterExpr load_filter(const cfg::Node& n) {
 ThresholdOverrides load_thresholds(const cfg::Node& n) {
   ThresholdOverrides t;
   if (!n.defined()) return t;
-  n.reject_unknown_keys(
-      {"never_seen", "not_responding", "read_time", "write_time", "rx_gap", "tx_gap", "canopen"});
+  n.reject_unknown_keys({"never_seen", "not_responding", "read_time", "write_time", "rx_gap",
+                         "tx_gap", "canopen", "j1939"});
+  if (const cfg::Node j = n["j1939"]; j.defined()) {
+    j.reject_unknown_keys({"dtc_level", "lamp_level", "stop_lamp_level"});
+    if (j.has("dtc_level")) t.j1939_dtc_level = j.required_enum("dtc_level", kLevels);
+    if (j.has("lamp_level")) t.j1939_lamp_level = j.required_enum("lamp_level", kLevels);
+    if (j.has("stop_lamp_level")) {
+      t.j1939_stop_lamp_level = j.required_enum("stop_lamp_level", kLevels);
+    }
+  }
   if (const cfg::Node co = n["canopen"]; co.defined()) {
     co.reject_unknown_keys(
         {"heartbeat", "not_operational_after", "reset_window", "emergency_level"});
@@ -550,7 +562,16 @@ CanConfig load_can_config(const cfg::Node& root) {
     }
     gc.expected = g.optional("expected", true);
     gc.thresholds = load_thresholds(g["thresholds"]);
-    if (g.has("protocol")) gc.protocol = g.required_enum("protocol", kProtocols);
+    if (g.has("protocol")) {
+      gc.protocol = g.required_enum("protocol", kProtocols);
+      if (gc.protocol == BusProtocol::DroneCan || gc.protocol == BusProtocol::J1939) {
+        // DroneCAN and J1939 are a bus's protocol (`buses:`), not a group's.
+        g["protocol"].error(
+            fmt::format("a group's protocol is canopen, none or auto, got '{}' "
+                        "(set it on the bus: buses: {{0: {{protocol: {}}}}})",
+                        to_string(gc.protocol), to_string(gc.protocol)));
+      }
+    }
     c.groups.push_back(std::move(gc));
   }
   for (const auto& [key, b] : root["buses"].entries()) {

@@ -601,6 +601,44 @@ void dronecan_checks(NodeReport& n, const CanReport& r) {
 }
 
 // Every bus the protocol tracker saw: its load against its thresholds, its controller state.
+// SAE J1939: an active DTC is `j1939_dtc_level`, a lamp on `j1939_lamp_level` (MIL, amber
+// warning, protect) or `j1939_stop_lamp_level` (red stop); an address claim names the node.
+void j1939_checks(NodeReport& n, const CanReport& r) {
+  if (r.node_map != NodeMapKind::J1939 || !n.bus || n.node > 0xFF) return;
+  const j1939::NodeStats* j = r.snapshot.protocol.find_j1939(*n.bus, n.node);
+  if (j == nullptr) return;
+  n.j1939 = *j;
+  const NodeThresholds& t = n.thresholds;
+  if (j->name && !n.named) n.name = fmt::format("{} ({})", j->name->label(), n.name);
+  if (j->address == 0xFE && j->claims > 0) {
+    n.status.merge(StatusLevel::Warn,
+                   fmt::format("cannot claim an address: {}", j->name ? j->name->describe() : "?"));
+  }
+  if (!j->active.empty()) {
+    std::string list;
+    for (std::size_t i = 0; i < j->active.size() && i < 4; ++i) {
+      if (!list.empty()) list += "; ";
+      list += fmt::format("SPN {} FMI {}", j->active[i].spn, j->active[i].fmi);
+    }
+    if (j->active.size() > 4) list += "; ...";
+    n.status.merge(t.j1939_dtc_level, fmt::format("{} active DTC{} (DM1): {}", j->active.size(),
+                                                  j->active.size() == 1 ? "" : "s", list));
+  }
+  const j1939::Lamps& l = j->lamps;
+  if (j->dm1s > 0 && l.red_stop == j1939::Lamp::On) {
+    n.status.merge(t.j1939_stop_lamp_level,
+                   fmt::format("red stop lamp on (DM1: {})", l.describe()));
+  }
+  if (j->dm1s > 0 && (l.mil == j1939::Lamp::On || l.amber_warning == j1939::Lamp::On ||
+                      l.protect == j1939::Lamp::On)) {
+    n.status.merge(t.j1939_lamp_level, fmt::format("lamp on (DM1: {})", l.describe()));
+  }
+  if (j->malformed > 0) {
+    n.status.merge(StatusLevel::Ok, fmt::format("malformed J1939 input: {} (latest: {})",
+                                                j->malformed, j->last_malformed));
+  }
+}
+
 void judge_buses(CanReport& r, const CanConfig& cfg) {
   for (const BusProtocolStats& s : r.snapshot.protocol.buses) {
     BusReport b;
@@ -695,6 +733,7 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
     builtin_checks(n, r);
     canopen_checks(n, r);
     dronecan_checks(n, r);
+    j1939_checks(n, r);
   }
   judge_buses(r, *cfg);
   custom_checks(checks, r);

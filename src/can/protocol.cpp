@@ -3,7 +3,9 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 namespace vigil::can {
@@ -135,6 +137,116 @@ std::uint32_t stuff_bits(std::span<const std::uint8_t> bits) noexcept {
   return stuffed;
 }
 
+namespace {
+
+// CRC-15 one byte at a time (the bitwise register of `can_crc15` run 8 steps per table entry:
+// feeding byte b MSB first into register r equals feeding 8 zeros into r ^ (b << 7)).
+constexpr std::array<std::uint16_t, 256> make_crc15_table() {
+  std::array<std::uint16_t, 256> t{};
+  for (unsigned i = 0; i < 256; ++i) {
+    auto crc = static_cast<std::uint16_t>(i << 7);
+    for (int k = 0; k < 8; ++k) {
+      const bool top = ((crc >> 14) & 1U) != 0;
+      crc = static_cast<std::uint16_t>((crc << 1) & 0x7FFF);
+      if (top) crc ^= 0x4599;
+    }
+    t[i] = crc;
+  }
+  return t;
+}
+constexpr std::array<std::uint16_t, 256> kCrc15Table = make_crc15_table();
+
+// Feeds the low `count` bits of `value` (most significant first) into the CRC register.
+constexpr std::uint16_t crc15_bits(std::uint16_t crc, std::uint64_t value, unsigned count) {
+  unsigned left = count;
+  while (left % 8 != 0) {  // the odd bits one by one, the rest a byte at a time
+    --left;
+    const bool next = (((value >> left) & 1U) != 0) != (((crc >> 14) & 1U) != 0);
+    crc = static_cast<std::uint16_t>((crc << 1) & 0x7FFF);
+    if (next) crc ^= 0x4599;
+  }
+  while (left > 0) {
+    left -= 8;
+    const auto b = static_cast<unsigned>((value >> left) & 0xFFU);
+    crc = static_cast<std::uint16_t>(((crc << 8) & 0x7FFF) ^ kCrc15Table[((crc >> 7) ^ b) & 0xFFU]);
+  }
+  return crc;
+}
+
+__extension__ using Bits128 = unsigned __int128;
+
+// The highest set bit of `v`, or -1.
+int highest_bit(Bits128 v) {
+  const auto hi = static_cast<std::uint64_t>(v >> 64);
+  if (hi != 0) return 127 - std::countl_zero(hi);
+  const auto lo = static_cast<std::uint64_t>(v);
+  return lo != 0 ? 63 - std::countl_zero(lo) : -1;
+}
+
+// Stuff bits ISO 11898-1 inserts in the `n` bits of `v` (n <= 128; the first bit is bit n - 1,
+// the last bit 0). A run of L equal bits holds (L + carry) / 5 stuff bits, carry being 1 when
+// the run just before it ended on a stuff bit (which has this run's value: L + carry of that run
+// a multiple of 5). Only runs of 4 bits or more can hold one or pass a carry on, so only those
+// are visited, found with masks (a frame has a few at most).
+std::uint32_t packed_stuff_bits(Bits128 v, unsigned n) {
+  if (n < 5) return 0;
+  const Bits128 all = n >= 128 ? ~Bits128{0} : (Bits128{1} << n) - 1;
+  // Bit i: stream bits i and i + 1 differ (a run boundary), for i < n - 1.
+  const Bits128 bounds = (v ^ (v >> 1)) & (all >> 1);
+  const Bits128 equal = ~bounds & (all >> 1);
+  // Bit i: bits i to i + 3 are equal (a run of at least 4 covers them).
+  Bits128 four = equal & (equal >> 1) & (equal >> 2);
+  std::uint32_t stuffed = 0;
+  int prev_bottom = -1;  // the previous long run's last bit
+  unsigned prev_carry = 0;
+  for (;;) {
+    const int h = highest_bit(four);
+    if (h < 0) break;
+    const int top = h + 2 + 1;  // the highest `four` bit starts the run's top 4 bits
+    const Bits128 below = h == 0 ? Bits128{0} : bounds & ((Bits128{1} << h) - 1);
+    const int bottom = highest_bit(below) + 1;  // 0 when the run goes to the last bit
+    const unsigned carry = prev_bottom == top + 1 ? prev_carry : 0;
+    const unsigned eff = static_cast<unsigned>(top - bottom + 1) + carry;
+    stuffed += eff / 5;
+    prev_carry = eff % 5 == 0 ? 1 : 0;
+    prev_bottom = bottom;
+    four &= bottom == 0 ? Bits128{0} : (Bits128{1} << bottom) - 1;
+  }
+  return stuffed;
+}
+
+}  // namespace
+
+std::uint32_t exact_classic_bits(const FrameShape& f) noexcept {
+  // The frame from SOF to the end of the CRC sequence, as `classic_frame_bits` lays it out,
+  // packed in one 128-bit value (at most 1 + 38 + 64 + 15 = 118 bits).
+  const std::uint32_t dlc = std::min<std::uint32_t>(f.length, kMaxDlc);
+  std::uint64_t head = 0;
+  unsigned head_bits = 0;
+  if (f.extended) {  // SOF, base id, SRR 1, IDE 1, extension, RTR, r1, r0, DLC
+    head = (std::uint64_t{(f.id >> 18) & 0x7FFU} << 27) | (std::uint64_t{3} << 25) |
+           (std::uint64_t{f.id & 0x3FFFFU} << 7) | (std::uint64_t{f.rtr ? 1U : 0U} << 6) | dlc;
+    head_bits = 39;
+  } else {  // SOF, id, RTR, IDE 0, r0, DLC
+    head = (std::uint64_t{f.id & 0x7FFU} << 7) | (std::uint64_t{f.rtr ? 1U : 0U} << 6) | dlc;
+    head_bits = 19;
+  }
+  // Leading zeros leave a zero register zero: the header fed as whole bytes (24 or 40 bits).
+  std::uint16_t crc = crc15_bits(0, head, (head_bits + 7) & ~7U);
+  const std::size_t bytes = data_bytes(f);
+  std::uint64_t data = 0;
+  for (std::size_t i = 0; i < bytes; ++i) {
+    data = (data << 8) | (i < f.data.size() ? f.data[i] : 0U);
+  }
+  const auto data_bits = static_cast<unsigned>(bytes * 8);
+  if (bytes > 0) crc = crc15_bits(crc, data, data_bits);
+  Bits128 v = head;
+  if (data_bits > 0) v = (v << data_bits) | data;
+  v = (v << 15) | crc;
+  const unsigned n = head_bits + data_bits + 15;
+  return n + packed_stuff_bits(v, n);
+}
+
 FrameBits frame_bits(const FrameShape& f, Stuffing s) noexcept {
   const auto n = static_cast<std::uint32_t>(data_bytes(f));
   if (f.fd) {
@@ -153,13 +265,9 @@ FrameBits frame_bits(const FrameShape& f, Stuffing s) noexcept {
       return {(f.extended ? 67U : 47U) + n * 8, 0};
     case Stuffing::WorstCase:
       return {(f.extended ? 80U : 55U) + n * 10, 0};
-    case Stuffing::Exact: {
-      std::array<std::uint8_t, 128> bits{};
-      const std::size_t count = classic_frame_bits(f, bits);
-      const std::span<const std::uint8_t> used(bits.data(), count);
+    case Stuffing::Exact:
       // + CRC delimiter, ACK slot, ACK delimiter (3), EOF (7), intermission (3).
-      return {static_cast<std::uint32_t>(count) + stuff_bits(used) + 13, 0};
-    }
+      return {exact_classic_bits(f) + 13, 0};
   }
   return {};
 }
@@ -567,6 +675,8 @@ std::string_view to_string(BusProtocol p) noexcept {
       return "canopen";
     case BusProtocol::DroneCan:
       return "dronecan";
+    case BusProtocol::J1939:
+      return "j1939";
   }
   return "?";
 }
@@ -591,6 +701,12 @@ std::string_view to_string(ProtocolEventKind k) noexcept {
       return "error_active";
     case ProtocolEventKind::NodeHealth:
       return "node_health";
+    case ProtocolEventKind::DtcActive:
+      return "dtc_active";
+    case ProtocolEventKind::DtcCleared:
+      return "dtc_cleared";
+    case ProtocolEventKind::AddressClaim:
+      return "address_claim";
   }
   return "?";
 }
@@ -603,6 +719,7 @@ BusSettings ProtocolOptions::settings(std::uint8_t bus, NodeMapKind map) const n
   if (s.protocol == BusProtocol::Auto) {
     s.protocol = map == NodeMapKind::CanOpen    ? BusProtocol::CanOpen
                  : map == NodeMapKind::DroneCan ? BusProtocol::DroneCan
+                 : map == NodeMapKind::J1939    ? BusProtocol::J1939
                                                 : BusProtocol::None;
   }
   return s;
@@ -633,6 +750,14 @@ const dronecan::NodeStats* ProtocolSnapshot::find_dronecan(std::uint8_t bus,
                                                            std::uint32_t node) const noexcept {
   for (const auto& n : dronecan) {
     if (n.bus == bus && n.node == node) return &n;
+  }
+  return nullptr;
+}
+
+const j1939::NodeStats* ProtocolSnapshot::find_j1939(std::uint8_t bus,
+                                                     std::uint32_t node) const noexcept {
+  for (const auto& n : j1939) {
+    if (n.bus == bus && n.address == node) return &n;
   }
   return nullptr;
 }
@@ -722,6 +847,25 @@ void ProtocolTracker::close_windows(Bus& b, std::int64_t upto) {
   b.stats.window_end_ns = upto * kNanosPerSecond;
 }
 
+FrameBits ProtocolTracker::exact_bits(const FrameRecord& r, const FrameShape& shape) {
+  // Periodic frames repeat their payloads: the exact count of the last frame of each (id,
+  // format, length, data) that hashed to a slot is reused (the CRC and stuffing of a frame
+  // cost about 60 ns; a hit, a few).
+  std::uint64_t data = 0;
+  std::memcpy(&data, r.data.data(), sizeof data);
+  const auto shape_key = static_cast<std::uint16_t>(
+      0x80U | (r.length & 0x1FU) | (r.extended ? 0x20U : 0U) | (r.rtr ? 0x40U : 0U));
+  const std::uint64_t h = (data ^ (std::uint64_t{r.id} << 32 | shape_key)) * 0x9E3779B97F4A7C15ULL;
+  ExactCacheEntry& e = exact_cache_[h >> (64 - 8)];
+  if (e.shape != shape_key || e.id != r.id || e.data != data) {
+    e.shape = shape_key;
+    e.id = r.id;
+    e.data = data;
+    e.bits = frame_bits(shape, Stuffing::Exact).nominal;
+  }
+  return {e.bits, 0};
+}
+
 void ProtocolTracker::count_load(Bus& b, const FrameRecord& r) {
   const FrameShape shape{.id = r.id,
                          .extended = r.extended,
@@ -732,7 +876,9 @@ void ProtocolTracker::count_load(Bus& b, const FrameRecord& r) {
                          .data = std::span<const std::uint8_t>(r.data.data(), r.data.size())};
   const std::size_t dir = r.direction == Direction::Tx ? 1 : 0;
   for (std::size_t m = 0; m < kStuffingModes; ++m) {
-    const FrameBits bits = frame_bits(shape, static_cast<Stuffing>(m));
+    const auto mode = static_cast<Stuffing>(m);
+    const FrameBits bits =
+        mode == Stuffing::Exact && !r.fd ? exact_bits(r, shape) : frame_bits(shape, mode);
     for (const std::size_t k : {dir, std::size_t{2}}) {
       Stream& st = b.streams[m][k];
       ++st.frames;
@@ -763,12 +909,15 @@ void ProtocolTracker::on(const FrameRecord& r, NodeMapKind map) {
     on_canopen(b, r);
   } else if (r.extended && b.stats.settings.protocol == BusProtocol::DroneCan) {
     on_dronecan(r);
+  } else if (r.extended && b.stats.settings.protocol == BusProtocol::J1939) {
+    on_j1939(r);
   }
 }
 
 void ProtocolTracker::advance(Nanos t) {
   const std::int64_t upto = second_of(t);
   for (auto& [index, b] : buses_) close_windows(b, upto);
+  expire_sessions(t);
 }
 
 void ProtocolTracker::emit(ProtocolEventKind kind, std::uint8_t severity, Nanos t, std::uint8_t bus,
@@ -1090,6 +1239,9 @@ ProtocolSnapshot ProtocolTracker::snapshot() const {
   for (const auto& [key, n] : nodes_) out.canopen.push_back(n.stats);
   out.dronecan.reserve(dc_nodes_.size());
   for (const auto& [key, n] : dc_nodes_) out.dronecan.push_back(n);
+  out.j1939.reserve(j1939_nodes_.size());
+  for (const auto& [key, n] : j1939_nodes_) out.j1939.push_back(n);
+  out.tp_sessions_open = tp_.size();
   out.untracked_nodes = untracked_nodes_;
   out.events = seq_;
   out.events_dropped = events_dropped_;

@@ -42,7 +42,7 @@ void CanExtension::stop() {
 }
 
 void CanExtension::contribute(exporter::Snapshot& snapshot) {
-  add_reports(snapshot.reports, &snapshot.can_histograms);
+  add_reports(snapshot.reports, &snapshot.can_histograms, &snapshot.can_buses);
 }
 
 Report CanExtension::supervisor_report(const can::CanReport& r, bool running) const {
@@ -133,6 +133,21 @@ Report node_report(const can::CanReport& r, const can::NodeReport& n) {
     rep.add_field(Field::of_count("restarts", dc.restarts));
     if (dc.malformed > 0) rep.add_field(Field::of_count("malformed", dc.malformed));
   }
+  if (n.j1939) {  // SAE J1939: DM1, address claim
+    const can::j1939::NodeStats& j = *n.j1939;
+    if (j.name) rep.add_field(Field::of_text("j1939_name", j.name->describe()));
+    if (j.dm1s > 0) {
+      rep.add_field(Field::of_count("active_dtcs", j.active.size()));
+      std::string list;
+      for (const can::j1939::Dtc& d : j.active) {
+        if (!list.empty()) list += "; ";
+        list += d.describe();
+      }
+      if (!list.empty()) rep.add_field(Field::of_text("dtcs", list));
+      rep.add_field(Field::of_text("lamps", j.lamps.describe()));
+    }
+    if (j.malformed > 0) rep.add_field(Field::of_count("malformed", j.malformed));
+  }
   return rep;
 }
 
@@ -201,8 +216,8 @@ Report group_report(const std::string& name, GroupTally& t) {
 
 }  // namespace
 
-void CanExtension::add_reports(ReportSet& reports,
-                               std::vector<exporter::CanHistograms>* histograms) {
+void CanExtension::add_reports(ReportSet& reports, std::vector<exporter::CanHistograms>* histograms,
+                               std::vector<exporter::CanBusLoads>* buses) {
   bool running = false;
   {
     const std::lock_guard lock(step_mutex_);
@@ -253,7 +268,14 @@ void CanExtension::add_reports(ReportSet& reports,
     }
     reports.components.push_back(group_report(name, t));
   }
-  for (const can::BusReport& b : r.buses) reports.components.push_back(bus_report(b));
+  for (const can::BusReport& b : r.buses) {
+    reports.components.push_back(bus_report(b));
+    if (buses != nullptr) {
+      buses->push_back(exporter::CanBusLoads{.name = reports.components.back().name,
+                                             .judged = b.config.load.stuffing,
+                                             .load = b.stats.load});
+    }
+  }
   if (histograms == nullptr) return;
   // The buckets, from the aggregator's histograms: one more pass under its lock, right after
   // the snapshot the reports were judged on (a batch applied in between shows in the buckets,
@@ -357,6 +379,15 @@ void CanExtension::publish_protocol_events(const can::CanReport& r) {
         break;
       case can::ProtocolEventKind::NodeHealth:
         e.kind = supervisor::EventKind::NodeHealth;
+        break;
+      case can::ProtocolEventKind::DtcActive:
+        e.kind = supervisor::EventKind::DtcActive;
+        break;
+      case can::ProtocolEventKind::DtcCleared:
+        e.kind = supervisor::EventKind::DtcCleared;
+        break;
+      case can::ProtocolEventKind::AddressClaim:
+        e.kind = supervisor::EventKind::AddressClaim;
         break;
     }
     e.severity = pe.severity == 2   ? supervisor::EventSeverity::Error

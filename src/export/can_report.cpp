@@ -331,6 +331,44 @@ std::string dronecan_table(const CanReport& r, const CanTextOptions& options) {
   return t.str();
 }
 
+// Every J1939 node with a DM1 or an address claim (or malformed J1939 input).
+std::string j1939_table(const CanReport& r, const CanTextOptions& options) {
+  const auto& nodes = r.snapshot.protocol.j1939;
+  if (nodes.empty()) return {};
+  TextTable t({"BUS", "SA", "NAME", "CLAIMED AS", "DM1", "ACTIVE", "APPEARED", "CLEARED", "LAMPS",
+               "TP MSGS", "TP TIMEOUTS", "MALFORMED", "ACTIVE DTCS"},
+              {false, false, false, false, true, true, true, true, false, true, true, true, false});
+  for (const j1939::NodeStats& n : nodes) {
+    const NodeReport* rep = r.find(n.bus, n.address);
+    std::string dtcs;
+    for (const j1939::Dtc& d : n.active) {
+      if (!dtcs.empty()) dtcs += ", ";
+      dtcs += fmt::format("SPN {} FMI {} x{}", d.spn, d.fmi, d.occurrences);
+    }
+    if (n.dtcs_untracked > 0) dtcs += fmt::format(" (+{} not kept)", n.dtcs_untracked);
+    std::string lamps = "-";
+    if (n.dm1s > 0) {
+      const auto on = [](j1939::Lamp l) { return l == j1939::Lamp::On; };
+      lamps.clear();
+      if (on(n.lamps.mil)) lamps += "MIL ";
+      if (on(n.lamps.red_stop)) lamps += "STOP ";
+      if (on(n.lamps.amber_warning)) lamps += "AWL ";
+      if (on(n.lamps.protect)) lamps += "PL ";
+      lamps = lamps.empty() ? "off" : lamps.substr(0, lamps.size() - 1);
+    }
+    t.add({bus_name(n.bus, options.bus_names), fmt::format("0x{:02X}", n.address),
+           rep != nullptr && rep->named ? rep->name : "-",
+           n.name ? n.name->label() +
+                        fmt::format(" (mfr {}, id {})", n.name->manufacturer, n.name->identity)
+                  : "-",
+           fmt::format("{}", n.dm1s), fmt::format("{}", n.active.size()),
+           fmt::format("{}", n.dtcs_appeared), fmt::format("{}", n.dtcs_cleared), lamps,
+           fmt::format("{}", n.tp_messages), fmt::format("{}", n.tp_timeouts),
+           fmt::format("{}", n.malformed), dtcs.empty() ? "-" : dtcs});
+  }
+  return t.str();
+}
+
 std::string event_node(const CanReport& r, const ProtocolEvent& e) {
   if (e.node == kNoNode) return "-";
   const NodeReport* rep = r.find(e.bus, e.node);
@@ -376,6 +414,7 @@ std::string format_can_report(const CanReport& r, const CanTextOptions& options)
   }
   if (const std::string c = canopen_table(r, options); !c.empty()) out += "\nCANopen\n" + c;
   if (const std::string c = dronecan_table(r, options); !c.empty()) out += "\nDroneCAN\n" + c;
+  if (const std::string c = j1939_table(r, options); !c.empty()) out += "\nJ1939\n" + c;
   out += events_list(r, options);
   if (options.ids) {
     out += "\nIds\n";
@@ -755,6 +794,58 @@ void write_dronecan(exporter::JsonWriter& w, const CanReport& r, const dronecan:
   w.end_object();
 }
 
+void write_dtc(exporter::JsonWriter& w, const j1939::Dtc& d) {
+  w.begin_object();
+  w.field("spn", d.spn).field("fmi", d.fmi).field("fmi_name", j1939::fmi_name(d.fmi));
+  w.field("occurrences", d.occurrences).field("conversion_method", d.conversion_method);
+  w.end_object();
+}
+
+void write_j1939(exporter::JsonWriter& w, const CanReport& r, const j1939::NodeStats& n,
+                 const std::vector<std::string>& bus_names) {
+  w.begin_object();
+  write_node_identity(w, r, n.bus, n.address, bus_names);
+  w.key("claimed_name");
+  if (n.name) {
+    const j1939::Name& m = *n.name;
+    w.begin_object();
+    w.field("raw", fmt::format("0x{:016X}", m.raw)).field("label", m.label());
+    w.field("identity", m.identity).field("manufacturer", m.manufacturer);
+    w.field("ecu_instance", m.ecu_instance).field("function_instance", m.function_instance);
+    w.field("function", m.function).field("vehicle_system", m.vehicle_system);
+    w.field("vehicle_system_instance", m.vehicle_system_instance);
+    w.field("industry_group", m.industry_group);
+    w.field("arbitrary_address_capable", m.arbitrary_address);
+    w.end_object();
+  } else {
+    w.null();
+  }
+  optional_ns(w, "claimed_ns", n.claimed_ns);
+  w.field("claims", n.claims).field("dm1s", n.dm1s);
+  optional_ns(w, "last_dm1_ns", n.last_dm1_ns);
+  w.key("lamps");
+  if (n.dm1s > 0) {
+    w.begin_object();
+    w.field("mil", j1939::to_string(n.lamps.mil));
+    w.field("red_stop", j1939::to_string(n.lamps.red_stop));
+    w.field("amber_warning", j1939::to_string(n.lamps.amber_warning));
+    w.field("protect", j1939::to_string(n.lamps.protect));
+    w.field("flash", n.lamps.flash);
+    w.end_object();
+  } else {
+    w.null();
+  }
+  w.key("active_dtcs").begin_array();
+  for (const j1939::Dtc& d : n.active) write_dtc(w, d);
+  w.end_array();
+  w.field("dtcs_untracked", n.dtcs_untracked);
+  w.field("dtcs_appeared", n.dtcs_appeared).field("dtcs_cleared", n.dtcs_cleared);
+  w.field("tp_messages", n.tp_messages).field("tp_aborts", n.tp_aborts);
+  w.field("tp_timeouts", n.tp_timeouts);
+  w.field("malformed", n.malformed).field("last_malformed", n.last_malformed);
+  w.end_object();
+}
+
 void write_event(exporter::JsonWriter& w, const ProtocolEvent& e,
                  const std::vector<std::string>& bus_names) {
   w.begin_object();
@@ -814,6 +905,9 @@ void write_can_report_members(exporter::JsonWriter& w, const CanReport& r,
     write_dronecan(w, r, n, bus_names);
   }
   w.end_array();
+  w.key("j1939").begin_array();
+  for (const j1939::NodeStats& n : r.snapshot.protocol.j1939) write_j1939(w, r, n, bus_names);
+  w.end_array();
   const ProtocolSnapshot& p = r.snapshot.protocol;
   w.key("protocol").begin_object();
   w.field("error_records", r.snapshot.error_records);
@@ -827,6 +921,17 @@ void write_can_report_members(exporter::JsonWriter& w, const CanReport& r,
   }
   for (const dronecan::NodeStats& n : p.dronecan) resets += n.restarts;
   w.field("resets", resets).field("emergencies", emergencies);
+  std::uint64_t active_dtcs = 0;
+  std::uint64_t dtcs_appeared = 0;
+  std::uint64_t claims = 0;
+  for (const j1939::NodeStats& n : p.j1939) {
+    active_dtcs += n.active.size();
+    dtcs_appeared += n.dtcs_appeared;
+    if (n.name) ++claims;
+  }
+  w.field("j1939_nodes", p.j1939.size()).field("active_dtcs", active_dtcs);
+  w.field("dtcs_appeared", dtcs_appeared).field("address_claims", claims);
+  w.field("tp_sessions_open", p.tp_sessions_open);
   w.key("recent_events").begin_array();
   for (const ProtocolEvent& e : p.recent_events) write_event(w, e, bus_names);
   w.end_array();
@@ -926,11 +1031,29 @@ std::string format_can_replay(const LogReplay& replay, const CanReport& report,
                            p.dronecan.size() == 1 ? "" : "s", unhealthy, restarts,
                            restarts == 1 ? "" : "s");
   }
+  std::string j1939_text;
+  if (!p.j1939.empty()) {
+    std::size_t active = 0;
+    std::uint64_t appeared = 0;
+    std::size_t claimed = 0;
+    std::size_t with_dm1 = 0;
+    for (const j1939::NodeStats& n : p.j1939) {
+      active += n.active.size();
+      appeared += n.dtcs_appeared;
+      if (n.name) ++claimed;
+      if (n.dm1s > 0) ++with_dm1;
+    }
+    j1939_text = fmt::format(
+        "J1939: {} node{} with DM1, {} active DTC{} ({} appeared), {} address "
+        "claim{}, ",
+        with_dm1, with_dm1 == 1 ? "" : "s", active, active == 1 ? "" : "s", appeared, claimed,
+        claimed == 1 ? "" : "s");
+  }
   out += fmt::format(
-      "  findings: {} CANopen node{}, {} reset{}, {} emergenc{}, {}{} error passive, {} bus off; "
-      "load ({} stuffing): {}\n",
+      "  findings: {} CANopen node{}, {} reset{}, {} emergenc{}, {}{}{} error passive, {} bus "
+      "off; load ({} stuffing): {}\n",
       p.canopen.size(), p.canopen.size() == 1 ? "" : "s", resets, resets == 1 ? "" : "s",
-      emergencies, emergencies == 1 ? "y" : "ies", dronecan, passives, bus_offs,
+      emergencies, emergencies == 1 ? "y" : "ies", dronecan, j1939_text, passives, bus_offs,
       report.buses.empty() ? "exact" : to_string(report.buses.front().config.load.stuffing),
       loads.empty() ? "-" : loads);
   out += '\n';

@@ -982,7 +982,8 @@ std::string HttpServer::url() const {
 }
 
 void HttpServer::publish(const ReportSet& reports, std::vector<ComponentHistograms> histograms,
-                         std::vector<CanHistograms> can_histograms) {
+                         std::vector<CanHistograms> can_histograms,
+                         std::vector<CanBusLoads> can_buses) {
   Impl& m = *impl_;
   auto snap = std::make_shared<MetricsSnapshot>();
   snap->reports = reports;
@@ -991,6 +992,9 @@ void HttpServer::publish(const ReportSet& reports, std::vector<ComponentHistogra
             [](const auto& a, const auto& b) { return a.id < b.id; });
   snap->can_histograms = std::move(can_histograms);
   std::sort(snap->can_histograms.begin(), snap->can_histograms.end(),
+            [](const auto& a, const auto& b) { return a.name < b.name; });
+  snap->can_buses = std::move(can_buses);
+  std::sort(snap->can_buses.begin(), snap->can_buses.end(),
             [](const auto& a, const auto& b) { return a.name < b.name; });
   snap->wall_time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                            std::chrono::system_clock::now().time_since_epoch())

@@ -67,6 +67,15 @@ const CanHistograms* MetricsSnapshot::can_histograms_of(const Report& report) co
   return &*it;
 }
 
+const CanBusLoads* MetricsSnapshot::can_bus_of(const Report& report) const noexcept {
+  if (!report.is_unit(can::kBusUnit)) return nullptr;
+  const auto it =
+      std::lower_bound(can_buses.begin(), can_buses.end(), report.name,
+                       [](const CanBusLoads& b, const std::string& name) { return b.name < name; });
+  if (it == can_buses.end() || it->name != report.name) return nullptr;
+  return &*it;
+}
+
 BucketCounts reduce_to_buckets(const can::GapDistribution& distribution) noexcept {
   if (distribution.stats != nullptr) return reduce_to_buckets(*distribution.stats);
   return reduce_samples_to_buckets(distribution.samples);

@@ -191,7 +191,8 @@ void HttpOutput::publish(const Snapshot& snapshot) {
   std::vector<std::shared_ptr<const supervisor::FlightRecord>> frozen;
   if (aggregator_ != nullptr) frozen = aggregator_->frozen_records();
   exemplars_.update(histograms, snapshot.events, frozen, ExemplarClock::now());
-  server_->publish(snapshot.reports, std::move(histograms), snapshot.can_histograms);
+  server_->publish(snapshot.reports, std::move(histograms), snapshot.can_histograms,
+                   snapshot.can_buses);
 }
 
 void HttpOutput::stop(const Snapshot& final_snapshot) {
@@ -210,6 +211,9 @@ void TextfileOutput::publish(const Snapshot& snapshot) {
   m.histograms = snapshot.histograms;
   m.can_histograms = snapshot.can_histograms;
   std::sort(m.can_histograms.begin(), m.can_histograms.end(),
+            [](const auto& a, const auto& b) { return a.name < b.name; });
+  m.can_buses = snapshot.can_buses;
+  std::sort(m.can_buses.begin(), m.can_buses.end(),
             [](const auto& a, const auto& b) { return a.name < b.name; });
   m.wall_time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                        std::chrono::system_clock::now().time_since_epoch())

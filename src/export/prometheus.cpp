@@ -373,6 +373,7 @@ bool is_supervisor(const Report& r) { return r.kind == ReportKind::Supervisor; }
 bool is_monitor(const Report& r) { return r.kind == ReportKind::Monitor; }
 bool is_can_node(const Report& r) { return r.is_unit(can::kNodeUnit); }
 bool is_can_group(const Report& r) { return r.is_unit(can::kGroupUnit); }
+bool is_can_bus(const Report& r) { return r.is_unit(can::kBusUnit); }
 bool is_supervision(const Report& r) { return r.is_unit(health::kSupervisionUnit); }
 bool is_reactions(const Report& r) { return r.is_unit("reactions"); }
 
@@ -796,6 +797,62 @@ void can_group_families(const Section& s) {
   });
 }
 
+// CAN buses: their load as canbusload counts it (vigil/can/protocol.hpp), from the numbers the
+// CAN extension publishes beside the bus reports (`MetricsSnapshot::can_buses`).
+void can_bus_families(const Section& s) {
+  Writer& w = s.w;
+  constexpr std::array<std::string_view, 3> kDirections{"rx", "tx", "all"};
+  w.family("vigil_can_bus_frames_total", Type::Counter,
+           "CAN frames on a bus by direction: rx, tx, all (error frames excluded).");
+  s.each(is_can_bus, [&](const Report& r) {
+    const CanBusLoads* b = s.snap.can_bus_of(r);
+    if (b == nullptr) return;
+    for (std::size_t d = 0; d < 3; ++d) {
+      w.sample_u("vigil_can_bus_frames_total", r.name, {{"direction", kDirections[d]}},
+                 b->load[0][d].frames);
+    }
+  });
+  w.family("vigil_can_bus_bit_times_total", Type::Counter,
+           "Bits the frames of a CAN bus occupied on the wire, by direction and stuffing count "
+           "(none, worst, exact: canbusload's three modes).");
+  s.each(is_can_bus, [&](const Report& r) {
+    const CanBusLoads* b = s.snap.can_bus_of(r);
+    if (b == nullptr) return;
+    for (std::size_t m = 0; m < can::kStuffingModes; ++m) {
+      const std::string_view stuffing = can::to_string(static_cast<can::Stuffing>(m));
+      for (std::size_t d = 0; d < 3; ++d) {
+        w.sample_u("vigil_can_bus_bit_times_total", r.name,
+                   {{"direction", kDirections[d]}, {"stuffing", stuffing}}, b->load[m][d].bits);
+      }
+    }
+  });
+  w.family("vigil_can_bus_load_ratio", Type::Gauge,
+           "Load of a CAN bus, fraction of its bitrate (1 = 100 %), by direction and window "
+           "(last_second, 1m, 5m, 15m, peak, mean), in the stuffing count the bus is judged by; "
+           "absent without a bitrate.");
+  s.each(is_can_bus, [&](const Report& r) {
+    const CanBusLoads* b = s.snap.can_bus_of(r);
+    if (b == nullptr) return;
+    const auto& mode = b->load[static_cast<std::size_t>(b->judged)];
+    const std::string_view stuffing = can::to_string(b->judged);
+    for (std::size_t d = 0; d < 3; ++d) {
+      const can::BusLoad& l = mode[d];
+      if (!l.known) continue;
+      const std::pair<std::string_view, double> windows[] = {{"last_second", l.last_second},
+                                                             {"1m", l.avg_1m},
+                                                             {"5m", l.avg_5m},
+                                                             {"15m", l.avg_15m},
+                                                             {"peak", l.peak},
+                                                             {"mean", l.mean}};
+      for (const auto& [window, percent] : windows) {
+        w.sample("vigil_can_bus_load_ratio", r.name,
+                 {{"direction", kDirections[d]}, {"window", window}, {"stuffing", stuffing}},
+                 percent / 100.0);
+      }
+    }
+  });
+}
+
 // Health supervisions (vigil/health): one unit each, its type (alive, deadline, logical) a label.
 void supervision_families(const Section& s) {
   Writer& w = s.w;
@@ -900,7 +957,8 @@ constexpr SectionWriter kSections[] = {
     component_gauge_families,   thread_families,
     supervisor_families,        monitor_families,
     can_node_families,          can_group_families,
-    supervision_families,       reaction_families,
+    can_bus_families,           supervision_families,
+    reaction_families,
 };
 
 }  // namespace

@@ -73,6 +73,12 @@ const char* to_string(EventKind k) noexcept {
       return "error_active";
     case EventKind::NodeHealth:
       return "node_health";
+    case EventKind::DtcActive:
+      return "dtc_active";
+    case EventKind::DtcCleared:
+      return "dtc_cleared";
+    case EventKind::AddressClaim:
+      return "address_claim";
     case EventKind::SegmentCorrupted:
       return "segment_corrupted";
     case EventKind::SupervisorRestarted:

@@ -737,3 +737,36 @@ TEST_CASE("DroneCAN NodeStatus: health, mode, uptime, and a restart when the upt
   CHECK(vigil::exporter::can_report_json(r).find("\"health\":\"ERROR\"") != std::string::npos);
   CHECK(std::string(to_string(vigil::supervisor::EventKind::NodeHealth)) == "node_health");
 }
+
+TEST_CASE("Exact bit count: the packed, table-driven count equals the bit-by-bit one",
+          "[can][protocol]") {
+  // Random frames of every shape (and runs of equal bits: 0x00 / 0xFF bytes, ids of all ones).
+  std::uint64_t x = 0x9E3779B97F4A7C15ULL;
+  const auto next = [&] {
+    x ^= x << 13;
+    x ^= x >> 7;
+    x ^= x << 17;
+    return x;
+  };
+  for (int i = 0; i < 20000; ++i) {
+    std::array<std::uint8_t, 8> data{};
+    const std::uint64_t r = next();
+    for (std::size_t k = 0; k < 8; ++k) {
+      const std::uint64_t pick = (r >> (8 * k)) & 3U;
+      data[k] = pick == 0 ? 0x00 : pick == 1 ? 0xFF : static_cast<std::uint8_t>(next());
+    }
+    const bool extended = (r & 1U) != 0;
+    const std::uint32_t mask = extended ? 0x1FFFFFFFU : 0x7FFU;
+    const std::uint32_t id = (r & 2U) != 0 ? mask : static_cast<std::uint32_t>(next()) & mask;
+    const FrameShape f{.id = id,
+                       .extended = extended,
+                       .rtr = (r & 4U) != 0 && (r & 8U) != 0,
+                       .length = static_cast<std::uint8_t>(next() % 16),
+                       .data = data};
+    std::array<std::uint8_t, 128> bits{};
+    const std::size_t n = classic_frame_bits(f, bits);
+    const std::span<const std::uint8_t> used(bits.data(), n);
+    INFO("frame " << i << " id " << id << " extended " << extended);
+    REQUIRE(exact_classic_bits(f) == n + stuff_bits(used));
+  }
+}

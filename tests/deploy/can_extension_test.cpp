@@ -75,8 +75,40 @@ class CanOpenBus : public Task<CanOpenBus> {
   std::unique_ptr<can::Sniffer<64>> sniffer_;
 };
 
+// A J1939 engine (source address 0x00): EEC1 every cycle, its address claim at cycle 1, a DM1
+// with SPN 100 FMI 1 and the amber warning lamp at cycle 20, a DM1 without DTC at cycle 60.
+class J1939Bus : public Task<J1939Bus> {
+ public:
+  explicit J1939Bus(const ComponentContext& c) : Task(c.name, c.supervision, c.registry()) {
+    auto* ext = c.system->extension<CanExtension>();
+    if (ext == nullptr) throw std::runtime_error("needs a can: section");
+    sniffer_ = std::make_unique<can::Sniffer<64>>(
+        ext->registry(), c.name, can::SnifferOptions{.node_map = can::NodeMap::j1939()});
+  }
+  void on_update() {
+    ++cycle_;
+    const Nanos t = platform::now_ns();
+    const auto read = [&](std::uint32_t id, std::initializer_list<std::uint8_t> d) {
+      can::Frame f = can::Frame::classic(id, d, can::IdFormat::Extended);
+      f.timestamp = t;
+      sniffer_->on_read(f, t, t);
+    };
+    read(0x0CF00400, {0x70, 0x7D, 0x83, 0xC3, 0x12, 0x00, 0x0F, 0x84});
+    // NAME: identity 1, manufacturer 0, function 0 (engine), industry group 1.
+    if (cycle_ == 1) read(0x18EEFF00, {0x01, 0, 0, 0, 0, 0, 0, 0x10});
+    if (cycle_ == 20) read(0x18FECA00, {0x04, 0xFF, 0x64, 0x00, 0x01, 0x03, 0xFF, 0xFF});
+    if (cycle_ == 60) read(0x18FECA00, {0x00, 0xFF, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF});
+  }
+
+ private:
+  std::uint64_t cycle_ = 0;
+  std::unique_ptr<can::Sniffer<64>> sniffer_;
+};
+
 ComponentFactory& factory() {
   static ComponentFactory f;
+  static const bool j1939 = f.add<J1939Bus>("test.j1939_bus");
+  (void)j1939;
   static const bool canopen = f.add<CanOpenBus>("test.canopen_bus");
   (void)canopen;
   static const bool once = f.add<Bus>("test.can_bus");
@@ -315,4 +347,60 @@ can:
   const Report* arm = r.find("can group arm");
   REQUIRE(arm != nullptr);
   CHECK(arm->status.level() == StatusLevel::Error);  // its bus is off
+}
+
+TEST_CASE("J1939 trouble codes and address claims are events, the node named by its claim",
+          "[deploy][can][events][j1939]") {
+  auto spec = load_deployment_string(R"(
+activities: [{name: io, period: 5ms}]
+components: [{name: bus, type: test.j1939_bus, activity: io}]
+supervision: {lock_memory: false, monitor_period: 20ms}
+can:
+  node_map: j1939
+  buses: {all: {bitrate: 250k}}
+)",
+                                     "can.yaml", factory());
+  REQUIRE(spec.has_value());
+  auto sys = System::create(std::move(*spec), factory());
+  REQUIRE(sys.has_value());
+  std::mutex m;
+  std::vector<Event> seen;
+  const auto sub = (*sys)->service().events().subscribe([&](const Event& e) {
+    const std::lock_guard lock(m);
+    seen.push_back(e);
+  });
+  REQUIRE((*sys)->start().has_value());
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  (*sys)->stop();
+  const ReportSet r = (*sys)->step_monitor();
+  (*sys)->service().events().flush();
+  (*sys)->service().events().unsubscribe(sub);
+  const std::lock_guard lock(m);
+  const auto find = [&](EventKind k) -> const Event* {
+    for (const Event& e : seen) {
+      if (e.kind == k) return &e;
+    }
+    return nullptr;
+  };
+  const Event* claim = find(EventKind::AddressClaim);
+  REQUIRE(claim != nullptr);
+  CHECK(claim->severity == EventSeverity::Info);
+  CHECK(claim->detail.find("address 0x00 claimed by engine") != std::string::npos);
+  const Event* active = find(EventKind::DtcActive);
+  REQUIRE(active != nullptr);
+  CHECK(active->component == "can0/engine (0x00)");
+  CHECK(active->severity == EventSeverity::Warn);
+  CHECK(active->fault_ns > 0);
+  CHECK(active->detected_ns >= active->fault_ns);
+  CHECK(active->detail.rfind("SPN 100 FMI 1", 0) == 0);
+  const Event* cleared = find(EventKind::DtcCleared);
+  REQUIRE(cleared != nullptr);
+  CHECK(cleared->severity == EventSeverity::Info);
+  CHECK(std::string(to_string(EventKind::DtcActive)) == "dtc_active");
+
+  const Report* engine = r.find("can0/engine (0x00)");
+  REQUIRE(engine != nullptr);
+  CHECK(engine->field("active_dtcs")->count == 0);
+  REQUIRE(engine->field("j1939_name") != nullptr);
+  CHECK(engine->field("lamps")->text == "MIL off, red stop off, amber warning off, protect off");
 }

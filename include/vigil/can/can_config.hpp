@@ -115,6 +115,12 @@ struct NodeThresholds {
   Nanos canopen_reset_window_ns = Nanos{300} * kNanosPerSecond;
   /// Level while the node's latest emergency is not "error reset" (0x0000).
   StatusLevel canopen_emergency_level = StatusLevel::Warn;
+  /// SAE J1939 (nodes of a bus that decodes J1939): the level while the node's latest DM1
+  /// lists an active trouble code, while its malfunction indicator, amber warning or protect
+  /// lamp is on, and while its red stop lamp is on.
+  StatusLevel j1939_dtc_level = StatusLevel::Warn;
+  StatusLevel j1939_lamp_level = StatusLevel::Warn;
+  StatusLevel j1939_stop_lamp_level = StatusLevel::Error;
 };
 
 /// One layer of a limit, as written: each field replaces the layer below when set.
@@ -149,6 +155,9 @@ struct ThresholdOverrides {
   std::optional<std::optional<Nanos>> canopen_not_operational_after_ns;
   std::optional<Nanos> canopen_reset_window_ns;
   std::optional<StatusLevel> canopen_emergency_level;
+  std::optional<StatusLevel> j1939_dtc_level;
+  std::optional<StatusLevel> j1939_lamp_level;
+  std::optional<StatusLevel> j1939_stop_lamp_level;
 
   /// Applies this layer on top of `t`.
   void apply_to(NodeThresholds& t) const;

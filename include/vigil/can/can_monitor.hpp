@@ -128,6 +128,9 @@ struct NodeReport {
   std::optional<canopen::NodeStats> canopen;
   /// What its DroneCAN NodeStatus said (node map `dronecan`, a bus decoding DroneCAN).
   std::optional<dronecan::NodeStats> dronecan;
+  /// What its J1939 messages said: DM1 trouble codes and lamps, its address claim (node map
+  /// `j1939`, a bus decoding J1939). An unnamed node with an address claim is named after it.
+  std::optional<j1939::NodeStats> j1939;
   Status status;
 
   /// A node of the mapping (not the frames of no node).

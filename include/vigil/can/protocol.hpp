@@ -26,11 +26,13 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <limits>
 #include <map>
 #include <optional>
 #include <span>
 #include <string>
 #include <string_view>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -86,6 +88,11 @@ std::size_t classic_frame_bits(const FrameShape& f, std::span<std::uint8_t> out)
 /// Stuff bits ISO 11898-1 inserts in `bits` (after every 5 equal bits, the stuff bit itself
 /// counting in the next run).
 [[nodiscard]] std::uint32_t stuff_bits(std::span<const std::uint8_t> bits) noexcept;
+
+/// A Classical CAN frame's bits from SOF to the end of the CRC sequence with its stuff bits:
+/// `classic_frame_bits` + `stuff_bits`, computed on packed words with a table-driven CRC-15
+/// (what `frame_bits` uses in `Stuffing::Exact`).
+[[nodiscard]] std::uint32_t exact_classic_bits(const FrameShape& f) noexcept;
 
 /// The bits frame `f` occupies on the bus in mode `s` (see the file comment). Error frames are
 /// not frames on the wire: 0.
@@ -316,17 +323,160 @@ struct NodeStats {
 }  // namespace dronecan
 
 // ---------------------------------------------------------------------------------------------
+// SAE J1939: DM1 active trouble codes (J1939-73), transport protocol (J1939-21), address claim
+// (J1939-81)
+// ---------------------------------------------------------------------------------------------
+
+namespace j1939 {
+
+inline constexpr std::uint32_t kPgnDm1 = 0xFECA;             ///< DM1, active DTCs (J1939-73)
+inline constexpr std::uint32_t kPgnTpCm = 0xEC00;            ///< TP.CM (J1939-21)
+inline constexpr std::uint32_t kPgnTpDt = 0xEB00;            ///< TP.DT (J1939-21)
+inline constexpr std::uint32_t kPgnAddressClaimed = 0xEE00;  ///< address claimed (J1939-81)
+
+/// TP.CM control bytes (J1939-21, transport protocol connection management).
+inline constexpr std::uint8_t kTpRts = 16;
+inline constexpr std::uint8_t kTpCts = 17;
+inline constexpr std::uint8_t kTpEndOfMsgAck = 19;
+inline constexpr std::uint8_t kTpBam = 32;
+inline constexpr std::uint8_t kTpAbort = 255;
+/// The largest message the transport protocol carries: 255 packets of 7 bytes.
+inline constexpr std::size_t kTpMaxSize = 1785;
+
+/// J1939-21 transport protocol timeouts, as a passive observer applies them: T1 (750 ms) after
+/// a data packet when more are expected (and after a BAM), T2 (1250 ms) after a CTS for its
+/// data, T3 (1250 ms) after an RTS (or the last data packet) for the CTS, T4 (1050 ms) after a
+/// CTS that holds the connection open (0 packets) for the next CTS.
+inline constexpr Nanos kT1 = Nanos{750} * 1'000'000;
+inline constexpr Nanos kT2 = Nanos{1250} * 1'000'000;
+inline constexpr Nanos kT3 = Nanos{1250} * 1'000'000;
+inline constexpr Nanos kT4 = Nanos{1050} * 1'000'000;
+
+/// A DM1 lamp (2 bits, J1939-73 DM1 bytes 1-2): 00 off, 01 on, 10 error, 11 not available.
+enum class Lamp : std::uint8_t { Off = 0, On = 1, Error = 2, NotAvailable = 3 };
+/// "off", "on", "error", "n/a".
+[[nodiscard]] std::string_view to_string(Lamp l) noexcept;
+
+/// The lamp status of a DM1 (byte 1: bits 8-7 malfunction indicator lamp, 6-5 red stop lamp,
+/// 4-3 amber warning lamp, 2-1 protect lamp; byte 2 their flash codes).
+struct Lamps {
+  Lamp mil = Lamp::NotAvailable;            ///< malfunction indicator lamp (emissions)
+  Lamp red_stop = Lamp::NotAvailable;       ///< red stop lamp
+  Lamp amber_warning = Lamp::NotAvailable;  ///< amber warning lamp
+  Lamp protect = Lamp::NotAvailable;        ///< protect lamp
+  std::uint8_t flash = 0xFF;                ///< byte 2, the flash codes as sent
+  [[nodiscard]] bool any_on() const noexcept {
+    return mil == Lamp::On || red_stop == Lamp::On || amber_warning == Lamp::On ||
+           protect == Lamp::On;
+  }
+  /// "MIL off, red stop on, amber warning off, protect n/a".
+  [[nodiscard]] std::string describe() const;
+  friend bool operator==(const Lamps&, const Lamps&) = default;
+};
+
+/// One diagnostic trouble code (J1939-73, 4 bytes: SPN bits 1-8, 9-16, then SPN bits 17-19 in
+/// bits 8-6 with the FMI in bits 5-1, then the conversion method in bit 8 with the occurrence
+/// count in bits 7-1). Decoded as conversion method version 4 (CM 0); the CM bit is kept.
+struct Dtc {
+  std::uint32_t spn = 0;           ///< suspect parameter number, 19 bits
+  std::uint8_t fmi = 0;            ///< failure mode identifier, 5 bits
+  std::uint8_t occurrences = 0;    ///< occurrence count, 7 bits (127: not available)
+  bool conversion_method = false;  ///< the SPN conversion method bit (1: versions 1-3)
+  /// "SPN 100 FMI 1 (data valid but below normal operational range - most severe level), 3
+  /// occurrences".
+  [[nodiscard]] std::string describe() const;
+  [[nodiscard]] bool same_code(const Dtc& o) const noexcept { return spn == o.spn && fmi == o.fmi; }
+  friend bool operator==(const Dtc&, const Dtc&) = default;
+};
+
+/// Name of a failure mode identifier (J1939-73 FMI table, 0-21 and 31; "reserved" otherwise).
+[[nodiscard]] std::string_view fmi_name(std::uint8_t fmi) noexcept;
+
+/// One DM1 message, decoded.
+struct Dm1 {
+  Lamps lamps;
+  std::vector<Dtc> dtcs;  ///< the active codes; empty: none ("no DTC" records are dropped)
+};
+
+/// Decodes a DM1 payload. `single_frame`: a message in one CAN frame (6-8 bytes: the lamps and
+/// one DTC, the rest padding); otherwise a message reassembled by the transport protocol (2 + 4n
+/// bytes exactly). A record of all zeros or all ones is "no DTC" (J1939-73). On a malformed
+/// payload returns empty and says why in `error`.
+[[nodiscard]] std::optional<Dm1> decode_dm1(std::span<const std::uint8_t> payload,
+                                            bool single_frame, std::string& error);
+
+/// A 64-bit NAME (J1939-81, address claimed message, little-endian): identity number (21
+/// bits), manufacturer code (11), ECU instance (3), function instance (5), function (8), a
+/// reserved bit, vehicle system (7), vehicle system instance (4), industry group (3),
+/// arbitrary address capable (1).
+struct Name {
+  std::uint64_t raw = 0;
+  std::uint32_t identity = 0;
+  std::uint16_t manufacturer = 0;
+  std::uint8_t ecu_instance = 0;
+  std::uint8_t function_instance = 0;
+  std::uint8_t function = 0;
+  std::uint8_t vehicle_system = 0;
+  std::uint8_t vehicle_system_instance = 0;
+  std::uint8_t industry_group = 0;
+  bool arbitrary_address = false;
+  /// A short label for reports: the function's name ("engine", "brakes - system controller",
+  /// or "function 130"), with "#<function instance>" when that is not 0.
+  [[nodiscard]] std::string label() const;
+  /// Every field: "engine, function instance 0, ECU instance 0, manufacturer 123, identity
+  /// 4567, industry group 1 (on-highway), vehicle system 0 instance 0, arbitrary address
+  /// capable".
+  [[nodiscard]] std::string describe() const;
+  friend bool operator==(const Name&, const Name&) = default;
+};
+/// The NAME of 8 address-claimed bytes (little-endian).
+[[nodiscard]] Name decode_name(std::span<const std::uint8_t, 8> bytes) noexcept;
+/// Name of a NAME function 0-30 (the industry-independent functions J1939 names; others
+/// empty).
+[[nodiscard]] std::string_view function_name(std::uint8_t function) noexcept;
+/// Name of an industry group 0-5 ("global", "on-highway", "agricultural and forestry",
+/// "construction", "marine", "industrial"); others empty.
+[[nodiscard]] std::string_view industry_group_name(std::uint8_t group) noexcept;
+
+/// What the J1939 decoder knows of one source address.
+struct NodeStats {
+  std::uint8_t bus = 0;
+  std::uint8_t address = 0;  ///< source address
+  std::optional<Name> name;  ///< from its latest address claim
+  Nanos claimed_ns = -1;
+  std::uint64_t claims = 0;  ///< address claimed messages
+  std::uint64_t dm1s = 0;    ///< DM1 messages decoded
+  Nanos last_dm1_ns = -1;
+  Lamps lamps;                       ///< as of its latest DM1
+  std::vector<Dtc> active;           ///< its active DTCs (latest DM1), at most `max_dtcs`
+  std::uint64_t dtcs_untracked = 0;  ///< codes beyond `max_dtcs` (no events for them)
+  std::uint64_t dtcs_appeared = 0;   ///< `dtc_active` events
+  std::uint64_t dtcs_cleared = 0;    ///< `dtc_cleared` events
+  std::uint64_t tp_messages = 0;     ///< transport protocol messages it completed
+  std::uint64_t tp_aborts = 0;       ///< its sessions ended by a connection abort
+  std::uint64_t tp_timeouts = 0;     ///< its sessions that timed out (also malformed)
+  /// Malformed input: DM1 of a wrong length, address claims not of 8 bytes, TP announcements
+  /// that do not add up, data packets out of sequence or beyond the announced count, without a
+  /// session, sessions that timed out or were replaced before they completed.
+  std::uint64_t malformed = 0;
+  std::string last_malformed;
+};
+
+}  // namespace j1939
+
+// ---------------------------------------------------------------------------------------------
 // The tracker
 // ---------------------------------------------------------------------------------------------
 
 /// Which protocol a bus (or a group of nodes) speaks.
 enum class BusProtocol : std::uint8_t {
-  Auto,      ///< the node mapping's: CANopen or DroneCAN for those node maps, else none
+  Auto,      ///< the node mapping's: CANopen, DroneCAN or J1939 for those node maps, else none
   None,      ///< no protocol decoding
   CanOpen,   ///< CiA 301: NMT, heartbeat, node guarding, emergency
   DroneCan,  ///< DroneCAN NodeStatus (health, mode, uptime)
+  J1939,     ///< SAE J1939: DM1 trouble codes (single and transport protocol), address claims
 };
-/// "auto", "none", "canopen", "dronecan".
+/// "auto", "none", "canopen", "dronecan", "j1939".
 [[nodiscard]] std::string_view to_string(BusProtocol p) noexcept;
 
 /// What the tracker is told about one bus.
@@ -346,8 +496,14 @@ struct ProtocolOptions {
   std::vector<std::pair<std::uint16_t, std::array<std::uint64_t, 2>>> canopen_nodes{};
   /// Events kept for readers (oldest dropped and counted beyond it).
   std::size_t max_events = 1024;
-  /// CANopen nodes tracked at most (more are counted in `untracked_nodes`).
+  /// CANopen nodes tracked at most (more are counted in `untracked_nodes`); the same bound for
+  /// DroneCAN and J1939 nodes.
   std::size_t max_nodes = 4096;
+  /// J1939 transport protocol sessions open at once, over every bus (more are refused and
+  /// counted as malformed for their source).
+  std::size_t max_tp_sessions = 64;
+  /// Active DTCs remembered per J1939 node (more are counted in `dtcs_untracked`).
+  std::size_t max_dtcs = 64;
 
   /// The settings of bus `bus`, `Auto` resolved with node mapping `map`.
   [[nodiscard]] BusSettings settings(std::uint8_t bus, NodeMapKind map) const noexcept;
@@ -368,9 +524,12 @@ enum class ProtocolEventKind : std::uint8_t {
   BusOff,        ///< the controller went bus off
   ErrorActive,   ///< the controller is error active again (restarted, recovered)
   NodeHealth,    ///< a DroneCAN node's NodeStatus health changed
+  DtcActive,     ///< a J1939 DM1 trouble code became active
+  DtcCleared,    ///< a J1939 DM1 trouble code is no longer active
+  AddressClaim,  ///< a J1939 address claim: first, changed NAME, or cannot claim
 };
 /// "nmt_state", "node_reset", "emergency", "nmt_command", "error_warning", "error_passive",
-/// "bus_off", "error_active", "node_health".
+/// "bus_off", "error_active", "node_health", "dtc_active", "dtc_cleared", "address_claim".
 [[nodiscard]] std::string_view to_string(ProtocolEventKind k) noexcept;
 
 /// One protocol event, on the frames' clock.
@@ -405,6 +564,8 @@ struct ProtocolSnapshot {
   std::vector<BusProtocolStats> buses;        ///< by bus index
   std::vector<canopen::NodeStats> canopen;    ///< by bus, node-ID
   std::vector<dronecan::NodeStats> dronecan;  ///< by bus, node ID
+  std::vector<j1939::NodeStats> j1939;        ///< by bus, source address
+  std::uint64_t tp_sessions_open = 0;         ///< J1939 transport sessions open now
   std::uint64_t untracked_nodes = 0;          ///< CANopen frames of nodes beyond `max_nodes`
   std::uint64_t events = 0;                   ///< events raised so far (the last seq)
   std::uint64_t events_dropped = 0;           ///< events dropped from the kept window
@@ -415,6 +576,8 @@ struct ProtocolSnapshot {
                                                        std::uint32_t node) const noexcept;
   [[nodiscard]] const dronecan::NodeStats* find_dronecan(std::uint8_t bus,
                                                          std::uint32_t node) const noexcept;
+  [[nodiscard]] const j1939::NodeStats* find_j1939(std::uint8_t bus,
+                                                   std::uint32_t node) const noexcept;
 };
 
 /**
@@ -470,9 +633,41 @@ class ProtocolTracker {
   Bus& bus(std::uint8_t index, NodeMapKind map);
   void close_windows(Bus& b, std::int64_t upto);
   void count_load(Bus& b, const FrameRecord& r);
+  struct ExactCacheEntry {
+    std::uint64_t data = 0;
+    std::uint32_t id = 0;
+    std::uint32_t bits = 0;
+    std::uint16_t shape = 0xFFFF;  // length, extended, rtr, a valid bit; 0xFFFF: empty
+  };
+  FrameBits exact_bits(const FrameRecord& r, const FrameShape& shape);
+  std::array<ExactCacheEntry, 256> exact_cache_{};
   void on_error(Bus& b, const FrameRecord& r);
   void on_canopen(Bus& b, const FrameRecord& r);
   void on_dronecan(const FrameRecord& r);
+  // J1939 (see protocol_j1939.cpp).
+  struct TpSession {
+    bool bam = false;
+    bool done = false;  // every packet came; kept until T1 (BAM) or the ack (CM)
+    bool keep = false;  // the data is kept (a PGN that is decoded)
+    std::uint32_t pgn = 0;
+    std::uint16_t size = 0;
+    std::uint8_t packets = 0;
+    std::uint8_t next = 1;     // the sequence number expected next
+    std::uint8_t cts_end = 0;  // CM: the last packet the latest CTS allows (0: none yet)
+    Nanos deadline = 0;
+    const char* waiting = "";  // what the deadline waits for ("T1: data packet", ...)
+    std::vector<std::uint8_t> data;
+  };
+  using TpKey = std::tuple<std::uint8_t, std::uint8_t, std::uint8_t>;  // bus, source, dest
+  void on_j1939(const FrameRecord& r);
+  void on_tp_cm(const FrameRecord& r, std::uint8_t sa, std::uint8_t da);
+  void on_tp_dt(const FrameRecord& r, std::uint8_t sa, std::uint8_t da);
+  void on_dm1(std::uint8_t bus, std::uint8_t sa, Nanos t, Direction d,
+              std::span<const std::uint8_t> payload, bool single_frame);
+  void on_address_claim(const FrameRecord& r, std::uint8_t sa);
+  void expire_sessions(Nanos t);
+  void j1939_malformed(std::uint8_t bus, std::uint8_t sa, std::string what);
+  j1939::NodeStats* j1939_node(std::uint8_t bus, std::uint8_t sa);
   void emit(ProtocolEventKind kind, std::uint8_t severity, Nanos t, std::uint8_t bus,
             std::uint32_t node, Direction d, std::string detail);
   CoNode* co_node(std::uint8_t bus, std::uint32_t node);
@@ -481,6 +676,9 @@ class ProtocolTracker {
   std::map<std::uint8_t, Bus> buses_;
   std::map<std::pair<std::uint8_t, std::uint32_t>, CoNode> nodes_;
   std::map<std::pair<std::uint8_t, std::uint32_t>, dronecan::NodeStats> dc_nodes_;
+  std::map<std::pair<std::uint8_t, std::uint8_t>, j1939::NodeStats> j1939_nodes_;
+  std::map<TpKey, TpSession> tp_;
+  Nanos tp_next_deadline_ = std::numeric_limits<Nanos>::max();
   std::uint64_t untracked_nodes_ = 0;
   std::deque<ProtocolEvent> events_;
   std::uint64_t seq_ = 0;

@@ -85,7 +85,8 @@ class CanExtension : public Extension {
   // monitor's thread, when the supervisor's own thread does not run): never two steps at once.
   std::mutex step_mutex_;
   std::unique_ptr<can::CanMonitor> monitor_;
-  void add_reports(ReportSet& reports, std::vector<exporter::CanHistograms>* histograms);
+  void add_reports(ReportSet& reports, std::vector<exporter::CanHistograms>* histograms,
+                   std::vector<exporter::CanBusLoads>* buses = nullptr);
   void publish_changes(const can::CanReport& r, Nanos now);
   void publish_protocol_events(const can::CanReport& r);
   [[nodiscard]] Report supervisor_report(const can::CanReport& r, bool running) const;

@@ -171,11 +171,13 @@ class HttpServer {
   [[nodiscard]] std::string url() const;
 
   /// Publishes one monitor cycle: copies `reports`, takes `histograms` (by component id, may be
-  /// empty) and `can_histograms` (the CAN reports' gap buckets, by name, may be empty), appends
+  /// empty), `can_histograms` (the CAN reports' gap buckets, by name, may be empty) and
+  /// `can_buses` (the CAN bus reports' loads, by name, may be empty), appends
   /// a history frame, and swaps the snapshot served. Call from one publisher thread at a time
   /// (calls are serialised). Works whether or not the server runs.
   void publish(const ReportSet& reports, std::vector<ComponentHistograms> histograms = {},
-               std::vector<CanHistograms> can_histograms = {});
+               std::vector<CanHistograms> can_histograms = {},
+               std::vector<CanBusLoads> can_buses = {});
   /// The snapshot being served (null before the first publish()).
   [[nodiscard]] std::shared_ptr<const MetricsSnapshot> snapshot() const;
 

@@ -87,6 +87,16 @@ struct CanHistograms {
   std::optional<BucketCounts> tx_gap;
 };
 
+/// The bus load of one CAN bus report (`can bus 0`) as numbers, for the bus families
+/// (`vigil_can_bus_load_ratio`, `vigil_can_bus_bit_times_total`, `vigil_can_bus_frames_total`):
+/// the report's own fields give the loads as text.
+struct CanBusLoads {
+  std::string name;                             ///< the bus report's name: "can bus 0"
+  can::Stuffing judged = can::Stuffing::Exact;  ///< the count the bus is judged by
+  /// [stuffing mode][0 rx, 1 tx, 2 both], as `can::BusProtocolStats::load`.
+  std::array<std::array<can::BusLoad, 3>, can::kStuffingModes> load{};
+};
+
 /// Reduces one of the CAN aggregator's gap distributions to the fixed boundaries: its
 /// histogram (live, the same rule as the components') or its samples (exact mode: exact).
 /// Allocation-free; call inside `CanAggregator::visit_gap_distributions`.
@@ -123,6 +133,8 @@ struct MetricsSnapshot {
   /// The CAN nodes' and groups' gap buckets, sorted by name; empty without CAN (or when the
   /// publisher did not collect them: the gap families then carry only their count and sum).
   std::vector<CanHistograms> can_histograms;
+  /// The CAN buses' loads, sorted by name; empty without CAN (the bus families are then absent).
+  std::vector<CanBusLoads> can_buses;
   std::int64_t wall_time_ns = 0;  ///< Unix time at publication (for ROS header stamps)
   Nanos published_ns = 0;         ///< monotonic time at publication
 
@@ -130,6 +142,8 @@ struct MetricsSnapshot {
   [[nodiscard]] const ComponentHistograms* histograms_of(const Report& report) const noexcept;
   /// The gap buckets of `report` (a CAN node or group), or null. O(log n).
   [[nodiscard]] const CanHistograms* can_histograms_of(const Report& report) const noexcept;
+  /// The loads of `report` (a CAN bus), or null. O(log n).
+  [[nodiscard]] const CanBusLoads* can_bus_of(const Report& report) const noexcept;
 };
 
 }  // namespace vigil::exporter

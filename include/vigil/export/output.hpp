@@ -49,6 +49,8 @@ struct Snapshot {
   std::vector<ComponentHistograms> histograms;
   /// The contributors' distributions (a CAN node's or group's gaps), by report name.
   std::vector<CanHistograms> can_histograms;
+  /// The contributors' CAN bus loads as numbers (`can bus 0`), by report name.
+  std::vector<CanBusLoads> can_buses;
   /// The events published since the previous snapshot, oldest first (at most the hub's
   /// `recent`; the count of those it no longer held is in `events_missed`). An output that must
   /// act on an event within milliseconds subscribes to the event hub instead (`start()`'s

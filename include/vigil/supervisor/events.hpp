@@ -73,6 +73,10 @@ enum class EventKind : std::uint8_t {
   // `vigil supervise` again (appended: the values above keep their numbers):
   SegmentCorrupted,  ///< a segment being read was found corrupt; `detail` names the field (Error)
   SupervisorRestarted,  ///< this daemon took over from one that was killed; `detail`: the outage
+  // SAE J1939 (vigil/can/protocol.hpp), appended:
+  DtcActive,     ///< a J1939 DM1 trouble code became active (Warn; Error with the red stop lamp)
+  DtcCleared,    ///< a J1939 DM1 trouble code is no longer active (Info)
+  AddressClaim,  ///< a J1939 address claim: first (Info), another NAME or cannot claim (Warn)
   // Reactions (vigil/service/reactions.hpp): `component` is "reaction <name>", `detail` the
   // action and its outcome; `fault_ns` the trigger's fault, `detected_ns` when the action was
   // taken (a handler: when it started). Info when done, Warn when it failed or the safe state
