@@ -725,6 +725,55 @@ BusSettings ProtocolOptions::settings(std::uint8_t bus, NodeMapKind map) const n
   return s;
 }
 
+bool ProtocolOptions::is_auto(std::uint8_t bus) const noexcept {
+  BusProtocol p = all_buses.protocol;
+  for (const auto& [index, b] : buses) {
+    if (index == bus) p = b.protocol;
+  }
+  return p == BusProtocol::Auto;
+}
+
+BusProtocol detect_protocol_evidence(std::uint32_t id, bool extended, bool rtr,
+                                     std::span<const std::uint8_t> data) noexcept {
+  if (rtr) return BusProtocol::None;
+  if (!extended) {
+    // CiA 301 clause 7.2.8.3.2: heartbeat and boot-up on 0x700 + node-ID, one byte.
+    if (id < 0x701 || id > 0x77F || data.size() != 1) return BusProtocol::None;
+    const std::uint8_t state = data[0];
+    const bool nmt_state = state == 0x00 || state == 0x04 || state == 0x05 || state == 0x7F;
+    return nmt_state ? BusProtocol::CanOpen : BusProtocol::None;
+  }
+  // DroneCAN: a message frame (bit 7 clear) of NodeStatus from a node (not 0), single-frame.
+  if ((id & 0x80U) == 0 && (id & 0x7FU) != 0 && ((id >> 8) & 0xFFFFU) == dronecan::kNodeStatus &&
+      data.size() == 8 && (data[7] & 0xC0U) == 0xC0U) {
+    return BusProtocol::DroneCan;
+  }
+  switch (decode_j1939(id).pgn) {
+    case j1939::kPgnAddressClaimed:
+    case 0xEA00:  // request
+    case j1939::kPgnTpCm:
+    case j1939::kPgnDm1:
+    case 0xFECB:  // DM2
+    case 0xF001:  // EBC1
+    case 0xF003:  // EEC2
+    case 0xF004:  // EEC1
+    case 0xF005:  // ETC2
+    case 0xFEE0:  // VD
+    case 0xFEE5:  // HOURS
+    case 0xFEE9:  // LFC
+    case 0xFEEE:  // ET1
+    case 0xFEEF:  // EFL/P1
+    case 0xFEF1:  // CCVS
+    case 0xFEF2:  // LFE
+    case 0xFEF5:  // AMB
+    case 0xFEF6:  // IC1
+    case 0xFEFC:  // DD
+      return BusProtocol::J1939;
+    default:
+      return BusProtocol::None;
+  }
+}
+
 bool ProtocolOptions::canopen(std::uint8_t bus, std::uint32_t node,
                               NodeMapKind map) const noexcept {
   if (settings(bus, map).protocol == BusProtocol::CanOpen) return true;
@@ -794,7 +843,15 @@ ProtocolTracker::ProtocolTracker(ProtocolOptions options) : options_(std::move(o
 
 void ProtocolTracker::set_options(ProtocolOptions options) {
   options_ = std::move(options);
-  for (auto& [index, b] : buses_) b.stats.settings = options_.settings(index, b.map);
+  for (auto& [index, b] : buses_) resolve(b, index, b.map);
+}
+
+void ProtocolTracker::resolve(Bus& b, std::uint8_t index, NodeMapKind map) const {
+  b.stats.settings = options_.settings(index, map);
+  b.detecting = b.stats.settings.protocol == BusProtocol::None && options_.is_auto(index);
+  // What the traffic said stays said while the bus is `auto` with no protocol of its own.
+  if (b.detecting && b.detected != BusProtocol::None) b.stats.settings.protocol = b.detected;
+  b.stats.detected = b.detecting && b.detected != BusProtocol::None;
 }
 
 ProtocolTracker::Bus& ProtocolTracker::bus(std::uint8_t index, NodeMapKind map) {
@@ -803,9 +860,44 @@ ProtocolTracker::Bus& ProtocolTracker::bus(std::uint8_t index, NodeMapKind map) 
   if (inserted || b.map != map) {
     b.stats.bus = index;
     b.map = map;
-    b.stats.settings = options_.settings(index, map);
+    resolve(b, index, map);
   }
   return b;
+}
+
+void ProtocolTracker::detect(Bus& b, const FrameRecord& r) {
+  const std::size_t len = r.rtr ? 0 : std::min<std::size_t>(r.length, r.data.size());
+  const BusProtocol p = detect_protocol_evidence(r.id, r.extended, r.rtr,
+                                                 std::span<const std::uint8_t>(r.data.data(), len));
+  std::string from;
+  switch (p) {
+    case BusProtocol::CanOpen: {
+      const std::uint32_t node = r.id & 0x7FU;
+      std::uint64_t& word = b.heartbeat_seen[node / 64];
+      const std::uint64_t bit = std::uint64_t{1} << (node % 64);
+      if ((word & bit) == 0) {
+        word |= bit;
+        return;
+      }
+      from = fmt::format("CANopen heartbeats of node {} (0x{:03X})", node, r.id);
+      break;
+    }
+    case BusProtocol::DroneCan:
+      if (++b.dronecan_evidence < 2) return;
+      from = "DroneCAN NodeStatus messages";
+      break;
+    case BusProtocol::J1939:
+      if (++b.j1939_evidence < 2) return;
+      from = fmt::format("J1939 parameter groups (PGN 0x{:04X})", decode_j1939(r.id).pgn);
+      break;
+    default:
+      return;
+  }
+  b.detected = p;
+  b.stats.settings.protocol = p;
+  b.stats.detected = true;
+  b.stats.detected_from = std::move(from);
+  b.stats.detected_ns = r.time_ns;
 }
 
 void ProtocolTracker::close_windows(Bus& b, std::int64_t upto) {
@@ -905,7 +997,9 @@ void ProtocolTracker::on(const FrameRecord& r, NodeMapKind map) {
     return;
   }
   count_load(b, r);
-  if (!r.extended && options_.canopen(r.bus, r.id == 0 ? 0 : (r.id & 0x7FU), map)) {
+  if (b.detecting && b.detected == BusProtocol::None) detect(b, r);
+  if (!r.extended && (b.stats.settings.protocol == BusProtocol::CanOpen ||
+                      options_.canopen(r.bus, r.id == 0 ? 0 : (r.id & 0x7FU), map))) {
     on_canopen(b, r);
   } else if (r.extended && b.stats.settings.protocol == BusProtocol::DroneCan) {
     on_dronecan(r);

@@ -646,6 +646,8 @@ void write_bus(exporter::JsonWriter& w, const BusReport& b,
     w.null();
   }
   w.field("protocol", to_string(s.settings.protocol));
+  w.field("protocol_detected", s.detected);
+  if (s.detected) w.field("protocol_detected_from", s.detected_from);
   w.key("judged").begin_object();
   w.field("stuffing", to_string(b.config.load.stuffing))
       .field("figure", to_string(b.config.load.figure));
@@ -998,8 +1000,15 @@ std::string format_can_replay(const LogReplay& replay, const CanReport& report,
   }
   if (!buses.empty()) out += "  buses: " + buses + '\n';
   if (!options.config.empty()) out += "  config: " + options.config + '\n';
-  // The findings in one line: resets, emergencies, controller faults, bus load.
   const ProtocolSnapshot& p = report.snapshot.protocol;
+  // Protocols recognised from the traffic (`protocol: auto` with a mapping that names none).
+  for (const BusProtocolStats& b : p.buses) {
+    if (!b.detected) continue;
+    out += fmt::format("  protocol: {} {}, recognised from {} ({:.6f})\n",
+                       bus_name(b.bus, replay.bus_names()), to_string(b.settings.protocol),
+                       b.detected_from, static_cast<double>(b.detected_ns) / 1e9);
+  }
+  // The findings in one line: resets, emergencies, controller faults, bus load.
   std::uint64_t resets = 0;
   std::uint64_t emergencies = 0;
   for (const canopen::NodeStats& n : p.canopen) {

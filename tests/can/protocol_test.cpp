@@ -770,3 +770,140 @@ TEST_CASE("Exact bit count: the packed, table-driven count equals the bit-by-bit
     REQUIRE(exact_classic_bits(f) == n + stuff_bits(used));
   }
 }
+
+TEST_CASE("Protocol evidence: what one frame says of its bus's protocol", "[can][protocol]") {
+  using B = BusProtocol;
+  const auto ev = [](std::uint32_t id, bool ext, std::vector<std::uint8_t> d, bool rtr = false) {
+    return detect_protocol_evidence(id, ext, rtr, d);
+  };
+  // CiA 301 heartbeats and boot-up: 0x700 + node-ID, one byte, an NMT state.
+  CHECK(ev(0x705, false, {0x05}) == B::CanOpen);
+  CHECK(ev(0x77F, false, {0x7F}) == B::CanOpen);
+  CHECK(ev(0x701, false, {0x00}) == B::CanOpen);
+  CHECK(ev(0x701, false, {0x04}) == B::CanOpen);
+  CHECK(ev(0x700, false, {0x05}) == B::None);        // node-ID 0 is no node
+  CHECK(ev(0x780, false, {0x05}) == B::None);        // beyond 0x77F
+  CHECK(ev(0x705, false, {0x12}) == B::None);        // no NMT state
+  CHECK(ev(0x705, false, {0x05, 0x00}) == B::None);  // two bytes
+  CHECK(ev(0x705, false, {}, true) == B::None);      // a guarding request
+  CHECK(ev(0x705, true, {0x05}) == B::None);         // 29-bit
+  // DroneCAN NodeStatus (type 341 in bits 8-23, message, node 10), single-frame tail 0xC0 | tid.
+  const std::uint32_t ns = (16U << 24) | (341U << 8) | 10U;
+  CHECK(ev(ns, true, {1, 0, 0, 0, 0, 0, 0, 0xC3}) == B::DroneCan);
+  CHECK(ev(ns, true, {1, 0, 0, 0, 0, 0, 0, 0x83}) == B::None);  // not a single-frame transfer
+  CHECK(ev(ns | 0x80U, true, {1, 0, 0, 0, 0, 0, 0, 0xC3}) == B::None);  // a service frame
+  // J1939 parameter groups only J1939 uses: EEC1 from the engine, CCVS, DM1, address claimed.
+  CHECK(ev(0x0CF00400, true, {0, 0, 0, 0, 0, 0, 0, 0}) == B::J1939);
+  CHECK(ev(0x18FEF121, true, {0, 0, 0, 0, 0, 0, 0, 0}) == B::J1939);
+  CHECK(ev(0x18FECA00, true, {0, 0, 0, 0, 0, 0, 0, 0}) == B::J1939);
+  CHECK(ev(0x18EEFF80, true, {0, 0, 0, 0, 0, 0, 0, 0}) == B::J1939);
+  CHECK(ev(0x18FF0000, true, {0, 0, 0, 0, 0, 0, 0, 0}) == B::None);  // proprietary B: anyone's
+  CHECK(ev(0x0CF004, false, {}) == B::None);
+}
+
+TEST_CASE("protocol auto with an identity mapping: the traffic decides, none stays none",
+          "[can][protocol][canopen]") {
+  Nanos now = 0;
+  const auto rec = [&](const Frame& f) {
+    FrameRecord r;
+    r.time_ns = (now += kNanosPerMilli);
+    r.id = f.id;
+    r.extended = f.extended;
+    r.rtr = f.rtr;
+    r.length = f.length;
+    std::copy_n(f.data.begin(), 8, r.data.begin());
+    return r;
+  };
+  SECTION("two heartbeats of one node make the bus CANopen; its reset and emergency follow") {
+    ProtocolTracker t;
+    t.on(rec(Frame::classic(0x705, {0x05})));
+    t.on(rec(Frame::classic(0x706, {0x05})));  // another node: not yet
+    CHECK_FALSE(t.snapshot().buses.at(0).detected);
+    CHECK(t.snapshot().buses.at(0).settings.protocol == BusProtocol::None);
+    t.on(rec(Frame::classic(0x705, {0x05})));  // node 5 again: CANopen
+    auto s = t.snapshot();
+    CHECK(s.buses.at(0).detected);
+    CHECK(s.buses.at(0).settings.protocol == BusProtocol::CanOpen);
+    CHECK(s.buses.at(0).detected_from.find("node 5 (0x705)") != std::string::npos);
+    t.on(rec(Frame::classic(0x085, {0x10, 0x23, 0x02, 0, 0, 0, 0, 0})));
+    t.on(rec(Frame::classic(0x705, {0x00})));  // boot-up while operational
+    s = t.snapshot();
+    const canopen::NodeStats* n = s.find_canopen(0, 5);
+    REQUIRE(n != nullptr);
+    CHECK(n->resets == 1);
+    CHECK(n->emergencies == 1);
+    // A new configuration keeps what the traffic said.
+    t.set_options(ProtocolOptions{});
+    CHECK(t.snapshot().buses.at(0).settings.protocol == BusProtocol::CanOpen);
+  }
+  SECTION("protocol none is never overruled by the traffic") {
+    ProtocolTracker t(ProtocolOptions{.all_buses = {.protocol = BusProtocol::None}});
+    for (int i = 0; i < 5; ++i) t.on(rec(Frame::classic(0x705, {0x05})));
+    t.on(rec(Frame::classic(0x085, {0x10, 0x23, 0x02, 0, 0, 0, 0, 0})));
+    const auto s = t.snapshot();
+    CHECK_FALSE(s.buses.at(0).detected);
+    CHECK(s.buses.at(0).settings.protocol == BusProtocol::None);
+    CHECK(s.canopen.empty());
+  }
+  SECTION("two J1939 parameter groups make the bus J1939; its DM1 is read") {
+    ProtocolTracker t;
+    t.on(rec(Frame::classic(0x0CF00400, {0, 0, 0, 0, 0, 0, 0, 0}, IdFormat::Extended)));
+    CHECK_FALSE(t.snapshot().buses.at(0).detected);
+    t.on(rec(Frame::classic(0x18FEF121, {0, 0, 0, 0, 0, 0, 0, 0}, IdFormat::Extended)));
+    CHECK(t.snapshot().buses.at(0).settings.protocol == BusProtocol::J1939);
+    // DM1 from 0x00: amber lamp on, SPN 100 FMI 1 occurrence 3.
+    t.on(rec(
+        Frame::classic(0x18FECA00, {0x04, 0xFF, 100, 0, 0x01, 3, 0xFF, 0xFF}, IdFormat::Extended)));
+    const j1939::NodeStats* n = t.snapshot().find_j1939(0, 0x00);
+    REQUIRE(n != nullptr);
+    CHECK(n->active.size() == 1);
+  }
+  SECTION("two DroneCAN NodeStatus messages make the bus DroneCAN") {
+    ProtocolTracker t;
+    const std::uint32_t ns = (16U << 24) | (341U << 8) | 10U;
+    t.on(rec(Frame::classic(ns, {5, 0, 0, 0, 0, 0, 0, 0xC0}, IdFormat::Extended)));
+    t.on(rec(Frame::classic(ns, {6, 0, 0, 0, 0, 0, 0, 0xC1}, IdFormat::Extended)));
+    t.on(rec(Frame::classic(ns, {7, 0, 0, 0, 0, 0, 0, 0xC2}, IdFormat::Extended)));
+    const auto s = t.snapshot();
+    CHECK(s.buses.at(0).settings.protocol == BusProtocol::DroneCan);
+    CHECK(s.find_dronecan(0, 10) != nullptr);
+  }
+}
+
+TEST_CASE("vigil can-stats with no node mapping finds a CANopen network's resets and emergencies",
+          "[can][protocol][replay]") {
+  const auto dir = std::filesystem::temp_directory_path() / "vigil_can_protocol_auto";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  std::string log;
+  Nanos t = 1'700'000'000 * kNanosPerSecond;
+  for (int i = 0; i < 100; ++i) {  // 10 s of heartbeats at 100 ms from nodes 1-3
+    t += 100 * kNanosPerMilli;
+    for (std::uint32_t n = 1; n <= 3; ++n) {
+      std::uint8_t state = 0x05;
+      if (n == 2 && i >= 50 && i < 55) continue;  // node 2 reboots
+      if (n == 2 && i == 55) state = 0x00;
+      if (n == 2 && i > 55 && i < 58) state = 0x7F;
+      write_candump_line(log, at(Frame::classic(0x700 + n, {state}), t + n * 1000), "can0");
+    }
+    if (i == 30) {
+      write_candump_line(
+          log, at(Frame::classic(0x083, {0x10, 0x23, 0x02, 0, 0, 0, 0, 0}), t + 9000), "can0");
+    }
+  }
+  std::ofstream(dir / "net.log") << log;
+  vigil::app::CanStatsOptions o;
+  o.files = {dir / "net.log"};
+  std::ostringstream out;
+  std::ostringstream err;
+  CHECK(vigil::app::run_can_stats(o, out, err) == 0);
+  const std::string text = out.str();
+  CHECK(text.find("protocol: can0 canopen, recognised from CANopen heartbeats of node 1") !=
+        std::string::npos);
+  CHECK(text.find("findings: 3 CANopen nodes, 1 reset, 1 emergency") != std::string::npos);
+  o.json = true;
+  std::ostringstream jout;
+  CHECK(vigil::app::run_can_stats(o, jout, err) == 0);
+  CHECK(jout.str().find("\"protocol_detected\": true") != std::string::npos);
+  std::filesystem::remove_all(dir);
+}

@@ -470,7 +470,10 @@ struct NodeStats {
 
 /// Which protocol a bus (or a group of nodes) speaks.
 enum class BusProtocol : std::uint8_t {
-  Auto,      ///< the node mapping's: CANopen, DroneCAN or J1939 for those node maps, else none
+  /// The node mapping's: CANopen, DroneCAN or J1939 for those node maps; with any other
+  /// mapping, the protocol recognised in the bus's traffic (`detect_protocol_evidence`), none
+  /// until then.
+  Auto,
   None,      ///< no protocol decoding
   CanOpen,   ///< CiA 301: NMT, heartbeat, node guarding, emergency
   DroneCan,  ///< DroneCAN NodeStatus (health, mode, uptime)
@@ -505,8 +508,11 @@ struct ProtocolOptions {
   /// Active DTCs remembered per J1939 node (more are counted in `dtcs_untracked`).
   std::size_t max_dtcs = 64;
 
-  /// The settings of bus `bus`, `Auto` resolved with node mapping `map`.
+  /// The settings of bus `bus`, `Auto` resolved with node mapping `map` (to `None` when the
+  /// mapping names no protocol: the tracker then recognises it from the traffic).
   [[nodiscard]] BusSettings settings(std::uint8_t bus, NodeMapKind map) const noexcept;
+  /// Whether bus `bus` is configured `auto` (its own entry, else `all_buses`).
+  [[nodiscard]] bool is_auto(std::uint8_t bus) const noexcept;
   /// Whether CANopen frames of node-ID `node` on bus `bus`, from a sniffer with node mapping
   /// `map`, are decoded (`node` 0: the bus's network messages, NMT commands, decoded when any
   /// node of the bus is).
@@ -548,6 +554,11 @@ struct ProtocolEvent {
 struct BusProtocolStats {
   std::uint8_t bus = 0;
   BusSettings settings{};  ///< as configured, `protocol` resolved
+  /// `settings.protocol` was recognised from the traffic (`auto` with a node mapping that
+  /// names no protocol); `detected_from` says by what, `detected_ns` when.
+  bool detected = false;
+  std::string detected_from;
+  Nanos detected_ns = 0;
   /// [stuffing mode][0 rx, 1 tx, 2 both].
   std::array<std::array<BusLoad, 3>, kStuffingModes> load{};
   /// CAN FD frames counted in exact mode with the worst case (canbusload has no exact CAN FD).
@@ -579,6 +590,19 @@ struct ProtocolSnapshot {
   [[nodiscard]] const j1939::NodeStats* find_j1939(std::uint8_t bus,
                                                    std::uint32_t node) const noexcept;
 };
+
+/// What one frame says of the protocol its bus speaks, for `BusProtocol::Auto` on a bus whose
+/// node mapping names none: `CanOpen` for a CiA 301 heartbeat or boot-up (11-bit id 0x701 to
+/// 0x77F, one data byte holding an NMT state: 0x00, 0x04, 0x05 or 0x7F); `DroneCan` for a
+/// single-frame NodeStatus message (29-bit, data type 341, 8 bytes, the tail byte's start and
+/// end bits set); `J1939` for a 29-bit frame of a parameter group only J1939 uses (address
+/// claimed 0xEE00, request 0xEA00, TP.CM 0xEC00, DM1 0xFECA, DM2 0xFECB, EEC1 0xF004, EEC2
+/// 0xF003, EBC1 0xF001, CCVS 0xFEF1, ET1 0xFEEE, EFL/P1 0xFEEF, IC1 0xFEF6, AMB 0xFEF5, LFE
+/// 0xFEF2, HOURS 0xFEE5, LFC 0xFEE9, DD 0xFEFC, VD 0xFEE0, ETC2 0xF005); else `None`.
+/// The tracker decides for a bus after two frames of the same protocol (for CANopen, two
+/// from the same node-ID). Pure, O(1).
+[[nodiscard]] BusProtocol detect_protocol_evidence(std::uint32_t id, bool extended, bool rtr,
+                                                   std::span<const std::uint8_t> data) noexcept;
 
 /**
  * Applies the decoders to the frames of a stream of `FrameRecord`s: bus load per second and
@@ -623,6 +647,12 @@ class ProtocolTracker {
     bool started = false;
     std::int64_t seconds_closed = 0;
     NodeMapKind map = NodeMapKind::Identity;  // of the latest record's sniffer
+    // `auto` resolved to none: the traffic decides (`detect_protocol_evidence`).
+    bool detecting = false;
+    BusProtocol detected = BusProtocol::None;
+    std::array<std::uint64_t, 2> heartbeat_seen{};  // CANopen node-IDs seen once
+    std::uint8_t j1939_evidence = 0;
+    std::uint8_t dronecan_evidence = 0;
   };
   struct CoNode {
     canopen::NodeStats stats;
@@ -631,6 +661,8 @@ class ProtocolTracker {
   };
 
   Bus& bus(std::uint8_t index, NodeMapKind map);
+  void resolve(Bus& b, std::uint8_t index, NodeMapKind map) const;
+  void detect(Bus& b, const FrameRecord& r);
   void close_windows(Bus& b, std::int64_t upto);
   void count_load(Bus& b, const FrameRecord& r);
   struct ExactCacheEntry {
