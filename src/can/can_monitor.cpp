@@ -111,6 +111,9 @@ void judge_ids(CanReport& r, const CanConfig& cfg) {
     } else if ((s.flags & node_flags::kResponse) != 0 ||
                asked.contains({s.bus, s.id, s.extended})) {
       v.traffic = Traffic::OnRequest;
+    } else if (const BusProtocolStats* b = r.snapshot.protocol.find_bus(s.bus);
+               b != nullptr && event_driven(b->settings.protocol, s.id, s.extended)) {
+      v.traffic = Traffic::Events;
     } else {
       const LearnRule& rule = cfg.thresholds_for(s.bus, s.node).learn;
       if (s.gap_ns.count < rule.min_gaps) {
@@ -145,7 +148,8 @@ NodeIds ids_of(const CanReport& r, std::optional<std::uint8_t> bus, std::uint32_
     if (s.node != node) continue;
     if (v.traffic == Traffic::ToNode || v.traffic == Traffic::Sent) n.to_node += s.frames;
     if (v.traffic == Traffic::Periodic || v.traffic == Traffic::Learning ||
-        v.traffic == Traffic::OnRequest || v.traffic == Traffic::Requests) {
+        v.traffic == Traffic::OnRequest || v.traffic == Traffic::Requests ||
+        v.traffic == Traffic::Events) {
       seen();
       n.from.push_back(i);
       n.last_from = std::max(n.last_from, s.last_ns);
@@ -198,9 +202,11 @@ void builtin_checks(NodeReport& n, const CanReport& r) {
   } else {
     // Learned: the largest limit of the node's periodic ids.
     std::size_t learning = 0;
+    std::size_t answers = 0;  // ids on request or asking
     for (const std::size_t i : ids.from) {
       const IdVerdict& v = r.ids[i];
       if (v.traffic == Traffic::Learning) ++learning;
+      if (v.traffic == Traffic::OnRequest || v.traffic == Traffic::Requests) ++answers;
       if (v.traffic == Traffic::Periodic && v.limit_ns > n.silence_limit_ns) {
         n.silence_limit_ns = v.limit_ns;
         n.limit_id = static_cast<std::ptrdiff_t>(i);
@@ -230,8 +236,10 @@ void builtin_checks(NodeReport& n, const CanReport& r) {
       }
       n.status.merge(StatusLevel::Ok,
                      fmt::format("learning its period: {} of {} gaps", most, t.learn.min_gaps));
-    } else {
+    } else if (answers > 0) {
       n.liveness = Liveness::OnRequest;  // it only answers (or asks): silence is no fault
+    } else {
+      n.liveness = Liveness::OnEvent;  // only protocol events (emergencies ...): likewise
     }
   }
   if (heard && unanswered) {
@@ -343,6 +351,8 @@ std::string_view to_string(Liveness l) noexcept {
       return "responding";
     case Liveness::NotResponding:
       return "not responding";
+    case Liveness::OnEvent:
+      return "on event";
   }
   return "?";
 }
@@ -365,8 +375,38 @@ std::string_view to_string(Traffic t) noexcept {
       return "sent";
     case Traffic::Errors:
       return "errors";
+    case Traffic::Events:
+      return "events";
   }
   return "?";
+}
+
+bool event_driven(BusProtocol p, std::uint32_t id, bool extended) noexcept {
+  switch (p) {
+    case BusProtocol::CanOpen:
+      return !extended &&
+             (id == 0x000 || (id >= 0x081 && id <= 0x0FF) || (id >= 0x581 && id <= 0x5FF) ||
+              (id >= 0x601 && id <= 0x67F) || id == 0x7E4 || id == 0x7E5);
+    case BusProtocol::J1939:
+      if (!extended) return false;
+      switch (decode_j1939(id).pgn) {
+        case 0xEC00:  // TP.CM
+        case 0xEB00:  // TP.DT
+        case 0xC800:  // ETP.CM
+        case 0xC700:  // ETP.DT
+        case 0xEE00:  // address claimed
+        case 0xEA00:  // request
+        case 0xE800:  // acknowledgement
+        case 0xFECB:  // DM2, sent on request
+          return true;
+        default:
+          return false;
+      }
+    case BusProtocol::DroneCan:
+      return extended && (id & 0x80U) != 0;
+    default:
+      return false;
+  }
 }
 
 std::size_t CanReport::node_count() const noexcept {

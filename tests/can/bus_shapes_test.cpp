@@ -119,8 +119,8 @@ TEST_CASE("A healthy CANopen network: every node OK, requests and quiet ids judg
   CHECK(r.snapshot.find_id(0, 0x080, false, Direction::Rx)->node == kNoNode);
   CHECK(verdict(r, 0x181, false).traffic == Traffic::Periodic);
   CHECK(verdict(r, 0x181, false).period_ns < 11 * kMs);
-  // The EMCY (two frames) never has enough gaps: learning, and it does not hold node 2 back.
-  CHECK(verdict(r, 0x082, false).traffic == Traffic::Learning);
+  // The EMCY is an event (CiA 301): no period is learned from it, it does not hold node 2 back.
+  CHECK(verdict(r, 0x082, false).traffic == Traffic::Events);
 }
 
 TEST_CASE("CANopen: an id quiet for minutes does not make its node fail",

@@ -3,6 +3,7 @@
 // and that a replay (`vigil can-stats`) finds the same as the live pipeline.
 #include "vigil/can/protocol.hpp"
 
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <filesystem>
@@ -906,4 +907,76 @@ TEST_CASE("vigil can-stats with no node mapping finds a CANopen network's resets
   CHECK(vigil::app::run_can_stats(o, jout, err) == 0);
   CHECK(jout.str().find("\"protocol_detected\": true") != std::string::npos);
   std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("Emergencies are events: a burst that ends is no silence, and no node's limit grows",
+          "[can][protocol][canopen]") {
+  // Heartbeats of nodes 1-3 every 100 ms for 120 s; node 3 sends 30 emergencies (each with its
+  // "error reset") at irregular times in the first 50 s, then none: healthy.
+  struct Entry {
+    Frame frame;
+    Direction direction;
+  };
+  std::vector<Entry> entries;
+  const Nanos t0 = 1'000 * kNanosPerSecond;
+  for (int i = 0; i < 1200; ++i) {
+    const Nanos t = t0 + i * 100 * kNanosPerMilli;
+    for (std::uint32_t n = 1; n <= 3; ++n) {
+      entries.push_back({at(Frame::classic(0x700 + n, {0x05}), t + n * 1000), Direction::Rx});
+    }
+  }
+  std::uint64_t x = 12345;  // a fixed pseudo-random sequence
+  for (int k = 0; k < 30; ++k) {
+    x = x * 6364136223846793005ULL + 1442695040888963407ULL;
+    const Nanos t = t0 + static_cast<Nanos>((x >> 33) % 50'000) * kNanosPerMilli + 7;
+    entries.push_back(
+        {at(Frame::classic(0x083, {0x10, 0x00, 0x01, 0, 0, 0, 0, 0}), t), Direction::Rx});
+    entries.push_back(
+        {at(Frame::classic(0x083, {0x00, 0x00, 0x00, 0, 0, 0, 0, 0}), t + 500'000), Direction::Rx});
+  }
+  std::sort(entries.begin(), entries.end(),
+            [](const Entry& a, const Entry& b) { return a.frame.timestamp < b.frame.timestamp; });
+  for (const NodeMap& map : {NodeMap::identity(), NodeMap::canopen()}) {
+    LogReplay replay({.node_map = map});
+    for (const Entry& e : entries) replay.feed(e.frame, e.direction);
+    const CanReport r = replay.report(CanMonitor(CanConfig{}));
+    INFO(vigil::exporter::format_can_report(r));
+    CHECK(r.status.level() == StatusLevel::Ok);
+    const ProtocolSnapshot& p = r.snapshot.protocol;
+    REQUIRE(p.find_canopen(0, 3) != nullptr);
+    CHECK(p.find_canopen(0, 3)->emergencies == 60);
+    if (map.kind() == NodeMapKind::Identity) {
+      const NodeReport* emcy = r.find(0, 0x083);
+      REQUIRE(emcy != nullptr);
+      CHECK(emcy->liveness == Liveness::OnEvent);
+    } else {
+      // Node 3's limit is its heartbeat's (2 x 100 ms, at the 250 ms floor), not the bursts'.
+      const NodeReport* n3 = r.find(0, 3);
+      REQUIRE(n3 != nullptr);
+      CHECK(n3->silence_limit_ns == 250 * kNanosPerMilli);
+    }
+  }
+}
+
+TEST_CASE("Event-driven identifiers by protocol", "[can][protocol]") {
+  CHECK(event_driven(BusProtocol::CanOpen, 0x085, false));
+  CHECK(event_driven(BusProtocol::CanOpen, 0x000, false));
+  CHECK(event_driven(BusProtocol::CanOpen, 0x585, false));
+  CHECK(event_driven(BusProtocol::CanOpen, 0x605, false));
+  CHECK(event_driven(BusProtocol::CanOpen, 0x7E5, false));
+  CHECK_FALSE(event_driven(BusProtocol::CanOpen, 0x185, false));  // a TPDO
+  CHECK_FALSE(event_driven(BusProtocol::CanOpen, 0x705, false));  // a heartbeat
+  CHECK_FALSE(event_driven(BusProtocol::CanOpen, 0x085, true));
+  CHECK_FALSE(event_driven(BusProtocol::None, 0x085, false));
+  CHECK(event_driven(BusProtocol::J1939, 0x18ECFF00, true));        // TP.CM (BAM)
+  CHECK(event_driven(BusProtocol::J1939, 0x18EBFF00, true));        // TP.DT
+  CHECK(event_driven(BusProtocol::J1939, 0x18EEFF00, true));        // address claimed
+  CHECK(event_driven(BusProtocol::J1939, 0x18EA0021, true));        // request
+  CHECK(event_driven(BusProtocol::J1939, 0x18FECB00, true));        // DM2
+  CHECK_FALSE(event_driven(BusProtocol::J1939, 0x0CF00400, true));  // EEC1
+  CHECK_FALSE(event_driven(BusProtocol::J1939, 0x18FECA00, true));  // DM1: once a second
+  CHECK(event_driven(BusProtocol::DroneCan, 0x1E0A8A85U, true));    // a service frame
+  CHECK_FALSE(event_driven(BusProtocol::DroneCan, (16U << 24) | (341U << 8) | 10U, true));
+  CHECK(to_string(Traffic::Events) == "events");
+  CHECK(to_string(Liveness::OnEvent) == "on event");
 }

@@ -73,9 +73,11 @@ enum class Liveness : std::uint8_t {
   OnRequest,      ///< it only answers requests: not judged by silence
   Responding,     ///< within its silence limit
   NotResponding,  ///< silent beyond its limit, or a request to it went unanswered
+  OnEvent,        ///< it only sends protocol events (emergencies, ...): not judged by silence
 };
 
-/// "no node", "never seen", "learning", "on request", "responding", "not responding".
+/// "no node", "never seen", "learning", "on request", "responding", "not responding",
+/// "on event".
 [[nodiscard]] std::string_view to_string(Liveness l) noexcept;
 
 /// What an id key's frames are, for liveness.
@@ -88,10 +90,23 @@ enum class Traffic : std::uint8_t {
   Network,    ///< belongs to no node (NMT, SYNC, TIME, LSS, "other", anonymous)
   Sent,       ///< sent by the supervising side itself (direction Tx)
   Errors,     ///< error frames
+  /// From its node when something happens, by its bus's protocol (`event_driven`): CANopen
+  /// emergencies, SDO, NMT commands and LSS; J1939 transport protocol, address claims, requests,
+  /// acknowledgements and DM2; DroneCAN service frames. No period is learned from them.
+  Events,
 };
 
-/// "periodic", "learning", "on request", "requests", "to node", "network", "sent", "errors".
+/// "periodic", "learning", "on request", "requests", "to node", "network", "sent", "errors",
+/// "events".
 [[nodiscard]] std::string_view to_string(Traffic t) noexcept;
+
+/// Whether a frame identifier is event-driven by the protocol `p` of its bus (what
+/// `Traffic::Events` holds): CANopen emergencies 0x081-0x0FF, SDO 0x581-0x5FF and 0x601-0x67F,
+/// NMT commands 0x000, LSS 0x7E4/0x7E5 (11-bit); J1939 parameter groups TP.CM 0xEC00, TP.DT
+/// 0xEB00, ETP.CM 0xC800, ETP.DT 0xC700, address claimed 0xEE00, request 0xEA00,
+/// acknowledgement 0xE800 and DM2 0xFECB (29-bit); DroneCAN service frames (29-bit, bit 7).
+/// Pure, O(1).
+[[nodiscard]] bool event_driven(BusProtocol p, std::uint32_t id, bool extended) noexcept;
 
 /// What the monitor says about one id key (same order as `CanSnapshot::ids`).
 struct IdVerdict {
