@@ -168,7 +168,7 @@ TEST_CASE("ROS 2 node names, namespaces and distributions are checked as rmw doe
   CHECK(noetic.error().message.find("ROS_DISTRO='noetic'") == 0);
 }
 
-TEST_CASE("A bad node name or distribution is said; an unknown ROS_DISTRO only warns",
+TEST_CASE("A bad node name or distribution is said, an unknown ROS_DISTRO only warns",
           "[export][ros2]") {
   Started name(Ros2Options{.domain_id = 1, .node_name = "my node"});
   CHECK(!name.output.active());
