@@ -298,11 +298,11 @@ Ros2OutputSpec parse_ros2(const config::Node& r) {
   ros2.dds_config = r.optional<std::string>("dds_config", "", config::non_empty());
   ros2.events = r.optional("events", true);
   ros2.node = r.optional("node", true);
-  // Each check's error starts with the key and the value ("node_name 'a b' is not ..."); the
-  // loader names both, so only the rest is said.
+  // Each check's error starts with the key and the value ("node_name 'a b' is not a ROS 2 node
+  // name: it ..."); the loader names both, so the rest is said as a requirement ("must be a ...").
   const auto said = [](const Error& e) {
-    const std::size_t at = e.message.find("' ");
-    return at == std::string::npos ? e.message : e.message.substr(at + 2);
+    const std::size_t at = e.message.find("' is not ");
+    return at == std::string::npos ? e.message : "must be " + e.message.substr(at + 9);
   };
   ros2.node_name = r.optional<std::string>("node_name", "vigil",
                                            [&](const std::string& v) -> std::optional<std::string> {

@@ -291,7 +291,7 @@ expected<void, Error> Ros2DiagnosticsOutput::start(OutputContext& context) {
   {
     std::lock_guard lock(mutex_);
     transport_ = std::move(t);
-    if (options_.node) {
+    if (options_.node && !transport_->node().participant_gid.empty()) {  // announced
       node_ = options_.node_namespace == "/" ? "/" + options_.node_name
                                              : options_.node_namespace + "/" + options_.node_name;
     } else {

@@ -451,15 +451,16 @@ TEST_CASE("ros_discovery_info names the node of the /diagnostics writer, as rmw 
     // The /diagnostics writer's gids as rmw_cyclonedds_cpp derives them from DDS discovery.
     const std::string writer = field(line, "\"publisher\"", "gid");
     const std::string participant = field(line, "\"publisher\"", "participant_gid");
-    REQUIRE(writer.size() == 2U * size);
-    REQUIRE(participant.size() == 2U * size);
+    const std::size_t hex_size = 2 * static_cast<std::size_t>(size);
+    REQUIRE(writer.size() == hex_size);
+    REQUIRE(participant.size() == hex_size);
     // GUIDs in wire order: the RTPS participant's entity id 0x000001c1, a writer of a keyless
     // user topic 0x......03, the same 12-byte prefix; zeros after the 16 bytes (Humble).
     CHECK(participant.substr(24, 8) == "000001c1");
     CHECK(writer.substr(30, 2) == "03");
     CHECK(writer.substr(0, 24) == participant.substr(0, 24));
-    CHECK(participant.substr(32) == std::string(2U * size - 32, '0'));
-    CHECK(writer.substr(32) == std::string(2U * size - 32, '0'));
+    CHECK(participant.substr(32) == std::string(hex_size - 32, '0'));
+    CHECK(writer.substr(32) == std::string(hex_size - 32, '0'));
     // What vigil announced: that participant, one node holding that writer and no reader.
     CHECK(line == fmt::format("{{\"ros_discovery_info\":{{\"gid\":\"{0}\",\"nodes\":[{{"
                               "\"namespace\":\"/robot\",\"name\":\"arm_health\",\"readers\":[],"
