@@ -166,7 +166,9 @@ int run_supervise(const SuperviseOptions& o) {
               o.duration_s > 0 ? fmt::format(" for {} s", o.duration_s).c_str() : "; Ctrl-C stops");
   std::printf("Start processes with VIGIL_SUPERVISOR=%s in their environment.\n", o.name.c_str());
   if (ros2 != nullptr && ros2->active()) {
-    std::printf("ROS 2: /diagnostics (DDS topic rt/diagnostics) in domain %d\n", ros2->domain_id());
+    const std::string node = ros2->node();
+    std::printf("ROS 2: /diagnostics (DDS topic rt/diagnostics) in domain %d%s\n",
+                ros2->domain_id(), node.empty() ? "" : (", node " + node).c_str());
   }
   std::fflush(stdout);
 

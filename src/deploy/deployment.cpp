@@ -290,12 +290,39 @@ HttpOutputSpec parse_http(const config::Node& h) {
 Ros2OutputSpec parse_ros2(const config::Node& r) {
   Ros2OutputSpec ros2;
   if (r.is_null()) return ros2;  // `ros2:` alone: every default
-  r.reject_unknown_keys({"domain_id", "dds_config", "events"});
+  r.reject_unknown_keys(
+      {"domain_id", "dds_config", "events", "node", "node_name", "node_namespace", "ros_distro"});
   if (r.has("domain_id")) {
     ros2.domain_id = r.required<int>("domain_id", config::in_range(0, exporter::kRosDomainIdMax));
   }
   ros2.dds_config = r.optional<std::string>("dds_config", "", config::non_empty());
   ros2.events = r.optional("events", true);
+  ros2.node = r.optional("node", true);
+  // Each check's error starts with the key and the value ("node_name 'a b' is not a ROS 2 node
+  // name: it ..."); the loader names both, so the rest is said as a requirement ("must be a ...").
+  const auto said = [](const Error& e) {
+    const std::size_t at = e.message.find("' is not ");
+    return at == std::string::npos ? e.message : "must be " + e.message.substr(at + 9);
+  };
+  ros2.node_name = r.optional<std::string>("node_name", "vigil",
+                                           [&](const std::string& v) -> std::optional<std::string> {
+                                             if (auto c = exporter::check_ros_node_name(v); !c)
+                                               return said(c.error());
+                                             return std::nullopt;
+                                           });
+  ros2.node_namespace = r.optional<std::string>(
+      "node_namespace", "/", [&](const std::string& v) -> std::optional<std::string> {
+        if (auto c = exporter::check_ros_namespace(v); !c) return said(c.error());
+        return std::nullopt;
+      });
+  ros2.ros_distro = r.optional<std::string>(
+      "ros_distro", "", [](const std::string& v) -> std::optional<std::string> {
+        if (auto g = exporter::ros_gid_size(v); !g) {
+          return "must name a ROS 2 distribution: foxy, galactic, humble, iron, jazzy, kilted, "
+                 "lyrical or rolling";
+        }
+        return std::nullopt;
+      });
   return ros2;
 }
 

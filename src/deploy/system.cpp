@@ -66,6 +66,10 @@ System::System(DeploymentSpec spec) : spec_(std::move(spec)) {
         exporter::Ros2Options{.domain_id = out.ros2->domain_id,
                               .dds_config = out.ros2->dds_config,
                               .events = out.ros2->events,
+                              .node = out.ros2->node,
+                              .node_name = out.ros2->node_name,
+                              .node_namespace = out.ros2->node_namespace,
+                              .ros_distro = out.ros2->ros_distro,
                               .warn = [](const std::string& line) {
                                 std::fprintf(stderr, "outputs.ros2: %s\n", line.c_str());
                               }});
@@ -259,8 +263,9 @@ expected<void, Error> System::start() {
                                            : r.error().message});
   }
   if (ros2_ != nullptr && ros2_->active()) {
-    log_.push_back(fmt::format("ROS 2: /diagnostics (DDS topic rt/diagnostics) in domain {}",
-                               ros2_->domain_id()));
+    const std::string node = ros2_->node();
+    log_.push_back(fmt::format("ROS 2: /diagnostics (DDS topic rt/diagnostics) in domain {}{}",
+                               ros2_->domain_id(), node.empty() ? "" : ", node " + node));
   }
   if (spec_.outputs.textfile) {
     log_.push_back(

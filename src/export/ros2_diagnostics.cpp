@@ -130,6 +130,70 @@ expected<int, Error> parse_ros_domain_id(std::string_view text, std::string_view
   return v;
 }
 
+expected<int, Error> ros_gid_size(std::string_view distro, std::string_view what) {
+  // rmw_dds_common/msg/Gid.msg: `char[24] data` up to Humble (1.6.x), `char[16] data` since Iron
+  // (2.0.0, "Change Gid.msg to be 16 bytes", ros2/rmw_dds_common#68).
+  for (const std::string_view d : {"foxy", "galactic", "humble"}) {
+    if (distro == d) return 24;
+  }
+  for (const std::string_view d : {"iron", "jazzy", "kilted", "lyrical", "rolling"}) {
+    if (distro == d) return 16;
+  }
+  return vigil::unexpected(
+      Error(EINVAL,
+            fmt::format("{}='{}' is not a ROS 2 distribution vigil knows (foxy, galactic, humble: "
+                        "24-byte graph ids; iron, jazzy, kilted, lyrical, rolling: 16)",
+                        what, distro.substr(0, 40))));
+}
+
+namespace {
+bool ros_name_char(char c) {
+  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
+}
+bool ros_digit(char c) { return c >= '0' && c <= '9'; }
+}  // namespace
+
+expected<void, Error> check_ros_node_name(std::string_view name) {
+  const char* why = nullptr;
+  if (name.empty()) {
+    why = "is empty";
+  } else if (name.size() > 255) {
+    why = "is longer than 255 characters";
+  } else if (!std::all_of(name.begin(), name.end(), ros_name_char)) {
+    why = "may hold only letters, digits and '_'";
+  } else if (ros_digit(name.front())) {
+    why = "must not start with a digit";
+  }
+  if (why == nullptr) return {};
+  return vigil::unexpected(Error(
+      EINVAL,
+      fmt::format("node_name '{}' is not a ROS 2 node name: it {}", name.substr(0, 60), why)));
+}
+
+expected<void, Error> check_ros_namespace(std::string_view ns) {
+  const char* why = nullptr;
+  if (ns.empty() || ns.front() != '/') {
+    why = "must start with '/' (absolute)";
+  } else if (ns.size() > 245) {
+    why = "is longer than 245 characters";
+  } else if (ns.size() > 1 && ns.back() == '/') {
+    why = "must not end with '/'";
+  } else if (ns.find("//") != std::string_view::npos) {
+    why = "must not hold '//'";
+  } else if (!std::all_of(ns.begin(), ns.end(),
+                          [](char c) { return c == '/' || ros_name_char(c); })) {
+    why = "may hold only letters, digits, '_' and '/'";
+  } else {
+    for (std::size_t i = 0; i + 1 < ns.size(); ++i) {
+      if (ns[i] == '/' && ros_digit(ns[i + 1])) why = "has a part starting with a digit";
+    }
+  }
+  if (why == nullptr) return {};
+  return vigil::unexpected(Error(
+      EINVAL,
+      fmt::format("node_namespace '{}' is not a ROS 2 namespace: it {}", ns.substr(0, 60), why)));
+}
+
 expected<int, Error> ros_domain_id_from_environment() {
   const char* env = std::getenv("ROS_DOMAIN_ID");
   if (env == nullptr || *env == '\0') return 0;
@@ -173,6 +237,36 @@ expected<void, Error> Ros2DiagnosticsOutput::start(OutputContext& context) {
     return {};
   }
   domain_.store(domain, std::memory_order_relaxed);
+  int gid_size = 0;
+  if (options_.node) {
+    if (auto n = check_ros_node_name(options_.node_name); !n) {
+      fail(n.error().message + "; nothing is published");
+      return {};
+    }
+    if (auto n = check_ros_namespace(options_.node_namespace); !n) {
+      fail(n.error().message + "; nothing is published");
+      return {};
+    }
+    const char* env = std::getenv("ROS_DISTRO");
+    if (!options_.ros_distro.empty()) {
+      auto g = ros_gid_size(options_.ros_distro);
+      if (!g) {
+        fail(g.error().message + "; nothing is published");
+        return {};
+      }
+      gid_size = *g;
+    } else if (env != nullptr && *env != '\0') {
+      auto g = ros_gid_size(env, "ROS_DISTRO");
+      if (!g) {
+        fail(g.error().message + "; the node is announced as for Jazzy (set ros_distro)");
+        gid_size = 16;
+      } else {
+        gid_size = *g;
+      }
+    } else {
+      gid_size = 16;  // Jazzy
+    }
+  }
   auto create = load_module();
   if (!create) {
     fail(create.error());
@@ -181,6 +275,13 @@ expected<void, Error> Ros2DiagnosticsOutput::start(OutputContext& context) {
   detail::Ros2TransportConfig config;
   config.domain_id = static_cast<std::uint32_t>(domain);
   config.config = options_.dds_config;
+  if (options_.node) {
+    config.node_name = options_.node_name;
+    config.node_namespace = options_.node_namespace;
+    config.gid_size = gid_size;
+  } else {
+    config.node_name.clear();
+  }
   std::string why;
   std::unique_ptr<detail::Ros2Transport> t((*create)(config, &why));
   if (!t) {
@@ -190,9 +291,16 @@ expected<void, Error> Ros2DiagnosticsOutput::start(OutputContext& context) {
   {
     std::lock_guard lock(mutex_);
     transport_ = std::move(t);
+    if (options_.node && !transport_->node().participant_gid.empty()) {  // announced
+      node_ = options_.node_namespace == "/" ? "/" + options_.node_name
+                                             : options_.node_namespace + "/" + options_.node_name;
+    } else {
+      node_.clear();
+    }
     error_.clear();
     write_failed_ = false;
   }
+  gid_size_.store(options_.node ? gid_size : 0, std::memory_order_relaxed);
   active_.store(true, std::memory_order_relaxed);
   if (options_.events) {
     hub_ = &context.aggregator.events();
@@ -272,6 +380,11 @@ void Ros2DiagnosticsOutput::stop(const Snapshot& final_snapshot) {
 std::string Ros2DiagnosticsOutput::error() const {
   std::lock_guard lock(mutex_);
   return error_;
+}
+
+std::string Ros2DiagnosticsOutput::node() const {
+  std::lock_guard lock(mutex_);
+  return node_;
 }
 
 std::uint32_t Ros2DiagnosticsOutput::matched() const {

@@ -1,17 +1,22 @@
 // The loadable module `vigil_ros2` (ros2_transport.hpp): a Cyclone DDS participant with one
 // writer of `diagnostic_msgs::msg::dds_::DiagnosticArray_` on the topic `rt/diagnostics`, with
-// the QoS and the encoding a ROS 2 subscriber with default settings matches
+// the QoS and the encoding a ROS 2 subscriber with default settings matches, and the writer of
+// `ros_discovery_info` that tells ROS 2 which node that writer belongs to
 // (docs/design/ros2-diagnostics.md gives the sources of each choice).
 #include "ros2_transport.hpp"
 
 #include <dds/dds.h>
 
+#include <algorithm>
 #include <cstdlib>
+#include <cstring>
 #include <mutex>
 #include <string>
 #include <vector>
 
 #include "diagnostic_msgs/msg/dds_/DiagnosticArray_.h"
+#include "humble/rmw_dds_common/msg/dds_/ParticipantEntitiesInfo_.h"
+#include "rmw_dds_common/msg/dds_/ParticipantEntitiesInfo_.h"
 #include "vigil/version.hpp"
 
 namespace vigil::exporter::detail {
@@ -33,6 +38,72 @@ dds_qos_t* ros_default_qos() {
   const dds_data_representation_id_t xcdr1 = DDS_DATA_REPRESENTATION_XCDR1;
   dds_qset_data_representation(q, 1, &xcdr1);
   return q;
+}
+
+// The QoS rmw gives its `ros_discovery_info` writer: the default profile made reliable,
+// transient local, keep last 1 (rmw_cyclonedds_cpp's rmw_context_impl_s::init; rmw_fastrtps
+// likewise), so a ROS 2 node that starts after vigil still gets the latest sample.
+dds_qos_t* discovery_qos() {
+  dds_qos_t* q = ros_default_qos();
+  dds_qset_durability(q, DDS_DURABILITY_TRANSIENT_LOCAL);
+  dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
+  return q;
+}
+
+// The DDS type name of rmw_dds_common/msg/ParticipantEntitiesInfo, whatever the distribution.
+constexpr const char* kParticipantEntitiesInfoType =
+    "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_";
+
+// Humble's layout (24-byte Gid) comes from IDL under an extra module `humble` (so that its C
+// names differ from Iron's); on the wire it must carry the ROS 2 type name, without `humble::`.
+// The descriptor is copied with that name: nothing else in it names the type (idlc -t: no
+// type information).
+const dds_topic_descriptor_t* humble_participant_entities_info() {
+  static const dds_topic_descriptor_t desc = [] {
+    dds_topic_descriptor_t d = humble_rmw_dds_common_msg_dds__ParticipantEntitiesInfo__desc;
+    d.m_typename = kParticipantEntitiesInfoType;
+    return d;
+  }();
+  return &desc;
+}
+
+// A graph id as rmw computes it from a DDS entity (rmw_cyclonedds_cpp's get_entity_gid, which
+// rmw_fastrtps matches with the GUID's prefix and entity id): the entity's 16-byte GUID in wire
+// order (dds_get_guid), then zeros up to `size` bytes.
+std::string entity_gid(dds_entity_t entity, int size) {
+  dds_guid_t guid{};
+  if (dds_get_guid(entity, &guid) != DDS_RETCODE_OK) return {};
+  std::string gid(static_cast<std::size_t>(size), '\0');
+  std::memcpy(gid.data(), guid.v, std::min(sizeof guid.v, gid.size()));
+  return gid;
+}
+
+// Bounded strings (string<256>) are char arrays in idlc's C; the output checked the lengths.
+template <std::size_t N>
+void copy_bounded(char (&to)[N], const std::string& from) {
+  const std::size_t n = std::min(from.size(), N - 1);
+  std::memcpy(to, from.data(), n);
+  to[n] = '\0';
+}
+
+// One ParticipantEntitiesInfo_ (of either layout) naming one node with one writer and no reader.
+template <class Info, class Gid, class Node>
+void fill_announcement(Info& info, Gid& writer, Node& node, const Ros2TransportConfig& config,
+                       const Ros2NodeAnnouncement& a) {
+  static_assert(sizeof info.gid.data == sizeof writer.data);
+  std::memcpy(info.gid.data, a.participant_gid.data(), sizeof info.gid.data);
+  std::memcpy(writer.data, a.writer_gid.data(), sizeof writer.data);
+  copy_bounded(node.node_namespace, config.node_namespace);
+  copy_bounded(node.node_name, config.node_name);
+  node.reader_gid_seq._maximum = node.reader_gid_seq._length = 0;
+  node.reader_gid_seq._buffer = nullptr;
+  node.reader_gid_seq._release = false;
+  node.writer_gid_seq._maximum = node.writer_gid_seq._length = 1;
+  node.writer_gid_seq._buffer = &writer;
+  node.writer_gid_seq._release = false;
+  info.node_entities_info_seq._maximum = info.node_entities_info_seq._length = 1;
+  info.node_entities_info_seq._buffer = &node;
+  info.node_entities_info_seq._release = false;
 }
 
 // Cyclone's threads (gc, dq.builtins, dq.user, tev, recv, recvMC, recvUC) get glibc's default
@@ -116,6 +187,8 @@ class CycloneTransport final : public Ros2Transport {
     return st.current_count;
   }
 
+  [[nodiscard]] Ros2NodeAnnouncement node() const override { return node_; }
+
  private:
   CycloneTransport() = default;
 
@@ -154,6 +227,52 @@ class CycloneTransport final : public Ros2Transport {
     writer_ = dds_create_writer(participant_, topic_, q, nullptr);
     dds_delete_qos(q);
     if (writer_ < 0) return dds_error("cannot create the DDS writer", writer_);
+    return config.node_name.empty() ? std::string() : announce(config);
+  }
+
+  // ros_discovery_info: this participant holds one ROS 2 node, whose one writer is /diagnostics'.
+  // Written once; rmw writes again only when a node's entities change, and vigil's never do.
+  std::string announce(const Ros2TransportConfig& config) {
+    if (config.gid_size != 16 && config.gid_size != 24) {
+      return "a ROS 2 graph id has 16 or 24 bytes, not " + std::to_string(config.gid_size);
+    }
+    Ros2NodeAnnouncement a{entity_gid(participant_, config.gid_size),
+                           entity_gid(writer_, config.gid_size)};
+    if (a.participant_gid.empty() || a.writer_gid.empty()) {
+      return "cannot read the GUIDs of the DDS participant and writer";
+    }
+    const bool humble = config.gid_size == 24;
+    dds_qos_t* q = discovery_qos();
+    discovery_topic_ =
+        dds_create_topic(participant_,
+                         humble ? humble_participant_entities_info()
+                                : &rmw_dds_common_msg_dds__ParticipantEntitiesInfo__desc,
+                         "ros_discovery_info", q, nullptr);
+    if (discovery_topic_ < 0) {
+      dds_delete_qos(q);
+      return dds_error("cannot create the DDS topic ros_discovery_info", discovery_topic_);
+    }
+    discovery_writer_ = dds_create_writer(participant_, discovery_topic_, q, nullptr);
+    dds_delete_qos(q);
+    if (discovery_writer_ < 0) {
+      return dds_error("cannot create the ros_discovery_info writer", discovery_writer_);
+    }
+    dds_return_t rc = DDS_RETCODE_OK;
+    if (humble) {
+      humble_rmw_dds_common_msg_dds__ParticipantEntitiesInfo_ info{};
+      humble_rmw_dds_common_msg_dds__Gid_ writer{};
+      humble_rmw_dds_common_msg_dds__NodeEntitiesInfo_ node{};
+      fill_announcement(info, writer, node, config, a);
+      rc = dds_write(discovery_writer_, &info);
+    } else {
+      rmw_dds_common_msg_dds__ParticipantEntitiesInfo_ info{};
+      rmw_dds_common_msg_dds__Gid_ writer{};
+      rmw_dds_common_msg_dds__NodeEntitiesInfo_ node{};
+      fill_announcement(info, writer, node, config, a);
+      rc = dds_write(discovery_writer_, &info);
+    }
+    if (rc != DDS_RETCODE_OK) return dds_error("cannot write ros_discovery_info", rc);
+    node_ = std::move(a);
     return {};
   }
 
@@ -165,7 +284,10 @@ class CycloneTransport final : public Ros2Transport {
   dds_entity_t participant_ = 0;
   dds_entity_t topic_ = 0;
   dds_entity_t writer_ = 0;
-  std::mutex mutex_;  // guards the buffers below: publish() comes from two threads
+  dds_entity_t discovery_topic_ = 0;
+  dds_entity_t discovery_writer_ = 0;
+  Ros2NodeAnnouncement node_;  // set once by open()
+  std::mutex mutex_;           // guards the buffers below: publish() comes from two threads
   std::vector<diagnostic_msgs_msg_dds__DiagnosticStatus_> statuses_;
   std::vector<diagnostic_msgs_msg_dds__KeyValue_> values_;
 };

@@ -17,7 +17,7 @@
 namespace vigil::exporter::detail {
 
 /// Bumped whenever anything in this header changes.
-inline constexpr int kRos2TransportAbi = 1;
+inline constexpr int kRos2TransportAbi = 2;
 
 /// The module's file name, and the symbols it exports (extern "C").
 inline constexpr const char* kRos2ModuleFile = "libvigil_ros2.so";
@@ -32,9 +32,25 @@ struct Ros2TransportConfig {
   std::string config;
   /// The DDS topic ("rt/diagnostics" for the ROS 2 topic /diagnostics).
   std::string topic = "rt/diagnostics";
+  /// The ROS 2 node announced on the DDS topic `ros_discovery_info` as the writer's node (checked
+  /// by the output: check_ros_node_name, check_ros_namespace); an empty name announces none.
+  std::string node_name = "vigil";
+  std::string node_namespace = "/";
+  /// Bytes of rmw_dds_common/msg/Gid in the robot's ROS 2 distribution: 16 (Iron and later) or
+  /// 24 (Foxy to Humble).
+  int gid_size = 16;
 };
 
-/// One participant, one topic, one writer of `diagnostic_msgs::msg::dds_::DiagnosticArray_`.
+/// What the transport announced on `ros_discovery_info` (empty gids: nothing announced).
+struct Ros2NodeAnnouncement {
+  std::string participant_gid;  ///< the participant's graph id, `gid_size` bytes
+  std::string writer_gid;       ///< the /diagnostics writer's graph id, `gid_size` bytes
+};
+
+/// One participant, one topic, one writer of `diagnostic_msgs::msg::dds_::DiagnosticArray_`;
+/// and, unless `node_name` is empty, one writer of `ros_discovery_info` that names the ROS 2 node
+/// of that writer (written once when the transport is made: transient local, so ROS 2 nodes that
+/// start later get it too).
 /// publish() from any thread (Cyclone's writer is thread-safe); destroyed on the thread that
 /// created it.
 class Ros2Transport {
@@ -44,6 +60,8 @@ class Ros2Transport {
   virtual std::string publish(const DiagnosticArrayMessage& message) = 0;
   /// Readers of the topic matched so far (0 when nobody listens).
   [[nodiscard]] virtual std::uint32_t matched() const = 0;
+  /// The node announced (the graph ids it gave), as written to `ros_discovery_info`.
+  [[nodiscard]] virtual Ros2NodeAnnouncement node() const = 0;
 };
 
 }  // namespace vigil::exporter::detail

@@ -4,7 +4,8 @@
 # to the demo through ROS_DOMAIN_ID, both on loopback with unicast discovery (CYCLONEDDS_URI).
 # It checks the demo's start-up line, a monitor cycle's array (every component of the demo, by
 # its ROS 2 name), an event's sample (the faulty encoder's status, published at once), and that
-# a demo without --ros2 maps no DDS library.
+# a demo without --ros2 maps no DDS library; and that it announces its node /vigil on
+# ros_discovery_info (Jazzy's layout: ROS_DISTRO is unset here) with the /diagnostics writer.
 #
 #   ros2_demo_test.sh VIGIL LISTENER
 set -euo pipefail
@@ -15,6 +16,7 @@ trap 'rm -rf "$out"' EXIT
 
 domain=$((20 + RANDOM % 180))
 export ROS_DOMAIN_ID=$domain
+unset ROS_DISTRO
 export CYCLONEDDS_URI='<CycloneDDS><Domain id="any"><General><Interfaces><NetworkInterface name="lo"/></Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>20</MaxAutoParticipantIndex><Peers><Peer address="127.0.0.1"/></Peers></Discovery></Domain></CycloneDDS>'
 
 fail() {
@@ -26,8 +28,8 @@ fail() {
 }
 
 # Every sample until 8 monitor cycles' arrays (10 statuses or more) arrived, within 40 s: the
-# demo runs 14 s (a cycle a second, the events in between).
-"$listener" "$domain" 8 40 10 > "$out/samples" 2> "$out/listener.err" &
+# demo runs 14 s (a cycle a second, the events in between); and ros_discovery_info (16-byte gids).
+"$listener" "$domain" 8 40 10 16 > "$out/samples" 2> "$out/listener.err" &
 listener_pid=$!
 "$vigil" demo --ros2 --no-live --duration 14 > "$out/demo.out" 2>&1 &
 demo_pid=$!
@@ -35,8 +37,8 @@ wait "$listener_pid" || fail "the listener did not receive 8 monitor cycles"
 ros2_locked=$(awk '/^VmLck:/ {print $2}' "/proc/$demo_pid/status" 2>/dev/null || echo 0)
 wait "$demo_pid" || fail "the demo failed"
 
-grep -q "ROS 2: /diagnostics (DDS topic rt/diagnostics) in domain $domain" "$out/demo.out" ||
-  fail "no start-up line naming the domain"
+grep -q "ROS 2: /diagnostics (DDS topic rt/diagnostics) in domain $domain, node /vigil" \
+  "$out/demo.out" || fail "no start-up line naming the domain and the node"
 for name in motor_left motor_right sensor_fusion planner encoder; do
   grep -q "\"name\":\"vigil: $name\"" "$out/samples" || fail "no status named 'vigil: $name'"
 done
@@ -45,6 +47,14 @@ grep -q '"key":"event","value":"exception"' "$out/samples" ||
   fail "no event's sample (the encoder's exception)"
 grep -q '"name":"vigil: encoder","message":"ERROR encoder: exception' "$out/samples" ||
   fail "the encoder's exception is not its status's message"
+# The node: /vigil, whose one writer is the /diagnostics writer the listener received from, in
+# that writer's participant (graph ids as rmw_cyclonedds_cpp derives them from DDS discovery).
+node=$(grep '"ros_discovery_info"' "$out/samples") || fail "no ros_discovery_info sample"
+writer=$(sed -E 's/.*"publisher":\{"gid":"([0-9a-f]+)".*/\1/' <<< "$node")
+participant=$(sed -E 's/.*"participant_gid":"([0-9a-f]+)".*/\1/' <<< "$node")
+expected="{\"ros_discovery_info\":{\"gid\":\"$participant\",\"nodes\":[{\"namespace\":\"/\",\"name\":\"vigil\",\"readers\":[],\"writers\":[\"$writer\"]}]}"
+[[ ${#writer} == 32 && $node == "$expected"* ]] ||
+  fail "ros_discovery_info does not name /vigil with the /diagnostics writer: $node"
 
 # Without --ros2 no DDS library is mapped (the module is opened only by the output).
 "$vigil" demo --no-live --duration 4 > "$out/plain.out" 2>&1 &

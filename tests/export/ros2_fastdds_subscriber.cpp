@@ -14,6 +14,9 @@
 #include <fastdds/dds/topic/TopicDataType.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
+#include <algorithm>
+#include <cstring>
+
 namespace vigil::test {
 
 namespace {
@@ -113,6 +116,79 @@ class DiagnosticArrayType final : public dds::TopicDataType {
   int last_encapsulation = -1;
 };
 
+// rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_ in CDR, for a read-only reader: the gid
+// (`gid_size` octets), then the nodes (bounded strings are strings on the wire).
+class ParticipantEntitiesInfoType final : public dds::TopicDataType {
+ public:
+  explicit ParticipantEntitiesInfoType(int gid_size)
+      : gid_size_(static_cast<std::size_t>(gid_size)) {
+    setName("rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_");
+    m_typeSize = 64 * 1024;
+    m_isGetKeyDefined = false;
+  }
+
+  bool serialize(void* /*data*/, rtps::SerializedPayload_t* /*payload*/) override {
+    return false;  // this side only reads
+  }
+
+  bool deserialize(rtps::SerializedPayload_t* payload, void* data) override {
+    auto& m = *static_cast<RosParticipantInfo*>(data);
+    eprosima::fastcdr::FastBuffer buffer(reinterpret_cast<char*>(payload->data), payload->length);
+    Cdr c(buffer, Cdr::DEFAULT_ENDIAN, Cdr::DDS_CDR);
+    try {
+      c.read_encapsulation();
+      m.gid = gid(c);
+      std::uint32_t n = 0;
+      c >> n;
+      m.nodes.assign(n, RosNodeInfo{});
+      for (RosNodeInfo& node : m.nodes) {
+        c >> node.node_namespace >> node.node_name;
+        for (auto* seq : {&node.readers, &node.writers}) {
+          std::uint32_t k = 0;
+          c >> k;
+          seq->clear();
+          for (std::uint32_t i = 0; i < k; ++i) seq->push_back(gid(c));
+        }
+      }
+    } catch (...) {
+      return false;
+    }
+    return true;
+  }
+
+  std::function<std::uint32_t()> getSerializedSizeProvider(void* /*data*/) override {
+    return [] { return 0U; };
+  }
+  void* createData() override { return new RosParticipantInfo(); }
+  void deleteData(void* data) override { delete static_cast<RosParticipantInfo*>(data); }
+  bool getKey(void* /*data*/, rtps::InstanceHandle_t* /*handle*/, bool /*force_md5*/) override {
+    return false;
+  }
+
+ private:
+  std::string gid(Cdr& c) const {
+    std::string g(gid_size_, '\0');
+    c.deserializeArray(reinterpret_cast<std::uint8_t*>(g.data()), g.size());
+    return g;
+  }
+  std::size_t gid_size_;
+};
+
+// The discovery reader's listener: keeps every sample.
+struct DiscoveryListener : dds::DataReaderListener {
+  std::mutex* mutex = nullptr;
+  std::vector<RosParticipantInfo>* samples = nullptr;
+  void on_data_available(dds::DataReader* r) override {
+    RosParticipantInfo m;
+    dds::SampleInfo info;
+    while (r->take_next_sample(&m, &info) == ReturnCode_t::RETCODE_OK) {
+      if (!info.valid_data) continue;
+      std::lock_guard lock(*mutex);
+      samples->push_back(m);
+    }
+  }
+};
+
 }  // namespace
 
 struct FastDdsDiagnosticsSubscriber::Impl : dds::DataReaderListener {
@@ -124,6 +200,10 @@ struct FastDdsDiagnosticsSubscriber::Impl : dds::DataReaderListener {
   mutable std::mutex mutex;
   std::vector<DiagnosticArrayMessage> received;
   std::vector<int> encapsulations;
+  std::size_t gid_size = 0;
+  std::string writer_gid;
+  std::vector<RosParticipantInfo> discovery;
+  DiscoveryListener discovery_listener;
 
   void on_data_available(dds::DataReader* r) override {
     DiagnosticArrayMessage m;
@@ -133,12 +213,22 @@ struct FastDdsDiagnosticsSubscriber::Impl : dds::DataReaderListener {
       std::lock_guard lock(mutex);
       received.push_back(m);
       encapsulations.push_back(type->last_encapsulation);
+      // rmw_fastrtps_cpp: publisher_gid from sample_identity.writer_guid(), prefix then entity id.
+      const rtps::GUID_t& g = info.sample_identity.writer_guid();
+      std::string gid(std::max<std::size_t>(gid_size, 16), '\0');
+      std::memcpy(gid.data(), g.guidPrefix.value, sizeof g.guidPrefix.value);
+      std::memcpy(gid.data() + sizeof g.guidPrefix.value, g.entityId.value,
+                  sizeof g.entityId.value);
+      writer_gid = std::move(gid);
     }
   }
 };
 
-FastDdsDiagnosticsSubscriber::FastDdsDiagnosticsSubscriber(int domain)
+FastDdsDiagnosticsSubscriber::FastDdsDiagnosticsSubscriber(int domain, int gid_size)
     : impl_(std::make_unique<Impl>()) {
+  impl_->gid_size = static_cast<std::size_t>(gid_size);
+  impl_->discovery_listener.mutex = &impl_->mutex;
+  impl_->discovery_listener.samples = &impl_->discovery;
   dds::DomainParticipantQos pq = dds::PARTICIPANT_QOS_DEFAULT;
   pq.name("vigil_test_fastdds");
   // UDPv4 on loopback only (no shared memory: the samples must cross the wire), with unicast
@@ -178,7 +268,27 @@ FastDdsDiagnosticsSubscriber::FastDdsDiagnosticsSubscriber(int domain)
   rq.history().depth = 10;
   rq.endpoint().history_memory_policy = rtps::DYNAMIC_RESERVE_MEMORY_MODE;
   impl_->reader = impl_->subscriber->create_datareader(impl_->topic, rq, impl_.get());
-  if (impl_->reader == nullptr) error_ = "Fast DDS: cannot create the reader";
+  if (impl_->reader == nullptr) {
+    error_ = "Fast DDS: cannot create the reader";
+    return;
+  }
+  if (gid_size == 0) return;
+  dds::TypeSupport info_type(new ParticipantEntitiesInfoType(gid_size));
+  if (info_type.register_type(impl_->participant) != ReturnCode_t::RETCODE_OK) {
+    error_ = "Fast DDS: cannot register ParticipantEntitiesInfo_";
+    return;
+  }
+  dds::Topic* discovery = impl_->participant->create_topic(
+      "ros_discovery_info", info_type.get_type_name(), dds::TOPIC_QOS_DEFAULT);
+  dds::DataReaderQos dq = dds::DATAREADER_QOS_DEFAULT;
+  dq.reliability().kind = dds::RELIABLE_RELIABILITY_QOS;
+  dq.durability().kind = dds::TRANSIENT_LOCAL_DURABILITY_QOS;
+  dq.history().kind = dds::KEEP_ALL_HISTORY_QOS;
+  dq.endpoint().history_memory_policy = rtps::DYNAMIC_RESERVE_MEMORY_MODE;
+  if (discovery == nullptr ||
+      impl_->subscriber->create_datareader(discovery, dq, &impl_->discovery_listener) == nullptr) {
+    error_ = "Fast DDS: cannot create the ros_discovery_info reader";
+  }
 }
 
 FastDdsDiagnosticsSubscriber::~FastDdsDiagnosticsSubscriber() {
@@ -190,6 +300,16 @@ FastDdsDiagnosticsSubscriber::~FastDdsDiagnosticsSubscriber() {
 std::vector<exporter::DiagnosticArrayMessage> FastDdsDiagnosticsSubscriber::received() const {
   std::lock_guard lock(impl_->mutex);
   return impl_->received;
+}
+
+std::vector<RosParticipantInfo> FastDdsDiagnosticsSubscriber::discovery() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->discovery;
+}
+
+std::string FastDdsDiagnosticsSubscriber::writer_gid() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->writer_gid;
 }
 
 std::vector<int> FastDdsDiagnosticsSubscriber::encapsulations() const {

@@ -115,6 +115,10 @@ struct Ros2OutputSpec {
   std::optional<int> domain_id;  ///< `domain_id: 0..232`; absent: ROS_DOMAIN_ID, else 0
   std::string dds_config;        ///< `dds_config:` Cyclone DDS XML or file URIs; "": Cyclone's own
   bool events = true;            ///< `events: false` publishes at the monitor's pace only
+  bool node = true;              ///< `node: false` announces no ROS 2 node (ros_discovery_info)
+  std::string node_name = "vigil";   ///< `node_name:` the ROS 2 node of the writer
+  std::string node_namespace = "/";  ///< `node_namespace:` its namespace
+  std::string ros_distro;            ///< `ros_distro: humble|jazzy|...`; "": ROS_DISTRO, else jazzy
 };
 
 /// Where the results go.

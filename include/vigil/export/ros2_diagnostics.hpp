@@ -14,6 +14,14 @@
 /// | encoding | CDR (XCDR1), as rmw_cyclonedds_cpp writes it |
 /// | QoS | reliable, volatile, keep last 10 (rclcpp's default profile) |
 /// | domain | `domain_id`, else `ROS_DOMAIN_ID`, else 0 |
+/// | ROS 2 node | `/vigil` (`node_namespace`, `node_name`), on the DDS topic `ros_discovery_info` |
+///
+/// The writer's node: rmw implementations map DDS endpoints to ROS 2 nodes with the samples of the
+/// DDS topic `ros_discovery_info` (`rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_`). The
+/// output writes one when it starts, naming one node whose one writer is /diagnostics', so
+/// `ros2 node list` shows `/vigil` and `ros2 topic info -v /diagnostics` names it as the
+/// publisher's node. The layout of that message's graph ids depends on the ROS 2 distribution
+/// (`ros_distro`: 24 bytes up to Humble, 16 since Iron).
 ///
 /// What is published: the whole array (one status per report, vigil/export/diagnostics.hpp's
 /// mapping) after every monitor cycle, and at once for each event, an array of the one status the
@@ -59,6 +67,21 @@ inline constexpr int kRosDomainIdMax = 232;
 /// error naming the variable when it is not a domain id.
 [[nodiscard]] expected<int, Error> ros_domain_id_from_environment();
 
+/// The size in bytes of a ROS 2 graph id (rmw_dds_common/msg/Gid) in the distribution `distro`:
+/// 24 for foxy, galactic and humble, 16 for iron, jazzy, kilted, lyrical and rolling. Any other
+/// name is an error naming `what` and the value. Pure.
+[[nodiscard]] expected<int, Error> ros_gid_size(std::string_view distro,
+                                                std::string_view what = "ros_distro");
+
+/// Checks a ROS 2 node name as rmw does (rmw_validate_node_name): 1 to 255 of `A-Z a-z 0-9 _`,
+/// not starting with a digit. The error names `node_name` and the value. Pure.
+[[nodiscard]] expected<void, Error> check_ros_node_name(std::string_view name);
+
+/// Checks a ROS 2 node namespace as rmw does (rmw_validate_namespace): absolute (`/`, `/robot`,
+/// `/robot/arm`), tokens of `A-Z a-z 0-9 _` not starting with a digit, no `//`, no trailing `/`
+/// (but `/` itself), at most 245 characters. The error names `node_namespace`. Pure.
+[[nodiscard]] expected<void, Error> check_ros_namespace(std::string_view ns);
+
 /// Whether this build has the DDS module (CMake found Cyclone DDS): without it a
 /// `Ros2DiagnosticsOutput` only warns.
 [[nodiscard]] bool ros2_output_built() noexcept;
@@ -74,6 +97,16 @@ struct Ros2Options {
   std::string dds_config{};
   /// Also publish the changed status at once for each event (not only every monitor cycle).
   bool events = true;
+  /// Announce the writer's ROS 2 node on `ros_discovery_info` (what `ros2 node list` reads).
+  bool node = true;
+  /// The node's name (check_ros_node_name); two vigils in one domain need two names.
+  std::string node_name = "vigil";
+  /// The node's namespace (check_ros_namespace).
+  std::string node_namespace = "/";
+  /// The ROS 2 distribution of the robot's nodes (ros_gid_size): it fixes the layout of
+  /// `ros_discovery_info`. Empty: `ROS_DISTRO` (read at start; a name vigil does not know is a
+  /// warning, and Iron's layout is used), else "jazzy".
+  std::string ros_distro{};
   /// Unix time in ns stamped in each header; empty: the real-time clock. (A test fixes it.)
   std::function<std::int64_t()> wall_clock_ns{};
   /// Receives every warning as one line without a prefix; empty: "vigil: <line>" on stderr.
@@ -113,6 +146,11 @@ class Ros2DiagnosticsOutput final : public Output {
   [[nodiscard]] std::uint64_t published() const noexcept {
     return published_.load(std::memory_order_relaxed);
   }
+  /// The fully qualified name of the ROS 2 node announced (`/vigil`), empty when none. Valid once
+  /// started. Any thread.
+  [[nodiscard]] std::string node() const;
+  /// The size of the graph ids announced (16 or 24), 0 when no node was. Any thread.
+  [[nodiscard]] int gid_size() const noexcept { return gid_size_.load(std::memory_order_relaxed); }
   /// DDS readers matched now (ROS 2 subscribers of /diagnostics); 0 when not active.
   [[nodiscard]] std::uint32_t matched() const;
   /// Publishes `message` now (what publish() does with its snapshot). False when not active or
@@ -128,6 +166,7 @@ class Ros2DiagnosticsOutput final : public Output {
   mutable std::mutex mutex_;  // guards transport_, error_, latest_
   std::unique_ptr<detail::Ros2Transport> transport_;
   std::string error_;
+  std::string node_;               // fully qualified, "" when none announced
   bool write_failed_ = false;      // the latest write failed (said once until one succeeds)
   DiagnosticArrayMessage latest_;  // of the latest cycle: what an event's status starts from
   supervisor::EventHub* hub_ = nullptr;
@@ -135,6 +174,7 @@ class Ros2DiagnosticsOutput final : public Output {
   // Flags and counts for readers on any thread; relaxed: they order no other data.
   std::atomic<bool> active_{false};
   std::atomic<int> domain_{0};
+  std::atomic<int> gid_size_{0};
   std::atomic<std::uint64_t> published_{0};
 };
 
