@@ -10,6 +10,7 @@
 #include "support/fake_clock.hpp"
 #include "support/probe.hpp"
 #include "support/proc_reader.hpp"
+#include "vigil/build_config.hpp"
 #include "vigil/exec/manual_activity.hpp"
 #include "vigil/exec/triggered_activity.hpp"
 #include "vigil/platform/thread_stats.hpp"
@@ -52,6 +53,11 @@ Run run(Probe& p, std::uint64_t cycles) {
 std::uint64_t of(const Run& r, platform::LossCause c) {
   return r.totals[static_cast<std::size_t>(c)];
 }
+
+// Cobalt: the blocking and page-fault detectors read zero (getrusage would relax a primary-mode
+// thread; the mode-switch detector replaces them, docs/guide/rt-loss-detection.md), so there the
+// cases below check that they stay at zero instead.
+constexpr bool kCobalt = VIGIL_PLATFORM_COBALT != 0;
 }  // namespace
 
 #if !defined(VIGIL_ALLOC_GUARD_DISABLED)
@@ -106,6 +112,11 @@ TEST_CASE("Sleeping 1 ms on every 50th cycle is counted as blocking, in those cy
   Probe p("sleepy", {.detectors = Detectors::Blocking}, reg);
   p.script.sleep_every = 50;
   const Run r = run(p, 2'000);
+  if constexpr (kCobalt) {
+    CHECK(of(r, platform::LossCause::Blocking) == 0);
+    CHECK(r.losses.empty());
+    return;
+  }
   CHECK(of(r, platform::LossCause::Blocking) >= 40);
   std::uint64_t cycles_with_loss = 0;
   for (const auto& l : r.losses) {
@@ -122,7 +133,13 @@ TEST_CASE("Touching fresh pages is counted as page faults, in those cycles only"
   Probe p("toucher", {.detectors = Detectors::PageFaults}, reg);
   p.script.touch_pages_every = 100;
   const Run r = run(p, 2'000);
-  CHECK(of(r, platform::LossCause::MinorFault) >= 20 * 4);  // 4 fresh pages per touching cycle
+  if constexpr (kCobalt) {
+    CHECK(of(r, platform::LossCause::MinorFault) == 0);
+    CHECK(of(r, platform::LossCause::MajorFault) == 0);
+    CHECK(r.losses.empty());
+    return;
+  }
+  CHECK(of(r, platform::LossCause::MinorFault) >= 20UL * 4);  // 4 fresh pages per touching cycle
   CHECK(of(r, platform::LossCause::MajorFault) == 0);
 #if !defined(VIGIL_SANITIZER_BUILD)
   // (AddressSanitizer's shadow memory takes page faults of its own in other cycles.)
@@ -194,5 +211,5 @@ TEST_CASE("Thread statistics agree with /proc over the same interval", "[rt_loss
   CHECK(v1.major_faults - v0.major_faults == k1.majflt - k0.majflt);
   // The component's own counts are the part of the thread's that happened inside on_update.
   CHECK(v1.voluntary_switches - v0.voluntary_switches >= 6);
-  CHECK(v1.minor_faults - v0.minor_faults >= 4 * 4);
+  CHECK(v1.minor_faults - v0.minor_faults >= 4UL * 4);
 }

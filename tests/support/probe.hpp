@@ -96,7 +96,7 @@ using Probe = BasicProbe<>;
 template <class Traits>
 void vigil::test::BasicProbe<Traits>::touch_fresh_pages() {
   // mmap is not a heap allocation; the 4 pages it maps fault on first touch.
-  constexpr std::size_t kBytes = 4 * 4096;
+  constexpr std::size_t kBytes = std::size_t{4} * 4096;
   void* m = mmap(nullptr, kBytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
   if (m == MAP_FAILED) return;
   auto* b = static_cast<volatile unsigned char*>(m);
