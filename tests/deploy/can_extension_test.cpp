@@ -3,6 +3,7 @@
 #include "vigil/deploy/can_extension.hpp"
 
 #include <catch2/catch.hpp>
+#include <condition_variable>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -403,4 +404,72 @@ can:
   CHECK(engine->field("active_dtcs")->count == 0);
   REQUIRE(engine->field("j1939_name") != nullptr);
   CHECK(engine->field("lamps")->text == "MIL off, red stop off, amber warning off, protect off");
+}
+
+TEST_CASE("CAN events leave at the CAN supervisor's pace, not the monitor's",
+          "[deploy][can][events]") {
+  // A monitor cycle every 30 s: were CAN events published with the monitor's cycles, none would
+  // come in this test. Node 3 is quiet from about 50 ms (limit 100 ms); node 1's emergency comes
+  // at about 250 ms and its bus goes off at about 300 ms.
+  auto spec = load_deployment_string(R"(
+activities: [{name: io, period: 5ms}, {name: io2, period: 5ms}]
+components:
+  - {name: bus, type: test.can_bus, activity: io, parameters: {quiet_after: 10}}
+  - {name: canopen, type: test.canopen_bus, activity: io2}
+supervision: {lock_memory: false, monitor_period: 30s}
+can:
+  node_map: canopen
+  defaults: {not_responding: {after: 100ms}}
+)",
+                                     "can.yaml", factory());
+  REQUIRE(spec.has_value());
+  auto sys = System::create(std::move(*spec), factory());
+  REQUIRE(sys.has_value());
+  std::mutex m;
+  std::condition_variable cv;
+  std::vector<Event> seen;
+  const auto sub = (*sys)->service().events().subscribe([&](const Event& e) {
+    const std::lock_guard lock(m);
+    seen.push_back(e);
+    cv.notify_all();
+  });
+  const auto find = [&](EventKind k) -> const Event* {
+    for (const Event& e : seen) {
+      if (e.kind == k) return &e;
+    }
+    return nullptr;
+  };
+  const Nanos start = platform::now_ns();
+  REQUIRE((*sys)->start().has_value());
+  Nanos arrived = -1;
+  {
+    std::unique_lock lock(m);
+    // A tenth of the monitor period at most (a loaded test host may be slow: no tighter).
+    cv.wait_for(lock, std::chrono::seconds(3), [&] {
+      return find(EventKind::NotResponding) != nullptr && find(EventKind::Emergency) != nullptr &&
+             find(EventKind::BusOff) != nullptr;
+    });
+    arrived = platform::now_ns();
+  }
+  const std::uint64_t monitor_cycles = (*sys)->service().snapshot()->cycle;
+  (*sys)->stop();
+  (*sys)->service().events().flush();
+  (*sys)->service().events().unsubscribe(sub);
+  const std::lock_guard lock(m);
+  const Event* down = find(EventKind::NotResponding);
+  REQUIRE(down != nullptr);
+  CHECK(down->component == "can0/3");
+  // Judged on the frames' clock: its last frame + the limit, never before.
+  CHECK(down->fault_ns > start + 100 * kNanosPerMilli);
+  CHECK(down->detected_ns >= down->fault_ns);
+  // Well within the monitor's period: the CAN supervisor woke for the limit.
+  CHECK(down->detected_ns - down->fault_ns < kNanosPerSecond);
+  REQUIRE(find(EventKind::Emergency) != nullptr);
+  CHECK(find(EventKind::Emergency)->component == "can0/1");
+  REQUIRE(find(EventKind::BusOff) != nullptr);
+  CHECK(find(EventKind::BusOff)->detected_ns - find(EventKind::BusOff)->fault_ns <
+        kNanosPerSecond);
+  CHECK(arrived - start < 3 * kNanosPerSecond);
+  // No monitor cycle after the first (if any) came before the events.
+  CHECK(monitor_cycles <= 1);
 }
