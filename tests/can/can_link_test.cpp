@@ -10,8 +10,11 @@
 #include <linux/rtnetlink.h>
 #include <net/if.h>
 
-#include <cerrno>
+#include <fmt/format.h>
+
+#include <array>
 #include <catch2/catch.hpp>
+#include <cerrno>
 #include <cstring>
 #include <random>
 #include <vector>

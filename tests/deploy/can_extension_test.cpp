@@ -473,3 +473,40 @@ can:
   // No monitor cycle after the first (if any) came before the events.
   CHECK(monitor_cycles <= 1);
 }
+
+TEST_CASE("A bus whose interface is no CAN controller says so; supervision goes on",
+          "[deploy][can][link]") {
+  // `lo` exists on every Linux host and is no CAN device: the netlink reading fails with a reason
+  // naming it, the bus is WARN, the nodes are judged as ever.
+  auto spec = load_deployment_string(R"(
+activities: [{name: io, period: 5ms}]
+components: [{name: bus, type: test.can_bus, activity: io, parameters: {quiet_after: 1000000}}]
+supervision: {lock_memory: false, monitor_period: 50ms}
+can:
+  node_map: canopen
+  buses: {0: {interface: lo}}
+  nodes: {drive_1: {node: 1, bus: 0}}
+)",
+                                     "can.yaml", factory());
+  REQUIRE(spec.has_value());
+  auto sys = System::create(std::move(*spec), factory());
+  REQUIRE(sys.has_value());
+  REQUIRE((*sys)->start().has_value());
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  (*sys)->stop();
+  const ReportSet r = (*sys)->step_monitor();
+  const Report* bus = r.find("can bus 0");
+  REQUIRE(bus != nullptr);
+  CHECK(bus->status.level() == StatusLevel::Warn);
+  CHECK_THAT(bus->status.summary(),
+             Catch::Contains("CAN interface lo: not a CAN device (link kind: none)"));
+  REQUIRE(bus->field("interface") != nullptr);
+  CHECK(bus->field("interface")->text == "lo");
+  REQUIRE(bus->field("link_read_failures") != nullptr);
+  CHECK(bus->field("link_read_failures")->count >= 1);
+  CHECK(bus->field("link_read_failures")->count == bus->field("link_reads")->count);
+  const Report* drive = r.find("can0/drive_1");
+  REQUIRE(drive != nullptr);
+  CHECK(drive->status.ok());
+  CHECK(drive->state_label == "responding");
+}
