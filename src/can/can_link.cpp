@@ -125,12 +125,16 @@ expected<void, Error> walk(std::span<const std::uint8_t> bytes, std::size_t base
 }
 
 // An attribute shorter than the struct it carries: skipped, counted, named.
-void skip(LinkInfo& info, std::string_view level, std::uint16_t type, std::size_t offset,
-          std::size_t have, std::size_t need) {
+void skipped(LinkInfo& info, std::string_view level, std::uint16_t type, std::size_t offset,
+             std::string_view why) {
   ++info.skipped;
   if (!info.skipped_detail.empty()) info.skipped_detail += "; ";
-  info.skipped_detail += fmt::format("offset {}: {}: {} bytes, {} needed", offset,
-                                     attr_name(level, type), have, need);
+  info.skipped_detail += fmt::format("offset {}: {}: {}", offset, attr_name(level, type), why);
+}
+
+void skip(LinkInfo& info, std::string_view level, std::uint16_t type, std::size_t offset,
+          std::size_t have, std::size_t need) {
+  skipped(info, level, type, offset, fmt::format("{} bytes, {} needed", have, need));
 }
 
 std::string text_of(std::span<const std::uint8_t> payload) {
@@ -166,8 +170,9 @@ expected<void, Error> parse_can_data(LinkInfo& info, std::span<const std::uint8_
                     if (!need(sizeof(std::uint32_t))) break;
                     const auto s = load<std::uint32_t>(p, 0);
                     if (s > CAN_STATE_SLEEPING) {
-                      skip(info, "can", type, offset, p.size(), sizeof(std::uint32_t));
-                      info.skipped_detail += fmt::format(" (state {} unknown)", s);
+                      skipped(info, "can", type, offset,
+                              fmt::format("state {} unknown (enum can_state ends at {})", s,
+                                          static_cast<int>(CAN_STATE_SLEEPING)));
                       break;
                     }
                     info.state = static_cast<LinkControllerState>(s);

@@ -30,11 +30,15 @@ CanExtension::CanExtension(can::CanConfig config, supervisor::EventHub* events)
           .clock = Clock{[](const void*) noexcept { return platform::now_ns(); }, nullptr}});
   monitor_ = std::make_unique<can::CanMonitor>(config_);
   for (const can::BusConfig& b : config_.buses) {
-    if (b.bus && b.interface) links_.push_back(can::LinkReading{.bus = *b.bus, .interface = *b.interface});
+    if (!b.bus || !b.interface) continue;
+    can::LinkReading l;
+    l.bus = *b.bus;
+    l.interface = *b.interface;
+    links_.push_back(std::move(l));
   }
   // CAN events leave at the CAN supervisor's pace: judged and published at the end of each of
   // its drains, on its thread (never on the sniffers' real-time side).
-  statistics_->set_cycle_hook([this](const supervisor::DrainCycle& /*c*/) { on_can_cycle(); });
+  statistics_->set_cycle_hook([this](const supervisor::DrainCycle& c) { on_can_cycle(c); });
 }
 
 CanExtension::~CanExtension() {
@@ -46,14 +50,29 @@ CanExtension::~CanExtension() {
   }
 }
 
-void CanExtension::on_can_cycle() {
+void CanExtension::on_can_cycle(const supervisor::DrainCycle& c) {
+  // The regular drains' schedule, as the drain loop keeps it (one period after the latest
+  // regular drain): a drain that starts close to it, or after it, is a regular one.
+  const Nanos period = supervisor_->options().period_ns;
+  if (c.time_ns >= regular_next_ - wake_margin(period)) regular_next_ = c.time_ns + period;
   // As add_reports: after a stop began, judged as of then (the bus went quiet with the system).
   const Nanos stopped = stopped_at_.load(std::memory_order_relaxed);
   const Nanos now = stopped != 0 ? stopped : platform::now_ns();
+  const Nanos t0 = platform::now_ns();
   const can::CanReport r = monitor_->evaluate(*statistics_, now);
   publish_changes(r, now);
   publish_protocol_events(r);
   schedule_wake(r);
+  // What judging at the drain's pace costs the CAN supervisor (its drain time excludes it).
+  const Nanos took = platform::now_ns() - t0;
+  judge_last_ns_.store(took, std::memory_order_relaxed);
+  if (took > judge_max_ns_.load(std::memory_order_relaxed)) {
+    judge_max_ns_.store(took, std::memory_order_relaxed);
+  }
+}
+
+Nanos CanExtension::wake_margin(Nanos period) noexcept {
+  return std::min<Nanos>(5 * kNanosPerMilli, period / 10);
 }
 
 namespace {
@@ -77,8 +96,8 @@ void CanExtension::read_links() {
   if (links_.empty()) return;
   const std::lock_guard lock(links_mutex_);
   for (can::LinkReading& l : links_) {
-    const std::optional<can::LinkControllerState> before =
-        l.info ? l.info->state : std::optional<can::LinkControllerState>{};
+    // The state of the latest successful reading (-1: none), enum can_state's value.
+    const int before = l.info && l.info->state ? static_cast<int>(*l.info->state) : -1;
     const std::string error_before = l.error;
     ++l.reads;
     l.read_ns = platform::now_ns();
@@ -87,33 +106,35 @@ void CanExtension::read_links() {
       ++l.failures;
       l.error = info.error().message;
       if (l.error != error_before) {  // said once per change: the bus's report says it each cycle
-        std::fprintf(stderr, "vigil: can bus %u: controller state not read: %s
-", l.bus,
+        std::fprintf(stderr, "vigil: can bus %u: controller state not read: %s\n", l.bus,
                      l.error.c_str());
       }
       continue;
     }
     l.error.clear();
     l.info = std::move(*info);
-    const std::optional<can::LinkControllerState> after = l.info->state;
+    const int after = l.info->state ? static_cast<int>(*l.info->state) : -1;
     // A change of the fault confinement state is an event, as an error frame's is; a first
     // reading only when it is not error active. Stopped and sleeping are the bus's WARN only.
-    const auto judged = [](std::optional<can::LinkControllerState> s) {
-      return s && *s <= can::LinkControllerState::BusOff;
-    };
-    if (events_ != nullptr && judged(after) && after != before &&
-        (before || *after != can::LinkControllerState::ErrorActive)) {
+    constexpr int kActive = static_cast<int>(can::LinkControllerState::ErrorActive);
+    constexpr int kBusOff = static_cast<int>(can::LinkControllerState::BusOff);
+    if (events_ != nullptr && after >= 0 && after <= kBusOff && after != before &&
+        (before >= 0 || after != kActive)) {
+      const auto state = static_cast<can::LinkControllerState>(after);
       supervisor::Event e;
-      e.kind = link_event_kind(*after);
-      e.severity = *after == can::LinkControllerState::BusOff        ? supervisor::EventSeverity::Error
-                   : *after == can::LinkControllerState::ErrorPassive ? supervisor::EventSeverity::Warn
-                                                                       : supervisor::EventSeverity::Info;
+      e.kind = link_event_kind(state);
+      e.severity = state == can::LinkControllerState::BusOff ? supervisor::EventSeverity::Error
+                   : state == can::LinkControllerState::ErrorPassive
+                       ? supervisor::EventSeverity::Warn
+                       : supervisor::EventSeverity::Info;
       e.component = fmt::format("can bus {}", l.bus);
       e.fault_ns = l.read_ns;  // read then (netlink gives no time of the change)
       e.detected_ns = platform::now_ns();
-      e.detail = fmt::format("{} (netlink): {} -> {}", l.interface,
-                             before ? std::string(can::to_string(*before)) : std::string("unknown"),
-                             can::to_string(*after));
+      e.detail = fmt::format(
+          "{} (netlink): {} -> {}", l.interface,
+          before >= 0 ? std::string(can::to_string(static_cast<can::LinkControllerState>(before)))
+                      : std::string("unknown"),
+          can::to_string(state));
       if (l.info->tx_errors && l.info->rx_errors) {
         e.detail += fmt::format("; error counters tx {} rx {}", *l.info->tx_errors,
                                 *l.info->rx_errors);
@@ -154,6 +175,12 @@ void CanExtension::schedule_wake(const can::CanReport& r) {
     if (n.unanswered_ns >= 0 && n.thresholds.answer_within_ns >= 0) {
       next = std::min(next, r.observed_ns - n.unanswered_ns + n.thresholds.answer_within_ns + 1);
     }
+  }
+  // No extra drain for a limit that passes within the margin before the next regular drain:
+  // that drain judges it (a healthy node sending every millisecond with a 100 ms limit would
+  // otherwise double the drains). Later than the regular drain: that drain asks again.
+  if (next >= regular_next_ - wake_margin(supervisor_->options().period_ns)) {
+    next = std::numeric_limits<Nanos>::max();
   }
   // Never a busy loop: an observation that cannot pass the time asked for (a port that never
   // empties) gets one more drain per millisecond at most.
@@ -196,6 +223,11 @@ Report CanExtension::supervisor_report(const can::CanReport& r, bool running) co
   s.add("messages", std::to_string(st.messages));
   s.add("ports", std::to_string(st.ports));
   s.add("observer_lag", format_nanos(static_cast<double>(r.observer_lag_ns)));
+  // Judging the nodes and publishing the CAN events at the end of each drain.
+  s.add("judge_time",
+        fmt::format("last {}, max {}",
+                    format_nanos(static_cast<double>(judge_last_ns_.load(std::memory_order_relaxed))),
+                    format_nanos(static_cast<double>(judge_max_ns_.load(std::memory_order_relaxed)))));
   if (const std::uint64_t failed = statistics_->hook_failures(); failed > 0) {
     // The CAN events of those drains were not published (a custom check threw, out of memory).
     s.merge(StatusLevel::Warn,

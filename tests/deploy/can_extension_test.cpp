@@ -474,7 +474,7 @@ can:
   CHECK(monitor_cycles <= 1);
 }
 
-TEST_CASE("A bus whose interface is no CAN controller says so; supervision goes on",
+TEST_CASE("A bus whose interface is no CAN controller says so, and supervision goes on",
           "[deploy][can][link]") {
   // `lo` exists on every Linux host and is no CAN device: the netlink reading fails with a reason
   // naming it, the bus is WARN, the nodes are judged as ever.

@@ -103,8 +103,13 @@ class CanExtension : public Extension {
                    std::vector<exporter::CanBusLoads>* buses = nullptr);
   // The CAN supervisor's cycle hook (its thread, or the caller of a manual step): judges the
   // nodes, publishes what changed and asks for a wake-up at the next silence limit.
-  void on_can_cycle();
+  void on_can_cycle(const supervisor::DrainCycle& c);
   void schedule_wake(const can::CanReport& r);
+  // How close before the next regular drain a limit may pass without a drain of its own.
+  static Nanos wake_margin(Nanos period) noexcept;
+  Nanos regular_next_ = 0;  // the next regular drain (cycle hook only)
+  std::atomic<Nanos> judge_last_ns_{0};  // the cycle hook's latest and longest time
+  std::atomic<Nanos> judge_max_ns_{0};
   void publish_changes(const can::CanReport& r, Nanos now);
   void publish_protocol_events(const can::CanReport& r);
   [[nodiscard]] Report supervisor_report(const can::CanReport& r, bool running) const;
