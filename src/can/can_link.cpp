@@ -85,9 +85,8 @@ std::string attr_name(std::string_view level, std::uint16_t type) {
   return n.empty() ? fmt::format("attribute {}", type) : fmt::format("attribute {} ({})", type, n);
 }
 
-using Visit = std::function<expected<void, Error>(std::uint16_t type,
-                                                  std::span<const std::uint8_t> payload,
-                                                  std::size_t offset)>;
+using Visit = std::function<expected<void, Error>(
+    std::uint16_t type, std::span<const std::uint8_t> payload, std::size_t offset)>;
 
 // Walks the attributes (struct nlattr: u16 nla_len, u16 nla_type, then the payload) of `bytes`,
 // which start at `base` in the message. An attribute below 4 bytes or beyond its container is an
@@ -97,18 +96,18 @@ expected<void, Error> walk(std::span<const std::uint8_t> bytes, std::size_t base
   std::size_t at = 0;
   while (at + sizeof(nlattr) <= bytes.size()) {
     const auto len = load<std::uint16_t>(bytes, at);
-    const auto type = static_cast<std::uint16_t>(load<std::uint16_t>(bytes, at + 2) &
-                                                 NLA_TYPE_MASK);
+    const auto type =
+        static_cast<std::uint16_t>(load<std::uint16_t>(bytes, at + 2) & NLA_TYPE_MASK);
     if (len < sizeof(nlattr)) {
-      return unexpected(fail(EINVAL, fmt::format("offset {}: {}: length {} below the header's {}",
-                                                 base + at, attr_name(level, type), len,
-                                                 sizeof(nlattr))));
+      return unexpected(
+          fail(EINVAL, fmt::format("offset {}: {}: length {} below the header's {}", base + at,
+                                   attr_name(level, type), len, sizeof(nlattr))));
     }
     if (len > bytes.size() - at) {
-      return unexpected(fail(EINVAL, fmt::format("offset {}: {}: length {} beyond the {} bytes "
-                                                 "left in its container",
-                                                 base + at, attr_name(level, type), len,
-                                                 bytes.size() - at)));
+      return unexpected(
+          fail(EINVAL, fmt::format("offset {}: {}: length {} beyond the {} bytes "
+                                   "left in its container",
+                                   base + at, attr_name(level, type), len, bytes.size() - at)));
     }
     if (auto ok = visit(type, bytes.subspan(at + sizeof(nlattr), len - sizeof(nlattr)), base + at);
         !ok) {
@@ -218,9 +217,9 @@ expected<void, Error> parse_linkinfo(LinkInfo& info, std::span<const std::uint8_
                          break;
                        }
                        const auto s = load<can_device_stats>(p, 0);
-                       info.device_stats = LinkDeviceStats{s.bus_error,     s.error_warning,
-                                                           s.error_passive, s.bus_off,
-                                                           s.arbitration_lost, s.restarts};
+                       info.device_stats =
+                           LinkDeviceStats{s.bus_error, s.error_warning,    s.error_passive,
+                                           s.bus_off,   s.arbitration_lost, s.restarts};
                        break;
                      }
                      default:
@@ -296,9 +295,9 @@ expected<LinkInfo, Error> parse_link_message(std::span<const std::uint8_t> messa
       return unexpected(fail(EINVAL, "NLMSG_ERROR without its error code"));
     }
     const int err = -load<int>(msg, sizeof(nlmsghdr));
-    return unexpected(fail(err, fmt::format("the kernel answered an error: {}",
-                                            err == 0 ? "none (an acknowledgement)"
-                                                     : std::strerror(err))));
+    return unexpected(
+        fail(err, fmt::format("the kernel answered an error: {}",
+                              err == 0 ? "none (an acknowledgement)" : std::strerror(err))));
   }
   if (hdr.nlmsg_type != RTM_NEWLINK) {
     return unexpected(fail(EINVAL, fmt::format("message type {} is not RTM_NEWLINK ({})",
@@ -306,10 +305,10 @@ expected<LinkInfo, Error> parse_link_message(std::span<const std::uint8_t> messa
   }
   const std::size_t attrs_at = align(sizeof(nlmsghdr)) + align(sizeof(ifinfomsg));
   if (msg.size() < align(sizeof(nlmsghdr)) + sizeof(ifinfomsg)) {
-    return unexpected(fail(EINVAL, fmt::format("RTM_NEWLINK of {} bytes, shorter than its "
-                                               "headers (nlmsghdr and ifinfomsg: {})",
-                                               msg.size(),
-                                               align(sizeof(nlmsghdr)) + sizeof(ifinfomsg))));
+    return unexpected(
+        fail(EINVAL, fmt::format("RTM_NEWLINK of {} bytes, shorter than its "
+                                 "headers (nlmsghdr and ifinfomsg: {})",
+                                 msg.size(), align(sizeof(nlmsghdr)) + sizeof(ifinfomsg))));
   }
   const auto ifi = load<ifinfomsg>(msg, align(sizeof(nlmsghdr)));
   LinkInfo info;
@@ -380,15 +379,15 @@ expected<LinkInfo, Error> query_link(std::string_view interface) {
     const int e = errno;
     return named(e, fmt::format("RTM_GETLINK: {}", std::strerror(e)));
   }
-  std::vector<std::uint8_t> buffer(32 * 1024);
+  std::vector<std::uint8_t> buffer(std::size_t{32} * 1024);
   const ssize_t n = ::recv(sock.fd, buffer.data(), buffer.size(), MSG_TRUNC);
   if (n < 0) {
     const int e = errno;
     return named(e, fmt::format("RTM_GETLINK answer: {}", std::strerror(e)));
   }
   if (static_cast<std::size_t>(n) > buffer.size()) {
-    return named(EMSGSIZE, fmt::format("RTM_GETLINK answer of {} bytes, more than {}", n,
-                                       buffer.size()));
+    return named(EMSGSIZE,
+                 fmt::format("RTM_GETLINK answer of {} bytes, more than {}", n, buffer.size()));
   }
   auto info =
       parse_link_message(std::span<const std::uint8_t>(buffer.data(), static_cast<std::size_t>(n)));

@@ -668,9 +668,9 @@ void judge_link(BusReport& b) {
   }
   const LinkInfo& i = *l.info;
   if (!l.error.empty()) {
-    b.status.merge(StatusLevel::Warn,
-                   fmt::format("controller state of {} not read at the latest try: {}",
-                               l.interface, l.error));
+    b.status.merge(
+        StatusLevel::Warn,
+        fmt::format("controller state of {} not read at the latest try: {}", l.interface, l.error));
   }
   if (!i.state) return;  // a virtual CAN device: no controller
   b.live_state = true;
@@ -687,8 +687,8 @@ void judge_link(BusReport& b) {
   how += ")";
   if (*i.state == LinkControllerState::Stopped || *i.state == LinkControllerState::Sleeping) {
     b.status.merge(StatusLevel::Warn,
-                   fmt::format("controller {} ({}: interface {})", to_string(*i.state),
-                               l.interface, i.up ? "up" : "down"));
+                   fmt::format("controller {} ({}: interface {})", to_string(*i.state), l.interface,
+                               i.up ? "up" : "down"));
     return;
   }
   judge_controller(b.status, b.controller_state, how);
@@ -759,14 +759,14 @@ void judge_buses(CanReport& r, const CanConfig& cfg, const std::vector<LinkReadi
       // The error frames' state: the latest one that said something.
       const ControllerStats& c = s.controller;
       b.controller_state = c.state;
-      const std::string since =
-          c.state_since_ns >= 0 ? duration(std::max<Nanos>(0, r.observed_ns - c.state_since_ns))
-                                : std::string("?");
-      judge_controller(b.status, c.state,
-                       c.state == ControllerState::BusOff
-                           ? fmt::format("for {} ({} bus-off{})", since, c.bus_offs,
-                                         c.bus_offs == 1 ? "" : "s")
-                           : fmt::format("for {}", since));
+      const std::string since = c.state_since_ns >= 0
+                                    ? duration(std::max<Nanos>(0, r.observed_ns - c.state_since_ns))
+                                    : std::string("?");
+      judge_controller(
+          b.status, c.state,
+          c.state == ControllerState::BusOff
+              ? fmt::format("for {} ({} bus-off{})", since, c.bus_offs, c.bus_offs == 1 ? "" : "s")
+              : fmt::format("for {}", since));
     }
     r.buses.push_back(std::move(b));
   }

@@ -3,8 +3,8 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <limits>
 #include <cstdio>
+#include <limits>
 #include <map>
 #include <set>
 #include <string>
@@ -136,8 +136,8 @@ void CanExtension::read_links() {
                       : std::string("unknown"),
           can::to_string(state));
       if (l.info->tx_errors && l.info->rx_errors) {
-        e.detail += fmt::format("; error counters tx {} rx {}", *l.info->tx_errors,
-                                *l.info->rx_errors);
+        e.detail +=
+            fmt::format("; error counters tx {} rx {}", *l.info->tx_errors, *l.info->rx_errors);
       }
       events_->publish(std::move(e));
     }
@@ -225,9 +225,10 @@ Report CanExtension::supervisor_report(const can::CanReport& r, bool running) co
   s.add("observer_lag", format_nanos(static_cast<double>(r.observer_lag_ns)));
   // Judging the nodes and publishing the CAN events at the end of each drain.
   s.add("judge_time",
-        fmt::format("last {}, max {}",
-                    format_nanos(static_cast<double>(judge_last_ns_.load(std::memory_order_relaxed))),
-                    format_nanos(static_cast<double>(judge_max_ns_.load(std::memory_order_relaxed)))));
+        fmt::format(
+            "last {}, max {}",
+            format_nanos(static_cast<double>(judge_last_ns_.load(std::memory_order_relaxed))),
+            format_nanos(static_cast<double>(judge_max_ns_.load(std::memory_order_relaxed)))));
   if (const std::uint64_t failed = statistics_->hook_failures(); failed > 0) {
     // The CAN events of those drains were not published (a custom check threw, out of memory).
     s.merge(StatusLevel::Warn,
@@ -377,12 +378,15 @@ Report bus_report(const can::BusReport& b) {
     if (live != nullptr) {
       rep.add_field(Field::of_text("link_kind", live->kind));
       if (live->state) {
-        rep.add_field(Field::of_text("controller_state", std::string(can::to_string(*live->state))));
-        rep.add_field(Field::of_count("controller_state_code",
-                                      static_cast<std::uint64_t>(*live->state)));
+        rep.add_field(
+            Field::of_text("controller_state", std::string(can::to_string(*live->state))));
+        rep.add_field(
+            Field::of_count("controller_state_code", static_cast<std::uint64_t>(*live->state)));
       }
-      if (live->tx_errors) rep.add_field(Field::of_count("link_tx_error_counter", *live->tx_errors));
-      if (live->rx_errors) rep.add_field(Field::of_count("link_rx_error_counter", *live->rx_errors));
+      if (live->tx_errors)
+        rep.add_field(Field::of_count("link_tx_error_counter", *live->tx_errors));
+      if (live->rx_errors)
+        rep.add_field(Field::of_count("link_rx_error_counter", *live->rx_errors));
       if (live->device_stats) {
         const can::LinkDeviceStats& d = *live->device_stats;
         rep.add_field(Field::of_count("link_bus_errors", d.bus_error));

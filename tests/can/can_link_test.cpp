@@ -265,8 +265,8 @@ TEST_CASE("netlink: bad messages are refused with where and why, never read beyo
     m.text(IFLA_INFO_KIND, "can");
     const std::size_t data = m.open(IFLA_INFO_DATA);
     const std::uint16_t half = 130;
-    m.value(IFLA_CAN_BERR_COUNTER, half);                      // 2 of 4 bytes
-    m.value(IFLA_CAN_BITTIMING, std::uint32_t{500000});        // 4 of 32 bytes
+    m.value(IFLA_CAN_BERR_COUNTER, half);                       // 2 of 4 bytes
+    m.value(IFLA_CAN_BITTIMING, std::uint32_t{500000});         // 4 of 32 bytes
     m.value(IFLA_CAN_STATE, std::uint32_t{CAN_STATE_MAX + 3});  // no such state
     m.close(data);
     m.value(IFLA_INFO_XSTATS, std::uint32_t{1});  // 4 of 24 bytes
@@ -376,8 +376,7 @@ TEST_CASE("CAN monitor: the live controller state judges the bus like error fram
   CHECK_THAT(r.find_bus(1)->status.summary(), Catch::Contains("controller bus off"));
 
   monitor.set_links({reading(LinkControllerState::ErrorActive)});
-  CHECK(monitor.evaluate(CanSnapshot{}, now).find_bus(1)->status.level() ==
-        vigil::StatusLevel::Ok);
+  CHECK(monitor.evaluate(CanSnapshot{}, now).find_bus(1)->status.level() == vigil::StatusLevel::Ok);
   monitor.set_links({reading(LinkControllerState::Stopped)});
   CHECK(monitor.evaluate(CanSnapshot{}, now).find_bus(1)->status.level() ==
         vigil::StatusLevel::Warn);

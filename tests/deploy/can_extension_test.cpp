@@ -467,8 +467,7 @@ can:
   REQUIRE(find(EventKind::Emergency) != nullptr);
   CHECK(find(EventKind::Emergency)->component == "can0/1");
   REQUIRE(find(EventKind::BusOff) != nullptr);
-  CHECK(find(EventKind::BusOff)->detected_ns - find(EventKind::BusOff)->fault_ns <
-        kNanosPerSecond);
+  CHECK(find(EventKind::BusOff)->detected_ns - find(EventKind::BusOff)->fault_ns < kNanosPerSecond);
   CHECK(arrived - start < 3 * kNanosPerSecond);
   // No monitor cycle after the first (if any) came before the events.
   CHECK(monitor_cycles <= 1);

@@ -77,14 +77,14 @@ struct LinkInfo {
   std::string name;        ///< IFLA_IFNAME ("" when absent)
   std::string kind;        ///< IFLA_INFO_KIND ("can", "vcan"; "" when the link has none)
   bool up = false;         ///< IFF_UP in ifi_flags
-  std::optional<LinkControllerState> state;  ///< IFLA_CAN_STATE
-  std::optional<std::uint16_t> tx_errors;    ///< IFLA_CAN_BERR_COUNTER txerr
-  std::optional<std::uint16_t> rx_errors;    ///< IFLA_CAN_BERR_COUNTER rxerr
-  std::optional<std::uint32_t> bitrate;      ///< IFLA_CAN_BITTIMING bitrate (bit/s; 0 omitted)
-  std::optional<std::uint32_t> sample_point;       ///< ... sample point, tenths of a percent
-  std::optional<std::uint32_t> data_bitrate;       ///< IFLA_CAN_DATA_BITTIMING bitrate (CAN FD)
-  std::optional<std::uint32_t> restart_ms;         ///< IFLA_CAN_RESTART_MS (0: no auto restart)
-  std::optional<LinkDeviceStats> device_stats;     ///< IFLA_INFO_XSTATS
+  std::optional<LinkControllerState> state;     ///< IFLA_CAN_STATE
+  std::optional<std::uint16_t> tx_errors;       ///< IFLA_CAN_BERR_COUNTER txerr
+  std::optional<std::uint16_t> rx_errors;       ///< IFLA_CAN_BERR_COUNTER rxerr
+  std::optional<std::uint32_t> bitrate;         ///< IFLA_CAN_BITTIMING bitrate (bit/s; 0 omitted)
+  std::optional<std::uint32_t> sample_point;    ///< ... sample point, tenths of a percent
+  std::optional<std::uint32_t> data_bitrate;    ///< IFLA_CAN_DATA_BITTIMING bitrate (CAN FD)
+  std::optional<std::uint32_t> restart_ms;      ///< IFLA_CAN_RESTART_MS (0: no auto restart)
+  std::optional<LinkDeviceStats> device_stats;  ///< IFLA_INFO_XSTATS
   /// Attributes skipped because they were shorter than their type needs (each named in
   /// `skipped_detail`); the rest of the message is still read.
   std::uint32_t skipped = 0;

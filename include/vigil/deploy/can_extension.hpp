@@ -107,7 +107,7 @@ class CanExtension : public Extension {
   void schedule_wake(const can::CanReport& r);
   // How close before the next regular drain a limit may pass without a drain of its own.
   static Nanos wake_margin(Nanos period) noexcept;
-  Nanos regular_next_ = 0;  // the next regular drain (cycle hook only)
+  Nanos regular_next_ = 0;               // the next regular drain (cycle hook only)
   std::atomic<Nanos> judge_last_ns_{0};  // the cycle hook's latest and longest time
   std::atomic<Nanos> judge_max_ns_{0};
   void publish_changes(const can::CanReport& r, Nanos now);
