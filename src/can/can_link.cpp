@@ -44,6 +44,12 @@ std::string attr_name(std::string_view level, std::uint16_t type) {
       case IFLA_LINKINFO:
         n = "IFLA_LINKINFO";
         break;
+      case IFLA_STATS:
+        n = "IFLA_STATS";
+        break;
+      case IFLA_STATS64:
+        n = "IFLA_STATS64";
+        break;
       default:
         break;
     }
@@ -236,6 +242,24 @@ expected<void, Error> parse_linkinfo(LinkInfo& info, std::span<const std::uint8_
   return {};
 }
 
+// The first eight counters of struct rtnl_link_stats64 (u64) or rtnl_link_stats (u32): packets,
+// bytes, errors, drops, each rx then tx. The 64-bit ones win whichever comes first.
+void parse_counters(LinkInfo& info, std::uint16_t type, std::span<const std::uint8_t> p,
+                    std::size_t offset, bool& stats64) {
+  const bool wide = type == IFLA_STATS64;
+  if (!wide && stats64) return;
+  const std::size_t width = wide ? sizeof(std::uint64_t) : sizeof(std::uint32_t);
+  if (p.size() < 8 * width) {
+    skip(info, "link", type, offset, p.size(), 8 * width);
+    return;
+  }
+  const auto at = [&](std::size_t i) -> std::uint64_t {
+    return wide ? load<std::uint64_t>(p, i * width) : load<std::uint32_t>(p, i * width);
+  };
+  info.counters = LinkCounters{at(0), at(1), at(4), at(5), at(6), at(7)};
+  stats64 = stats64 || wide;
+}
+
 }  // namespace
 
 std::string_view to_string(LinkControllerState s) noexcept {
@@ -312,6 +336,7 @@ expected<LinkInfo, Error> parse_link_message(std::span<const std::uint8_t> messa
   }
   const auto ifi = load<ifinfomsg>(msg, align(sizeof(nlmsghdr)));
   LinkInfo info;
+  bool stats64 = false;  // IFLA_STATS64 read: IFLA_STATS (32-bit) is not needed
   info.index = ifi.ifi_index;
   info.up = (ifi.ifi_flags & IFF_UP) != 0;
   if (msg.size() <= attrs_at) return info;
@@ -321,6 +346,9 @@ expected<LinkInfo, Error> parse_link_message(std::span<const std::uint8_t> messa
                    if (type == IFLA_IFNAME) info.name = text_of(p);
                    if (type == IFLA_LINKINFO) {
                      return parse_linkinfo(info, p, offset + sizeof(nlattr));
+                   }
+                   if (type == IFLA_STATS64 || type == IFLA_STATS) {
+                     parse_counters(info, type, p, offset, stats64);
                    }
                    return {};
                  });

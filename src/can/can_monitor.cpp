@@ -672,6 +672,11 @@ void judge_link(BusReport& b) {
         StatusLevel::Warn,
         fmt::format("controller state of {} not read at the latest try: {}", l.interface, l.error));
   }
+  if (i.skipped > 0) {
+    b.status.merge(StatusLevel::Ok,
+                   fmt::format("netlink reading of {}: {} attribute{} skipped ({})", l.interface,
+                               i.skipped, i.skipped == 1 ? "" : "s", i.skipped_detail));
+  }
   if (!i.state) return;  // a virtual CAN device: no controller
   b.live_state = true;
   b.controller_state = controller_state(*i.state);

@@ -92,6 +92,11 @@ supervisor::EventKind link_event_kind(can::LinkControllerState s) {
 
 }  // namespace
 
+void CanExtension::set_link_query(LinkQuery query) {
+  const std::lock_guard lock(links_mutex_);
+  link_query_ = std::move(query);
+}
+
 void CanExtension::read_links() {
   if (links_.empty()) return;
   const std::lock_guard lock(links_mutex_);
@@ -101,7 +106,7 @@ void CanExtension::read_links() {
     const std::string error_before = l.error;
     ++l.reads;
     l.read_ns = platform::now_ns();
-    auto info = can::query_link(l.interface);
+    auto info = link_query_ ? link_query_(l.interface) : can::query_link(l.interface);
     if (!info) {
       ++l.failures;
       l.error = info.error().message;
@@ -397,6 +402,15 @@ Report bus_report(const can::BusReport& b) {
         rep.add_field(Field::of_count("link_arbitration_lost", d.arbitration_lost));
       }
       if (live->restart_ms) rep.add_field(Field::of_count("restart_ms", *live->restart_ms));
+      if (live->counters) {  // the interface's own counters (IFLA_STATS64)
+        rep.add_field(Field::of_count("link_rx_frames", live->counters->rx_packets));
+        rep.add_field(Field::of_count("link_tx_frames", live->counters->tx_packets));
+        rep.add_field(Field::of_count("link_rx_errors", live->counters->rx_errors));
+        rep.add_field(Field::of_count("link_tx_errors", live->counters->tx_errors));
+        rep.add_field(Field::of_count("link_rx_dropped", live->counters->rx_dropped));
+        rep.add_field(Field::of_count("link_tx_dropped", live->counters->tx_dropped));
+      }
+      if (live->skipped > 0) rep.add_field(Field::of_count("link_skipped", live->skipped));
     }
   }
   rep.add_field(Field::of_count("error_frames", c.error_frames));

@@ -114,6 +114,17 @@ std::vector<std::uint8_t> can0_message(std::uint32_t state = CAN_STATE_ERROR_PAS
   m.value(IFLA_INFO_XSTATS, stats);
   m.close(info);
   m.value(IFLA_MTU, std::uint32_t{72});  // an attribute after the nest: read past it
+  rtnl_link_stats64 counters{};
+  counters.rx_packets = 1000;
+  counters.tx_packets = 500;
+  counters.rx_errors = 42;
+  counters.tx_errors = 7;
+  counters.rx_dropped = 3;
+  counters.tx_dropped = 1;
+  m.value(IFLA_STATS64, counters);
+  rtnl_link_stats narrow{};  // the 32-bit copy: the 64-bit one wins
+  narrow.rx_packets = 1;
+  m.value(IFLA_STATS, narrow);
   return m.done();
 }
 
@@ -161,7 +172,26 @@ TEST_CASE("netlink: an RTM_NEWLINK of a CAN controller gives its state, counters
   CHECK(info->device_stats->bus_off == 1);
   CHECK(info->device_stats->arbitration_lost == 9);
   CHECK(info->device_stats->restarts == 1);
+  REQUIRE(info->counters);
+  CHECK(info->counters->rx_packets == 1000);
+  CHECK(info->counters->tx_packets == 500);
+  CHECK(info->counters->rx_errors == 42);
+  CHECK(info->counters->tx_errors == 7);
+  CHECK(info->counters->rx_dropped == 3);
+  CHECK(info->counters->tx_dropped == 1);
   CHECK(info->skipped == 0);
+
+  // Only the 32-bit counters (an old kernel): read from IFLA_STATS.
+  Message old;
+  rtnl_link_stats narrow{};
+  narrow.rx_packets = 9;
+  narrow.tx_errors = 4;
+  old.value(IFLA_STATS, narrow);
+  const auto o = parse_link_message(old.done());
+  REQUIRE(o.has_value());
+  REQUIRE(o->counters);
+  CHECK(o->counters->rx_packets == 9);
+  CHECK(o->counters->tx_errors == 4);
 
   // Every state of enum can_state.
   for (std::uint32_t s = CAN_STATE_ERROR_ACTIVE; s <= CAN_STATE_SLEEPING; ++s) {
@@ -271,9 +301,11 @@ TEST_CASE("netlink: bad messages are refused with where and why, never read beyo
     m.close(data);
     m.value(IFLA_INFO_XSTATS, std::uint32_t{1});  // 4 of 24 bytes
     m.close(info);
+    m.value(IFLA_STATS64, std::uint64_t{1});  // 8 of at least 64 bytes
     const auto i = parse_link_message(m.done());
     REQUIRE(i.has_value());
-    CHECK(i->skipped == 4);
+    CHECK(i->skipped == 5);
+    CHECK_FALSE(i->counters);
     CHECK_FALSE(i->tx_errors);
     CHECK_FALSE(i->bitrate);
     CHECK_FALSE(i->state);
@@ -281,7 +313,8 @@ TEST_CASE("netlink: bad messages are refused with where and why, never read beyo
     CHECK_THAT(i->skipped_detail, Catch::Contains("(IFLA_CAN_BERR_COUNTER): 2 bytes, 4 needed") &&
                                       Catch::Contains("IFLA_CAN_BITTIMING") &&
                                       Catch::Contains("state 9 unknown") &&
-                                      Catch::Contains("IFLA_INFO_XSTATS"));
+                                      Catch::Contains("IFLA_INFO_XSTATS") &&
+                                      Catch::Contains("(IFLA_STATS64): 8 bytes, 64 needed"));
   }
   SECTION("an error answer, another message type") {
     Message e(NLMSG_ERROR);

@@ -2,6 +2,7 @@
 // registration call anywhere in this binary).
 #include "vigil/deploy/can_extension.hpp"
 
+#include <atomic>
 #include <catch2/catch.hpp>
 #include <condition_variable>
 #include <mutex>
@@ -508,4 +509,83 @@ can:
   REQUIRE(drive != nullptr);
   CHECK(drive->status.ok());
   CHECK(drive->state_label == "responding");
+}
+
+TEST_CASE("A bus's controller read through netlink: its state judged, its changes events",
+          "[deploy][can][link][events]") {
+  // The readings an RTM_GETLINK would give, replayed: error active at 250 kbit/s, then error
+  // passive, then bus off.
+  auto spec = load_deployment_string(R"(
+activities: [{name: io, period: 5ms}]
+components: [{name: bus, type: test.can_bus, activity: io, parameters: {quiet_after: 1000000}}]
+supervision: {lock_memory: false, monitor_period: 20ms}
+can:
+  node_map: canopen
+  buses: {0: {interface: fake0}}
+  groups: {arm: {nodes: [1, 2, 3], bus: 0}}
+)",
+                                     "can.yaml", factory());
+  REQUIRE(spec.has_value());
+  auto sys = System::create(std::move(*spec), factory());
+  REQUIRE(sys.has_value());
+  auto* ext = (*sys)->extension<CanExtension>();
+  REQUIRE(ext != nullptr);
+  std::atomic<int> reads{0};
+  ext->set_link_query([&](std::string_view name) -> expected<can::LinkInfo, Error> {
+    const int n = ++reads;
+    can::LinkInfo i;
+    i.name = std::string(name);
+    i.kind = "can";
+    i.up = true;
+    i.bitrate = 250000;
+    i.state = n <= 3   ? can::LinkControllerState::ErrorActive
+              : n <= 6 ? can::LinkControllerState::ErrorPassive
+                       : can::LinkControllerState::BusOff;
+    i.tx_errors = static_cast<std::uint16_t>(n <= 3 ? 0 : n <= 6 ? 130 : 256);
+    i.rx_errors = 0;
+    return i;
+  });
+  std::mutex m;
+  std::vector<Event> seen;
+  const auto sub = (*sys)->service().events().subscribe([&](const Event& e) {
+    if (e.component != "can bus 0") return;
+    const std::lock_guard lock(m);
+    seen.push_back(e);
+  });
+  REQUIRE((*sys)->start().has_value());
+  for (int i = 0; i < 200 && reads.load() < 10; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  (*sys)->stop();
+  const ReportSet r = (*sys)->step_monitor();
+  (*sys)->service().events().flush();
+  (*sys)->service().events().unsubscribe(sub);
+  REQUIRE(reads.load() >= 7);
+  {
+    const std::lock_guard lock(m);
+    REQUIRE(seen.size() == 2);  // the first reading is error active: no event
+    CHECK(seen[0].kind == EventKind::ErrorPassive);
+    CHECK(seen[0].severity == EventSeverity::Warn);
+    CHECK(seen[0].detail ==
+          "fake0 (netlink): error active -> error passive; error counters tx "
+          "130 rx 0");
+    CHECK(seen[1].kind == EventKind::BusOff);
+    CHECK(seen[1].severity == EventSeverity::Error);
+    CHECK(seen[1].detected_ns >= seen[1].fault_ns);
+  }
+  const Report* bus = r.find("can bus 0");
+  REQUIRE(bus != nullptr);
+  CHECK(bus->status.level() == StatusLevel::Error);
+  CHECK(bus->state_label == "bus off");
+  CHECK_THAT(bus->status.summary(), Catch::Contains("controller bus off (fake0, read live"));
+  REQUIRE(bus->field("bitrate") != nullptr);
+  CHECK(bus->field("bitrate")->count == 250000);
+  CHECK(bus->field("bitrate_source")->text == "netlink");
+  CHECK(bus->field("controller_state_code")->count == 3);
+  CHECK(bus->field("link_tx_error_counter")->count == 256);
+  // The load is counted with the interface's bitrate (none configured).
+  REQUIRE(bus->field("load_1m") != nullptr);
+  const Report* arm = r.find("can group arm");
+  REQUIRE(arm != nullptr);
+  CHECK(arm->status.level() == StatusLevel::Error);  // its nodes' bus is off
 }

@@ -18,7 +18,8 @@
 /// The attributes read, from the kernel's UAPI headers:
 ///  - linux/rtnetlink.h: RTM_NEWLINK, struct ifinfomsg; linux/netlink.h: struct nlmsghdr,
 ///    struct nlattr, NLA_F_NESTED, NLMSG_ERROR;
-///  - linux/if_link.h: IFLA_IFNAME, IFLA_LINKINFO { IFLA_INFO_KIND ("can", "vcan"),
+///  - linux/if_link.h: IFLA_IFNAME, IFLA_STATS64 (else IFLA_STATS: the first eight counters,
+///    packets, bytes, errors, drops), IFLA_LINKINFO { IFLA_INFO_KIND ("can", "vcan"),
 ///    IFLA_INFO_DATA, IFLA_INFO_XSTATS };
 ///  - linux/can/netlink.h: in IFLA_INFO_DATA, IFLA_CAN_BITTIMING (struct can_bittiming: bitrate,
 ///    sample point), IFLA_CAN_STATE (enum can_state, u32), IFLA_CAN_BERR_COUNTER (struct
@@ -71,6 +72,18 @@ struct LinkDeviceStats {
   std::uint32_t restarts = 0;          ///< CAN controller re-starts
 };
 
+/// The interface's packet counters (IFLA_STATS64, struct rtnl_link_stats64 of linux/if_link.h;
+/// IFLA_STATS, 32-bit, when the 64-bit ones are absent): for a CAN device, frames, and the errors
+/// and drops its driver counted (bus errors, lost frames).
+struct LinkCounters {
+  std::uint64_t rx_packets = 0;
+  std::uint64_t tx_packets = 0;
+  std::uint64_t rx_errors = 0;
+  std::uint64_t tx_errors = 0;
+  std::uint64_t rx_dropped = 0;
+  std::uint64_t tx_dropped = 0;
+};
+
 /// What one RTM_NEWLINK message says of a link.
 struct LinkInfo {
   std::int32_t index = 0;  ///< ifi_index
@@ -85,6 +98,7 @@ struct LinkInfo {
   std::optional<std::uint32_t> data_bitrate;    ///< IFLA_CAN_DATA_BITTIMING bitrate (CAN FD)
   std::optional<std::uint32_t> restart_ms;      ///< IFLA_CAN_RESTART_MS (0: no auto restart)
   std::optional<LinkDeviceStats> device_stats;  ///< IFLA_INFO_XSTATS
+  std::optional<LinkCounters> counters;         ///< IFLA_STATS64 (else IFLA_STATS)
   /// Attributes skipped because they were shorter than their type needs (each named in
   /// `skipped_detail`); the rest of the message is still read.
   std::uint32_t skipped = 0;

@@ -25,6 +25,7 @@
 /// threads that read the System's reports. Not RT-safe (only the sniffers are).
 
 #include <atomic>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -90,6 +91,11 @@ class CanExtension : public Extension {
   /// The CAN monitor (e.g. to add checks or replace the configuration). Thread-safe.
   [[nodiscard]] can::CanMonitor& monitor() noexcept { return *monitor_; }
 
+  /// How a bus's interface is read: `can::query_link` (rtnetlink) unless replaced here, e.g. by
+  /// recorded answers in a test or on a machine without SocketCAN. Thread-safe.
+  using LinkQuery = std::function<expected<can::LinkInfo, Error>(std::string_view interface)>;
+  void set_link_query(LinkQuery query);
+
  private:
   can::CanConfig config_;
   can::CanRegistry registry_;
@@ -119,6 +125,7 @@ class CanExtension : public Extension {
   void read_links();
   std::mutex links_mutex_;  // guards links_ and link_bitrates_ (the monitor's thread, step_monitor)
   std::vector<can::LinkReading> links_;
+  LinkQuery link_query_;  // null: can::query_link
   std::vector<std::pair<std::uint8_t, std::pair<std::uint32_t, std::uint32_t>>> link_bitrates_;
 
   std::atomic<Nanos> stopped_at_{0};  // once stopping: the time liveness is judged at
