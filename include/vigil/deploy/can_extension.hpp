@@ -88,7 +88,9 @@ class CanExtension : public Extension {
   [[nodiscard]] can::CanRegistry& registry() noexcept { return registry_; }
   /// The section as loaded (filter, node map, thresholds, nodes, groups).
   [[nodiscard]] const can::CanConfig& config() const noexcept { return config_; }
-  /// The CAN monitor (e.g. to add checks or replace the configuration). Thread-safe.
+  /// The CAN monitor (e.g. to add checks or replace the configuration). Thread-safe. Checks
+  /// added here run on the CAN supervisor's thread at each drain (the events) as well as on the
+  /// monitor's (the reports): keep them quick and thread-safe.
   [[nodiscard]] can::CanMonitor& monitor() noexcept { return *monitor_; }
 
   /// How a bus's interface is read: `can::query_link` (rtnetlink) unless replaced here, e.g. by
