@@ -242,7 +242,22 @@ std::optional<std::uint32_t> bitrate_of(const cfg::Node& n) {
 BusConfig load_bus(const cfg::Node& n, std::optional<std::uint8_t> bus) {
   BusConfig b;
   b.bus = bus;
-  n.reject_unknown_keys({"bitrate", "data_bitrate", "protocol", "load"});
+  n.reject_unknown_keys({"bitrate", "data_bitrate", "protocol", "load", "interface"});
+  if (n.has("interface")) {
+    // A Linux interface name (IFNAMSIZ 16, with its NUL): the controller's state is read live.
+    const auto name_ok = [](const std::string& v) -> std::optional<std::string> {
+      if (v.empty() || v.size() > 15) return "must be an interface name of 1 to 15 characters";
+      if (v.find_first_of("/ \t:") != std::string::npos) {
+        return fmt::format("'{}' is no interface name (no '/', ':' or blank)", v);
+      }
+      return std::nullopt;
+    };
+    if (!bus) {
+      n["interface"].error("belongs to one bus (buses: {0: {interface: can0}}), not to all");
+    } else {
+      b.interface = n.required<std::string>("interface", name_ok);
+    }
+  }
   if (n.has("bitrate")) b.bitrate = bitrate_of(n["bitrate"]);
   if (n.has("data_bitrate")) b.data_bitrate = bitrate_of(n["data_bitrate"]);
   if (n.has("protocol")) b.protocol = n.required_enum("protocol", kProtocols);

@@ -466,6 +466,11 @@ std::shared_ptr<const CanConfig> CanMonitor::config() const {
   return config_;
 }
 
+void CanMonitor::set_links(std::vector<LinkReading> links) {
+  std::lock_guard lock(mutex_);
+  links_ = std::move(links);
+}
+
 void CanMonitor::add_check(std::string name, CanNodeCheck check) {
   if (!check) return;
   std::lock_guard lock(mutex_);
@@ -679,17 +684,106 @@ void j1939_checks(NodeReport& n, const CanReport& r) {
   }
 }
 
-void judge_buses(CanReport& r, const CanConfig& cfg) {
-  for (const BusProtocolStats& s : r.snapshot.protocol.buses) {
+// The controller's state, judged alike wherever it comes from (the error frames, or netlink):
+// bus off ERROR, error passive WARN, error warning an OK message. `how` says since when or what
+// was read.
+void judge_controller(Status& s, ControllerState state, const std::string& how) {
+  if (state == ControllerState::BusOff) {
+    s.merge(StatusLevel::Error, fmt::format("controller bus off {}", how));
+  } else if (state == ControllerState::ErrorPassive) {
+    s.merge(StatusLevel::Warn, fmt::format("controller error passive {}", how));
+  } else if (state == ControllerState::ErrorWarning) {
+    s.merge(StatusLevel::Ok, fmt::format("controller error warning {}", how));
+  }
+}
+
+// What netlink read of the bus's interface: the state and the counters, or why it failed.
+void judge_link(BusReport& b) {
+  const LinkReading& l = *b.link;
+  if (!l.info) {
+    b.status.merge(StatusLevel::Warn,
+                   fmt::format("controller state not read live: {}",
+                               l.error.empty() ? std::string("no reading yet") : l.error));
+    return;
+  }
+  const LinkInfo& i = *l.info;
+  if (!l.error.empty()) {
+    b.status.merge(
+        StatusLevel::Warn,
+        fmt::format("controller state of {} not read at the latest try: {}", l.interface, l.error));
+  }
+  if (i.skipped > 0) {
+    b.status.merge(StatusLevel::Ok,
+                   fmt::format("netlink reading of {}: {} attribute{} skipped ({})", l.interface,
+                               i.skipped, i.skipped == 1 ? "" : "s", i.skipped_detail));
+  }
+  if (!i.state) return;  // a virtual CAN device: no controller
+  b.live_state = true;
+  b.controller_state = controller_state(*i.state);
+  std::string how = fmt::format("({}, read live", l.interface);
+  if (i.tx_errors && i.rx_errors) {
+    how += fmt::format("; error counters tx {} rx {}", *i.tx_errors, *i.rx_errors);
+  }
+  if (i.device_stats) {
+    how += fmt::format("; {} bus-off{}, {} restart{}", i.device_stats->bus_off,
+                       i.device_stats->bus_off == 1 ? "" : "s", i.device_stats->restarts,
+                       i.device_stats->restarts == 1 ? "" : "s");
+  }
+  how += ")";
+  if (*i.state == LinkControllerState::Stopped || *i.state == LinkControllerState::Sleeping) {
+    b.status.merge(StatusLevel::Warn,
+                   fmt::format("controller {} ({}: interface {})", to_string(*i.state), l.interface,
+                               i.up ? "up" : "down"));
+    return;
+  }
+  judge_controller(b.status, b.controller_state, how);
+}
+
+// Every bus the protocol tracker saw or whose interface is read: its load against its
+// thresholds, its controller state.
+void judge_buses(CanReport& r, const CanConfig& cfg, const std::vector<LinkReading>& links) {
+  std::vector<BusProtocolStats> buses = r.snapshot.protocol.buses;
+  for (const LinkReading& l : links) {
+    const bool known = std::any_of(buses.begin(), buses.end(),
+                                   [&](const BusProtocolStats& b) { return b.bus == l.bus; });
+    if (!known) {
+      BusProtocolStats b;
+      b.bus = l.bus;
+      buses.push_back(std::move(b));
+    }
+  }
+  std::sort(buses.begin(), buses.end(),
+            [](const BusProtocolStats& a, const BusProtocolStats& b) { return a.bus < b.bus; });
+  for (const BusProtocolStats& s : buses) {
     BusReport b;
     b.bus = s.bus;
     b.config = cfg.bus_config(s.bus);
     b.stats = s;
+    for (const LinkReading& l : links) {
+      if (l.bus == s.bus) b.link = l;
+    }
+    const LinkInfo* info = b.link && b.link->info ? &*b.link->info : nullptr;
+    // The configured bitrate wins; the interface's is used without one (the extension gives it
+    // to the protocol tracker, which counts the load).
+    if (info != nullptr && info->bitrate) {
+      if (b.config.settings.bitrate == 0) {
+        b.config.settings.bitrate = *info->bitrate;
+        if (info->data_bitrate && b.config.settings.data_bitrate == 0) {
+          b.config.settings.data_bitrate = *info->data_bitrate;
+        }
+        b.bitrate_from_link = true;
+      } else if (b.config.settings.bitrate != *info->bitrate) {
+        b.status.merge(StatusLevel::Warn,
+                       fmt::format("configured bitrate {} differs from {}'s {} (the configured "
+                                   "one is used for the load)",
+                                   b.config.settings.bitrate, b.link->interface, *info->bitrate));
+      }
+    }
     const LoadLimit& l = b.config.load;
     const BusLoad& load = s.load[static_cast<std::size_t>(l.stuffing)][2];
     b.judged_load = load.known ? load_value(load, l.figure) : std::nan("");
     if (!load.known) {
-      if (l.warn || l.error) {
+      if ((l.warn || l.error) && b.config.settings.bitrate == 0) {
         b.status.merge(StatusLevel::Warn,
                        "load thresholds set but no bitrate: configure buses.<bus>.bitrate");
       }
@@ -705,19 +799,19 @@ void judge_buses(CanReport& r, const CanConfig& cfg) {
         above(StatusLevel::Warn, *l.warn);
       }
     }
-    const ControllerStats& c = s.controller;
-    const auto since = [&] {
-      return c.state_since_ns >= 0 ? duration(std::max<Nanos>(0, r.observed_ns - c.state_since_ns))
-                                   : std::string("?");
-    };
-    if (c.state == ControllerState::BusOff) {
-      b.status.merge(StatusLevel::Error,
-                     fmt::format("controller bus off for {} ({} bus-off{})", since(), c.bus_offs,
-                                 c.bus_offs == 1 ? "" : "s"));
-    } else if (c.state == ControllerState::ErrorPassive) {
-      b.status.merge(StatusLevel::Warn, fmt::format("controller error passive for {}", since()));
-    } else if (c.state == ControllerState::ErrorWarning) {
-      b.status.merge(StatusLevel::Ok, fmt::format("controller error warning for {}", since()));
+    if (b.link) judge_link(b);
+    if (!b.live_state) {
+      // The error frames' state: the latest one that said something.
+      const ControllerStats& c = s.controller;
+      b.controller_state = c.state;
+      const std::string since = c.state_since_ns >= 0
+                                    ? duration(std::max<Nanos>(0, r.observed_ns - c.state_since_ns))
+                                    : std::string("?");
+      judge_controller(
+          b.status, c.state,
+          c.state == ControllerState::BusOff
+              ? fmt::format("for {} ({} bus-off{})", since, c.bus_offs, c.bus_offs == 1 ? "" : "s")
+              : fmt::format("for {}", since));
     }
     r.buses.push_back(std::move(b));
   }
@@ -744,10 +838,12 @@ void custom_checks(const std::vector<std::pair<std::string, CanNodeCheck>>& chec
 CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
   std::shared_ptr<const CanConfig> cfg;
   std::vector<std::pair<std::string, CanNodeCheck>> checks;
+  std::vector<LinkReading> links;
   {
     std::lock_guard lock(mutex_);
     cfg = config_;
     checks = checks_;
+    links = links_;
   }
   CanReport r;
   r.time_ns = now;
@@ -775,7 +871,7 @@ CanReport CanMonitor::evaluate(CanSnapshot snapshot, Nanos now) const {
     dronecan_checks(n, r);
     j1939_checks(n, r);
   }
-  judge_buses(r, *cfg);
+  judge_buses(r, *cfg, links);
   custom_checks(checks, r);
   overall(r, options_);
   return r;

@@ -1,7 +1,9 @@
 #include "vigil/can/can_statistics.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <limits>
 #include <mutex>
 #include <tuple>
 #include <unordered_map>
@@ -275,6 +277,11 @@ struct CanAggregator::Impl {
   std::uint64_t error_records = 0;
   ProtocolTracker protocol;
 
+  // The cycle hook (set before the supervisor starts) and the wake-up it asked for.
+  std::function<void(const supervisor::DrainCycle&)> cycle_hook;
+  std::atomic<Nanos> wake_at{std::numeric_limits<Nanos>::max()};
+  std::atomic<std::uint64_t> hook_failures{0};
+
   // Supervisor thread only.
   SnifferSlot* current = nullptr;
   std::vector<IdEntry> id_scratch;
@@ -456,8 +463,32 @@ void CanAggregator::end(const Entry& /*e*/, const supervisor::PortDrain& d) {
 }
 
 void CanAggregator::on_cycle(const supervisor::DrainCycle& c) {
-  std::lock_guard lock(impl_->mutex);
-  impl_->cycles = c.cycle;
+  {
+    std::lock_guard lock(impl_->mutex);
+    impl_->cycles = c.cycle;
+  }
+  if (!impl_->cycle_hook) return;
+  try {
+    impl_->cycle_hook(c);
+  } catch (...) {
+    impl_->hook_failures.fetch_add(1, std::memory_order_relaxed);
+  }
+}
+
+Nanos CanAggregator::next_deadline() const noexcept {
+  return impl_->wake_at.load(std::memory_order_relaxed);
+}
+
+void CanAggregator::set_cycle_hook(std::function<void(const supervisor::DrainCycle&)> hook) {
+  impl_->cycle_hook = std::move(hook);
+}
+
+void CanAggregator::wake_at(Nanos time_ns) noexcept {
+  impl_->wake_at.store(time_ns, std::memory_order_relaxed);
+}
+
+std::uint64_t CanAggregator::hook_failures() const noexcept {
+  return impl_->hook_failures.load(std::memory_order_relaxed);
 }
 
 std::uint64_t CanAggregator::cycles() const {

@@ -2,6 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cstdio>
+#include <limits>
 #include <map>
 #include <set>
 #include <string>
@@ -26,6 +29,169 @@ CanExtension::CanExtension(can::CanConfig config, supervisor::EventHub* events)
           .thread_name = "vigil-can-sup",
           .clock = Clock{[](const void*) noexcept { return platform::now_ns(); }, nullptr}});
   monitor_ = std::make_unique<can::CanMonitor>(config_);
+  for (const can::BusConfig& b : config_.buses) {
+    if (!b.bus || !b.interface) continue;
+    can::LinkReading l;
+    l.bus = *b.bus;
+    l.interface = *b.interface;
+    links_.push_back(std::move(l));
+  }
+  // CAN events leave at the CAN supervisor's pace: judged and published at the end of each of
+  // its drains, on its thread (never on the sniffers' real-time side).
+  statistics_->set_cycle_hook([this](const supervisor::DrainCycle& c) { on_can_cycle(c); });
+}
+
+CanExtension::~CanExtension() {
+  // Its last drain calls the cycle hook, which needs the monitor: stop while it still exists.
+  try {
+    const std::lock_guard lock(step_mutex_);
+    supervisor_->stop();
+  } catch (...) {  // NOLINT(bugprone-empty-catch): out of memory in the last drain, nothing to say
+  }
+}
+
+void CanExtension::on_can_cycle(const supervisor::DrainCycle& c) {
+  // The regular drains' schedule, as the drain loop keeps it (one period after the latest
+  // regular drain): a drain that starts close to it, or after it, is a regular one.
+  const Nanos period = supervisor_->options().period_ns;
+  if (c.time_ns >= regular_next_ - wake_margin(period)) regular_next_ = c.time_ns + period;
+  // As add_reports: after a stop began, judged as of then (the bus went quiet with the system).
+  const Nanos stopped = stopped_at_.load(std::memory_order_relaxed);
+  const Nanos now = stopped != 0 ? stopped : platform::now_ns();
+  const Nanos t0 = platform::now_ns();
+  const can::CanReport r = monitor_->evaluate(*statistics_, now);
+  publish_changes(r, now);
+  publish_protocol_events(r);
+  schedule_wake(r);
+  // What judging at the drain's pace costs the CAN supervisor (its drain time excludes it).
+  const Nanos took = platform::now_ns() - t0;
+  judge_last_ns_.store(took, std::memory_order_relaxed);
+  if (took > judge_max_ns_.load(std::memory_order_relaxed)) {
+    judge_max_ns_.store(took, std::memory_order_relaxed);
+  }
+}
+
+Nanos CanExtension::wake_margin(Nanos period) noexcept {
+  return std::min<Nanos>(5 * kNanosPerMilli, period / 10);
+}
+
+namespace {
+
+supervisor::EventKind link_event_kind(can::LinkControllerState s) {
+  switch (s) {
+    case can::LinkControllerState::ErrorWarning:
+      return supervisor::EventKind::ErrorWarning;
+    case can::LinkControllerState::ErrorPassive:
+      return supervisor::EventKind::ErrorPassive;
+    case can::LinkControllerState::BusOff:
+      return supervisor::EventKind::BusOff;
+    default:
+      return supervisor::EventKind::ErrorActive;
+  }
+}
+
+}  // namespace
+
+void CanExtension::set_link_query(LinkQuery query) {
+  const std::lock_guard lock(links_mutex_);
+  link_query_ = std::move(query);
+}
+
+void CanExtension::read_links() {
+  if (links_.empty()) return;
+  const std::lock_guard lock(links_mutex_);
+  for (can::LinkReading& l : links_) {
+    // The state of the latest successful reading (-1: none), enum can_state's value.
+    const int before = l.info && l.info->state ? static_cast<int>(*l.info->state) : -1;
+    const std::string error_before = l.error;
+    ++l.reads;
+    l.read_ns = platform::now_ns();
+    auto info = link_query_ ? link_query_(l.interface) : can::query_link(l.interface);
+    if (!info) {
+      ++l.failures;
+      l.error = info.error().message;
+      if (l.error != error_before) {  // said once per change: the bus's report says it each cycle
+        std::fprintf(stderr, "vigil: can bus %u: controller state not read: %s\n", l.bus,
+                     l.error.c_str());
+      }
+      continue;
+    }
+    l.error.clear();
+    l.info = std::move(*info);
+    const int after = l.info->state ? static_cast<int>(*l.info->state) : -1;
+    // A change of the fault confinement state is an event, as an error frame's is; a first
+    // reading only when it is not error active. Stopped and sleeping are the bus's WARN only.
+    constexpr int kActive = static_cast<int>(can::LinkControllerState::ErrorActive);
+    constexpr int kBusOff = static_cast<int>(can::LinkControllerState::BusOff);
+    if (events_ != nullptr && after >= 0 && after <= kBusOff && after != before &&
+        (before >= 0 || after != kActive)) {
+      const auto state = static_cast<can::LinkControllerState>(after);
+      supervisor::Event e;
+      e.kind = link_event_kind(state);
+      e.severity = state == can::LinkControllerState::BusOff ? supervisor::EventSeverity::Error
+                   : state == can::LinkControllerState::ErrorPassive
+                       ? supervisor::EventSeverity::Warn
+                       : supervisor::EventSeverity::Info;
+      e.component = fmt::format("can bus {}", l.bus);
+      e.fault_ns = l.read_ns;  // read then (netlink gives no time of the change)
+      e.detected_ns = platform::now_ns();
+      e.detail = fmt::format(
+          "{} (netlink): {} -> {}", l.interface,
+          before >= 0 ? std::string(can::to_string(static_cast<can::LinkControllerState>(before)))
+                      : std::string("unknown"),
+          can::to_string(state));
+      if (l.info->tx_errors && l.info->rx_errors) {
+        e.detail +=
+            fmt::format("; error counters tx {} rx {}", *l.info->tx_errors, *l.info->rx_errors);
+      }
+      events_->publish(std::move(e));
+    }
+  }
+  // The interface's bitrate counts the load of a bus whose configuration gives none.
+  std::vector<std::pair<std::uint8_t, std::pair<std::uint32_t, std::uint32_t>>> bitrates;
+  for (const can::LinkReading& l : links_) {
+    if (!l.info || !l.info->bitrate || config_.bus_config(l.bus).settings.bitrate != 0) continue;
+    bitrates.emplace_back(l.bus, std::pair{*l.info->bitrate, l.info->data_bitrate.value_or(0)});
+  }
+  if (bitrates != link_bitrates_) {
+    link_bitrates_ = bitrates;
+    can::ProtocolOptions o = config_.protocol_options();
+    for (const auto& [bus, rates] : bitrates) {
+      can::BusSettings settings = config_.bus_config(bus).settings;
+      settings.bitrate = rates.first;
+      if (settings.data_bitrate == 0) settings.data_bitrate = rates.second;
+      std::erase_if(o.buses, [bus = bus](const auto& e) { return e.first == bus; });
+      o.buses.emplace_back(bus, settings);
+    }
+    statistics_->set_protocol_options(std::move(o));
+  }
+  monitor_->set_links(links_);
+}
+
+void CanExtension::schedule_wake(const can::CanReport& r) {
+  // The earliest time a responding node's silence (or a request to it) passes its limit: one
+  // more drain then judges it up to that time (strictly above the limit: +1 ns).
+  Nanos next = std::numeric_limits<Nanos>::max();
+  for (const can::NodeReport& n : r.nodes) {
+    if (!n.is_node() || n.liveness != can::Liveness::Responding) continue;
+    if (n.silence_ns >= 0 && n.silence_limit_ns >= 0) {
+      next = std::min(next, r.observed_ns - n.silence_ns + n.silence_limit_ns + 1);
+    }
+    if (n.unanswered_ns >= 0 && n.thresholds.answer_within_ns >= 0) {
+      next = std::min(next, r.observed_ns - n.unanswered_ns + n.thresholds.answer_within_ns + 1);
+    }
+  }
+  // No extra drain for a limit that passes within the margin before the next regular drain:
+  // that drain judges it (a healthy node sending every millisecond with a 100 ms limit would
+  // otherwise double the drains). Later than the regular drain: that drain asks again.
+  if (next >= regular_next_ - wake_margin(supervisor_->options().period_ns)) {
+    next = std::numeric_limits<Nanos>::max();
+  }
+  // Never a busy loop: an observation that cannot pass the time asked for (a port that never
+  // empties) gets one more drain per millisecond at most.
+  const Nanos soonest = platform::now_ns() + kNanosPerMilli;
+  if (next != std::numeric_limits<Nanos>::max()) next = std::max(next, soonest);
+  statistics_->wake_at(next);
 }
 
 expected<void, Error> CanExtension::start() {
@@ -62,6 +228,18 @@ Report CanExtension::supervisor_report(const can::CanReport& r, bool running) co
   s.add("messages", std::to_string(st.messages));
   s.add("ports", std::to_string(st.ports));
   s.add("observer_lag", format_nanos(static_cast<double>(r.observer_lag_ns)));
+  // Judging the nodes and publishing the CAN events at the end of each drain.
+  s.add("judge_time",
+        fmt::format(
+            "last {}, max {}",
+            format_nanos(static_cast<double>(judge_last_ns_.load(std::memory_order_relaxed))),
+            format_nanos(static_cast<double>(judge_max_ns_.load(std::memory_order_relaxed)))));
+  if (const std::uint64_t failed = statistics_->hook_failures(); failed > 0) {
+    // The CAN events of those drains were not published (a custom check threw, out of memory).
+    s.merge(StatusLevel::Warn,
+            fmt::format("CAN events not judged at {} drain{}: the evaluation failed", failed,
+                        failed == 1 ? "" : "s"));
+  }
   const Nanos limit = monitor_->options().stale_after_ns;
   if (limit > 0 && r.observer_lag_ns > limit) {
     // Its own finding: the nodes are judged up to what it read, so none of them turns ERROR.
@@ -164,8 +342,14 @@ Report bus_report(const can::BusReport& b) {
   rep.name = fmt::format("can bus {}", b.bus);
   rep.status = b.status;
   const can::ControllerStats& c = b.stats.controller;
-  rep.state_label = c.state == can::ControllerState::Unknown ? std::string("no error frames")
-                                                             : std::string(can::to_string(c.state));
+  const can::LinkInfo* live = b.link && b.link->info ? &*b.link->info : nullptr;
+  if (live != nullptr && live->state) {
+    rep.state_label = std::string(can::to_string(*live->state));  // the driver's, read live
+  } else {
+    rep.state_label = c.state == can::ControllerState::Unknown
+                          ? std::string("no error frames")
+                          : std::string(can::to_string(c.state));
+  }
   const auto mode = static_cast<std::size_t>(b.config.load.stuffing);
   const can::BusLoad& all = b.stats.load[mode][2];
   rep.add_field(Field::of_count("frames", all.frames));
@@ -184,6 +368,51 @@ Report bus_report(const can::BusReport& b) {
         "load_tx_1m", percent_text(b.stats.load[mode][1], b.stats.load[mode][1].avg_1m)));
   }
   rep.add_field(Field::of_text("stuffing", std::string(can::to_string(b.config.load.stuffing))));
+  if (b.config.settings.bitrate != 0) {
+    rep.add_field(Field::of_count("bitrate", b.config.settings.bitrate));
+    if (b.config.settings.data_bitrate != 0) {
+      rep.add_field(Field::of_count("data_bitrate", b.config.settings.data_bitrate));
+    }
+    rep.add_field(Field::of_text("bitrate_source", b.bitrate_from_link ? "netlink" : "configured"));
+  }
+  if (b.link) {  // read live through netlink (vigil/can/can_link.hpp)
+    rep.add_field(Field::of_text("interface", b.link->interface));
+    rep.add_field(Field::of_count("link_reads", b.link->reads));
+    rep.add_field(Field::of_count("link_read_failures", b.link->failures));
+    if (!b.link->error.empty()) rep.add_field(Field::of_text("link_error", b.link->error));
+    if (live != nullptr) {
+      rep.add_field(Field::of_text("link_kind", live->kind));
+      if (live->state) {
+        rep.add_field(
+            Field::of_text("controller_state", std::string(can::to_string(*live->state))));
+        rep.add_field(
+            Field::of_count("controller_state_code", static_cast<std::uint64_t>(*live->state)));
+      }
+      if (live->tx_errors)
+        rep.add_field(Field::of_count("link_tx_error_counter", *live->tx_errors));
+      if (live->rx_errors)
+        rep.add_field(Field::of_count("link_rx_error_counter", *live->rx_errors));
+      if (live->device_stats) {
+        const can::LinkDeviceStats& d = *live->device_stats;
+        rep.add_field(Field::of_count("link_bus_errors", d.bus_error));
+        rep.add_field(Field::of_count("link_restarts", d.restarts));
+        rep.add_field(Field::of_count("link_bus_offs", d.bus_off));
+        rep.add_field(Field::of_count("link_error_passives", d.error_passive));
+        rep.add_field(Field::of_count("link_error_warnings", d.error_warning));
+        rep.add_field(Field::of_count("link_arbitration_lost", d.arbitration_lost));
+      }
+      if (live->restart_ms) rep.add_field(Field::of_count("restart_ms", *live->restart_ms));
+      if (live->counters) {  // the interface's own counters (IFLA_STATS64)
+        rep.add_field(Field::of_count("link_rx_frames", live->counters->rx_packets));
+        rep.add_field(Field::of_count("link_tx_frames", live->counters->tx_packets));
+        rep.add_field(Field::of_count("link_rx_errors", live->counters->rx_errors));
+        rep.add_field(Field::of_count("link_tx_errors", live->counters->tx_errors));
+        rep.add_field(Field::of_count("link_rx_dropped", live->counters->rx_dropped));
+        rep.add_field(Field::of_count("link_tx_dropped", live->counters->tx_dropped));
+      }
+      if (live->skipped > 0) rep.add_field(Field::of_count("link_skipped", live->skipped));
+    }
+  }
   rep.add_field(Field::of_count("error_frames", c.error_frames));
   if (c.error_frames > 0) {
     rep.add_field(Field::of_count("error_passives", c.passives));
@@ -218,6 +447,7 @@ Report group_report(const std::string& name, GroupTally& t) {
 
 void CanExtension::add_reports(ReportSet& reports, std::vector<exporter::CanHistograms>* histograms,
                                std::vector<exporter::CanBusLoads>* buses) {
+  read_links();  // first: the step below and the evaluation judge the same readings
   bool running = false;
   {
     const std::lock_guard lock(step_mutex_);
@@ -230,9 +460,9 @@ void CanExtension::add_reports(ReportSet& reports, std::vector<exporter::CanHist
   // apart, in the CAN supervisor's report.
   const Nanos stopped = stopped_at_.load(std::memory_order_relaxed);
   const Nanos now = stopped != 0 ? stopped : platform::now_ns();
+  // The events of this evaluation left already: the CAN supervisor's cycle hook publishes them
+  // at the end of each drain (the step above included).
   const can::CanReport r = monitor_->evaluate(*statistics_, now);
-  publish_changes(r, now);
-  publish_protocol_events(r);
   reports.components.push_back(supervisor_report(r, running));
   std::map<std::string, GroupTally> groups;
   std::map<std::pair<std::uint8_t, std::uint32_t>, std::string> names;  // of the nodes seen
@@ -259,7 +489,7 @@ void CanExtension::add_reports(ReportSet& reports, std::vector<exporter::CanHist
     for (const std::uint8_t bus : t.buses) {
       const can::BusReport* b = r.find_bus(bus);
       if (b == nullptr) continue;
-      const can::ControllerState st = b->stats.controller.state;
+      const can::ControllerState st = b->controller_state;  // live (netlink) or error frames'
       if (st == can::ControllerState::BusOff) {
         t.status.merge(StatusLevel::Error, fmt::format("can bus {}: controller bus off", bus));
       } else if (st == can::ControllerState::ErrorPassive) {

@@ -853,6 +853,55 @@ void can_bus_families(const Section& s) {
   });
 }
 
+// CAN buses whose interface is read through netlink (`buses.<bus>.interface`): the controller as
+// the driver reports it, from the bus unit's fields (vigil/can/can_link.hpp).
+void can_link_families(const Section& s) {
+  Writer& w = s.w;
+  w.family("vigil_can_bus_controller_state", Type::Gauge,
+           "State of a CAN controller read through netlink (enum can_state: 0 error active, 1 "
+           "error warning, 2 error passive, 3 bus off, 4 stopped, 5 sleeping).");
+  s.each(is_can_bus, [&](const Report& r) {
+    if (auto v = count_field(r, "controller_state_code")) {
+      w.sample_u("vigil_can_bus_controller_state", r.name, {}, *v);
+    }
+  });
+  w.family("vigil_can_bus_error_counter", Type::Gauge,
+           "Transmit and receive error counters of a CAN controller read through netlink.");
+  s.each(is_can_bus, [&](const Report& r) {
+    if (auto v = count_field(r, "link_tx_error_counter")) {
+      w.sample_u("vigil_can_bus_error_counter", r.name, {{"direction", "tx"}}, *v);
+    }
+    if (auto v = count_field(r, "link_rx_error_counter")) {
+      w.sample_u("vigil_can_bus_error_counter", r.name, {{"direction", "rx"}}, *v);
+    }
+  });
+  w.family("vigil_can_bus_restarts_total", Type::Counter,
+           "Restarts of a CAN controller (can_device_stats, read through netlink).");
+  s.each(is_can_bus, [&](const Report& r) {
+    if (auto v = count_field(r, "link_restarts")) {
+      w.sample_u("vigil_can_bus_restarts_total", r.name, {}, *v);
+    }
+  });
+  w.family("vigil_can_bus_errors_total", Type::Counter,
+           "Bus errors of a CAN controller (can_device_stats, read through netlink).");
+  s.each(is_can_bus, [&](const Report& r) {
+    if (auto v = count_field(r, "link_bus_errors")) {
+      w.sample_u("vigil_can_bus_errors_total", r.name, {}, *v);
+    }
+  });
+  w.family("vigil_can_bus_bitrate", Type::Gauge,
+           "Bitrate a CAN bus's load is counted with, bit/s, by phase (nominal, data); "
+           "configured or read through netlink.");
+  s.each(is_can_bus, [&](const Report& r) {
+    if (auto v = count_field(r, "bitrate")) {
+      w.sample_u("vigil_can_bus_bitrate", r.name, {{"phase", "nominal"}}, *v);
+    }
+    if (auto v = count_field(r, "data_bitrate")) {
+      w.sample_u("vigil_can_bus_bitrate", r.name, {{"phase", "data"}}, *v);
+    }
+  });
+}
+
 // Health supervisions (vigil/health): one unit each, its type (alive, deadline, logical) a label.
 void supervision_families(const Section& s) {
   Writer& w = s.w;
@@ -957,8 +1006,8 @@ constexpr SectionWriter kSections[] = {
     component_gauge_families,   thread_families,
     supervisor_families,        monitor_families,
     can_node_families,          can_group_families,
-    can_bus_families,           supervision_families,
-    reaction_families,
+    can_bus_families,           can_link_families,
+    supervision_families,       reaction_families,
 };
 
 }  // namespace

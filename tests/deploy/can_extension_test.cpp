@@ -2,7 +2,9 @@
 // registration call anywhere in this binary).
 #include "vigil/deploy/can_extension.hpp"
 
+#include <atomic>
 #include <catch2/catch.hpp>
+#include <condition_variable>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -403,4 +405,187 @@ can:
   CHECK(engine->field("active_dtcs")->count == 0);
   REQUIRE(engine->field("j1939_name") != nullptr);
   CHECK(engine->field("lamps")->text == "MIL off, red stop off, amber warning off, protect off");
+}
+
+TEST_CASE("CAN events leave at the CAN supervisor's pace, not the monitor's",
+          "[deploy][can][events]") {
+  // A monitor cycle every 30 s: were CAN events published with the monitor's cycles, none would
+  // come in this test. Node 3 is quiet from about 50 ms (limit 100 ms); node 1's emergency comes
+  // at about 250 ms and its bus goes off at about 300 ms.
+  auto spec = load_deployment_string(R"(
+activities: [{name: io, period: 5ms}, {name: io2, period: 5ms}]
+components:
+  - {name: bus, type: test.can_bus, activity: io, parameters: {quiet_after: 10}}
+  - {name: canopen, type: test.canopen_bus, activity: io2}
+supervision: {lock_memory: false, monitor_period: 30s}
+can:
+  node_map: canopen
+  defaults: {not_responding: {after: 100ms}}
+)",
+                                     "can.yaml", factory());
+  REQUIRE(spec.has_value());
+  auto sys = System::create(std::move(*spec), factory());
+  REQUIRE(sys.has_value());
+  std::mutex m;
+  std::condition_variable cv;
+  std::vector<Event> seen;
+  const auto sub = (*sys)->service().events().subscribe([&](const Event& e) {
+    const std::lock_guard lock(m);
+    seen.push_back(e);
+    cv.notify_all();
+  });
+  const auto find = [&](EventKind k) -> const Event* {
+    for (const Event& e : seen) {
+      if (e.kind == k) return &e;
+    }
+    return nullptr;
+  };
+  const Nanos start = platform::now_ns();
+  REQUIRE((*sys)->start().has_value());
+  Nanos arrived = -1;
+  {
+    std::unique_lock lock(m);
+    // A tenth of the monitor period at most (a loaded test host may be slow: no tighter).
+    cv.wait_for(lock, std::chrono::seconds(3), [&] {
+      return find(EventKind::NotResponding) != nullptr && find(EventKind::Emergency) != nullptr &&
+             find(EventKind::BusOff) != nullptr;
+    });
+    arrived = platform::now_ns();
+  }
+  const std::uint64_t monitor_cycles = (*sys)->service().snapshot()->cycle;
+  (*sys)->stop();
+  (*sys)->service().events().flush();
+  (*sys)->service().events().unsubscribe(sub);
+  const std::lock_guard lock(m);
+  const Event* down = find(EventKind::NotResponding);
+  REQUIRE(down != nullptr);
+  CHECK(down->component == "can0/3");
+  // Judged on the frames' clock: its last frame + the limit, never before.
+  CHECK(down->fault_ns > start + 100 * kNanosPerMilli);
+  CHECK(down->detected_ns >= down->fault_ns);
+  // Well within the monitor's period: the CAN supervisor woke for the limit.
+  CHECK(down->detected_ns - down->fault_ns < kNanosPerSecond);
+  REQUIRE(find(EventKind::Emergency) != nullptr);
+  CHECK(find(EventKind::Emergency)->component == "can0/1");
+  REQUIRE(find(EventKind::BusOff) != nullptr);
+  CHECK(find(EventKind::BusOff)->detected_ns - find(EventKind::BusOff)->fault_ns < kNanosPerSecond);
+  CHECK(arrived - start < 3 * kNanosPerSecond);
+  // No monitor cycle after the first (if any) came before the events.
+  CHECK(monitor_cycles <= 1);
+}
+
+TEST_CASE("A bus whose interface is no CAN controller says so, and supervision goes on",
+          "[deploy][can][link]") {
+  // `lo` exists on every Linux host and is no CAN device: the netlink reading fails with a reason
+  // naming it, the bus is WARN, the nodes are judged as ever.
+  auto spec = load_deployment_string(R"(
+activities: [{name: io, period: 5ms}]
+components: [{name: bus, type: test.can_bus, activity: io, parameters: {quiet_after: 1000000}}]
+supervision: {lock_memory: false, monitor_period: 50ms}
+can:
+  node_map: canopen
+  buses: {0: {interface: lo}}
+  nodes: {drive_1: {node: 1, bus: 0}}
+)",
+                                     "can.yaml", factory());
+  REQUIRE(spec.has_value());
+  auto sys = System::create(std::move(*spec), factory());
+  REQUIRE(sys.has_value());
+  REQUIRE((*sys)->start().has_value());
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  (*sys)->stop();
+  const ReportSet r = (*sys)->step_monitor();
+  const Report* bus = r.find("can bus 0");
+  REQUIRE(bus != nullptr);
+  CHECK(bus->status.level() == StatusLevel::Warn);
+  CHECK_THAT(bus->status.summary(),
+             Catch::Contains("CAN interface lo: not a CAN device (link kind: none)"));
+  REQUIRE(bus->field("interface") != nullptr);
+  CHECK(bus->field("interface")->text == "lo");
+  REQUIRE(bus->field("link_read_failures") != nullptr);
+  CHECK(bus->field("link_read_failures")->count >= 1);
+  CHECK(bus->field("link_read_failures")->count == bus->field("link_reads")->count);
+  const Report* drive = r.find("can0/drive_1");
+  REQUIRE(drive != nullptr);
+  CHECK(drive->status.ok());
+  CHECK(drive->state_label == "responding");
+}
+
+TEST_CASE("A bus's controller read through netlink: its state judged, its changes events",
+          "[deploy][can][link][events]") {
+  // The readings an RTM_GETLINK would give, replayed: error active at 250 kbit/s, then error
+  // passive, then bus off.
+  auto spec = load_deployment_string(R"(
+activities: [{name: io, period: 5ms}]
+components: [{name: bus, type: test.can_bus, activity: io, parameters: {quiet_after: 1000000}}]
+supervision: {lock_memory: false, monitor_period: 20ms}
+can:
+  node_map: canopen
+  buses: {0: {interface: fake0}}
+  groups: {arm: {nodes: [1, 2, 3], bus: 0}}
+)",
+                                     "can.yaml", factory());
+  REQUIRE(spec.has_value());
+  auto sys = System::create(std::move(*spec), factory());
+  REQUIRE(sys.has_value());
+  auto* ext = (*sys)->extension<CanExtension>();
+  REQUIRE(ext != nullptr);
+  std::atomic<int> reads{0};
+  ext->set_link_query([&](std::string_view name) -> expected<can::LinkInfo, Error> {
+    const int n = ++reads;
+    can::LinkInfo i;
+    i.name = std::string(name);
+    i.kind = "can";
+    i.up = true;
+    i.bitrate = 250000;
+    i.state = n <= 3   ? can::LinkControllerState::ErrorActive
+              : n <= 6 ? can::LinkControllerState::ErrorPassive
+                       : can::LinkControllerState::BusOff;
+    i.tx_errors = static_cast<std::uint16_t>(n <= 3 ? 0 : n <= 6 ? 130 : 256);
+    i.rx_errors = 0;
+    return i;
+  });
+  std::mutex m;
+  std::vector<Event> seen;
+  const auto sub = (*sys)->service().events().subscribe([&](const Event& e) {
+    if (e.component != "can bus 0") return;
+    const std::lock_guard lock(m);
+    seen.push_back(e);
+  });
+  REQUIRE((*sys)->start().has_value());
+  for (int i = 0; i < 200 && reads.load() < 10; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  (*sys)->stop();
+  const ReportSet r = (*sys)->step_monitor();
+  (*sys)->service().events().flush();
+  (*sys)->service().events().unsubscribe(sub);
+  REQUIRE(reads.load() >= 7);
+  {
+    const std::lock_guard lock(m);
+    REQUIRE(seen.size() == 2);  // the first reading is error active: no event
+    CHECK(seen[0].kind == EventKind::ErrorPassive);
+    CHECK(seen[0].severity == EventSeverity::Warn);
+    CHECK(seen[0].detail ==
+          "fake0 (netlink): error active -> error passive; error counters tx "
+          "130 rx 0");
+    CHECK(seen[1].kind == EventKind::BusOff);
+    CHECK(seen[1].severity == EventSeverity::Error);
+    CHECK(seen[1].detected_ns >= seen[1].fault_ns);
+  }
+  const Report* bus = r.find("can bus 0");
+  REQUIRE(bus != nullptr);
+  CHECK(bus->status.level() == StatusLevel::Error);
+  CHECK(bus->state_label == "bus off");
+  CHECK_THAT(bus->status.summary(), Catch::Contains("controller bus off (fake0, read live"));
+  REQUIRE(bus->field("bitrate") != nullptr);
+  CHECK(bus->field("bitrate")->count == 250000);
+  CHECK(bus->field("bitrate_source")->text == "netlink");
+  CHECK(bus->field("controller_state_code")->count == 3);
+  CHECK(bus->field("link_tx_error_counter")->count == 256);
+  // The load is counted with the interface's bitrate (none configured).
+  REQUIRE(bus->field("load_1m") != nullptr);
+  const Report* arm = r.find("can group arm");
+  REQUIRE(arm != nullptr);
+  CHECK(arm->status.level() == StatusLevel::Error);  // its nodes' bus is off
 }

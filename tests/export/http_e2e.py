@@ -204,7 +204,11 @@ def check_reference(args):
     _, _, body = demo.get("/metrics")
     demo.finish()
     exposed = exposed_families(body)
-    missing = sorted(documented - exposed)
+    # Read through netlink from a bus's SocketCAN interface (buses.<bus>.interface): the demo's
+    # simulated bus has none.
+    live_can_only = {"vigil_can_bus_controller_state", "vigil_can_bus_error_counter",
+                     "vigil_can_bus_restarts_total", "vigil_can_bus_errors_total"}
+    missing = sorted(documented - exposed - live_can_only)
     undocumented = sorted(exposed - documented)
     if missing:
         fail(f"documented in docs/reference/metrics.md but not exposed by the demo: {missing}")

@@ -11,7 +11,7 @@ work="$1"
 cpu="$2"
 shift 2
 targets=("$@")
-[[ ${#targets[@]} -gt 0 ]] || targets=(candump trc deployment thresholds can_config http_request shm_segment)
+[[ ${#targets[@]} -gt 0 ]] || targets=(candump trc deployment thresholds can_config http_request shm_segment can_link)
 mkdir -p "$work"
 export VIGIL_FUZZ_CPU=1 root work cpu
 printf '%s\n' "${targets[@]}" | xargs -P 2 -I{} bash -c '

@@ -7,7 +7,8 @@
 # fuzzer instead (on a loaded machine, at nice 19, wall time says little): the run is then
 # stopped with SIGINT once the fuzzer has used that much CPU.
 #
-# TARGET: candump, trc, deployment, thresholds, can_config, http_request, shm_segment, shm_live
+# TARGET: candump, trc, deployment, thresholds, can_config, http_request, shm_segment, shm_live,
+#         can_link
 # (tests/fuzz/CMakeLists.txt).
 # WORKDIR (outside the repository) receives corpus/ (grows from run to run), seeds/ (copied from
 # seeds.txt), artifacts/ (crash-*, timeout-*, oom-* inputs) and fuzz.log. The run uses
@@ -31,7 +32,7 @@ while read -r t pattern; do
 done < <(grep -v '^#' "$root/tests/fuzz/seeds.txt")
 dict=()
 case "$target" in
-  candump | trc | shm_segment | shm_live) ;;
+  candump | trc | shm_segment | shm_live | can_link) ;;
   http_request) dict=(-dict="$root/tests/fuzz/http.dict") ;;
   *) dict=(-dict="$root/tests/fuzz/yaml.dict") ;;
 esac

@@ -199,6 +199,10 @@ struct BusConfig {
   std::optional<double> load_error{};
   std::optional<Stuffing> load_stuffing{};
   std::optional<LoadFigure> load_figure{};
+  /// The SocketCAN interface of this bus ("can0"; a bus entry only, not `all`): its controller's
+  /// state, error counters, restarts and bitrate are read live through rtnetlink at the
+  /// monitor's pace (vigil/can/can_link.hpp) by the deployment's CAN supervision.
+  std::optional<std::string> interface {};
 };
 
 /// A bus's settings after layering (`all`, then its own entry).

@@ -34,6 +34,13 @@
 /// observed) is a separate finding: the overall status is Stale when it exceeds
 /// `CanMonitorOptions::stale_after_ns`.
 ///
+/// Buses: the load against its thresholds, and the controller's state: error passive WARN, bus
+/// off ERROR, error warning an OK message. The state is the one netlink read live when the bus
+/// names its interface (`buses.<bus>.interface`, `set_links`; a stopped interface is WARN, one
+/// that cannot be read WARN with the reason), else the one the latest error frames gave. The
+/// bitrate for the load is the configured one; without one, the interface's (netlink); both
+/// given and different is WARN (the configured one is used).
+///
 /// Overall status: the worst node status, plus WARN when no frame (or no valid frame) was seen,
 /// for frames the sniffers could not track (table full) and for error frames, Stale when the
 /// observation is late (above); dropped records and learning nodes are reported as OK messages.
@@ -52,6 +59,7 @@
 #include <vector>
 
 #include "vigil/can/can_config.hpp"
+#include "vigil/can/can_link.hpp"
 #include "vigil/can/can_statistics.hpp"
 #include "vigil/monitor/status.hpp"
 #include "vigil/platform/clock.hpp"
@@ -152,13 +160,23 @@ struct NodeReport {
   [[nodiscard]] bool is_node() const noexcept { return liveness != Liveness::NoNode; }
 };
 
-/// What the monitor says about one bus: its load, its controller's state (error frames).
+/// What the monitor says about one bus: its load, its controller's state (error frames, and
+/// live through netlink when the bus names its interface).
 struct BusReport {
   std::uint8_t bus = 0;
-  ResolvedBus config;      ///< its bitrates, protocol and load thresholds
+  /// Its bitrates, protocol and load thresholds; `config.settings.bitrate` is the interface's
+  /// (netlink) when the configuration gives none (`bitrate_from_link`).
+  ResolvedBus config;
   BusProtocolStats stats;  ///< from `CanSnapshot::protocol`
+  /// The latest netlink reading of its interface (`buses.<bus>.interface`), if it has one.
+  std::optional<LinkReading> link;
+  /// The controller's state judged: the live one when netlink read it (`link`), else the one
+  /// the error frames gave (`stats.controller.state`).
+  ControllerState controller_state = ControllerState::Unknown;
+  bool live_state = false;         ///< `controller_state` comes from netlink
+  bool bitrate_from_link = false;  ///< the bitrate used for the load is the interface's
   /// The load judged: `config.load.figure` of the `config.load.stuffing` count, both directions
-  /// (percent; NaN when the bitrate is not configured).
+  /// (percent; NaN when the bitrate is not known).
   double judged_load = 0;
   Status status;  ///< load above its thresholds; error passive WARN, bus off ERROR
 };
@@ -230,6 +248,10 @@ class CanMonitor {
 
   /// Adds a check run on every node after the built-in ones. Thread-safe.
   void add_check(std::string name, CanNodeCheck check);
+  /// The latest live readings of the buses' interfaces (netlink; the CAN extension reads them
+  /// at the monitor's pace), judged with every later evaluation: a bus with one is reported even
+  /// before its first frame. Thread-safe.
+  void set_links(std::vector<LinkReading> links);
 
   /// Takes a snapshot of `aggregator` (with the configuration's groups) and judges it at `now`
   /// (the clock of the sniffers' timestamps); silences are measured up to the snapshot's
@@ -245,6 +267,7 @@ class CanMonitor {
   mutable std::mutex mutex_;
   std::shared_ptr<const CanConfig> config_;
   std::vector<std::pair<std::string, CanNodeCheck>> checks_;
+  std::vector<LinkReading> links_;
 };
 
 }  // namespace vigil::can

@@ -257,8 +257,24 @@ class CanAggregator {
   void on(const Entry& e, const FrameRecord& r);
   /// Ends the batch: reads the sniffer's tables (exact counts), frees replaced filters.
   void end(const Entry& e, const supervisor::PortDrain& d);
-  /// Counts supervisor cycles.
+  /// Counts supervisor cycles, then calls the cycle hook (`set_cycle_hook`), if any.
   void on_cycle(const supervisor::DrainCycle& c);
+  /// The supervisor's thread wakes at the earlier of its next period and this time (monotonic
+  /// clock, `wake_at`) for one more cycle; INT64_MAX when none is asked.
+  [[nodiscard]] Nanos next_deadline() const noexcept;
+
+  // --- what leaves at the drain's pace (set before the supervisor starts) ---
+  /// Called at the end of every supervisor cycle (after the cycle's records and tables are
+  /// applied, outside the statistics lock), on the supervisor's thread or `step()`'s caller:
+  /// what must not wait for a monitor cycle (CAN events, `deploy::CanExtension`). It may call
+  /// the readers below and `wake_at`. Set it before the supervisor starts; exceptions it throws
+  /// are caught and counted (`hook_failures`).
+  void set_cycle_hook(std::function<void(const supervisor::DrainCycle&)> hook);
+  /// Asks for a cycle at `time_ns` (monotonic clock), e.g. when a node's silence limit passes;
+  /// replaces the previous request. INT64_MAX: none. Any thread.
+  void wake_at(Nanos time_ns) noexcept;
+  /// Exceptions the cycle hook threw so far. Any thread.
+  [[nodiscard]] std::uint64_t hook_failures() const noexcept;
 
   // --- readers (any thread) ---
   /// A consistent copy of every statistic, with categories for "all" and for `groups`.
