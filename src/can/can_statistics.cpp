@@ -61,8 +61,7 @@ StatsSummary exact_summary(std::vector<Nanos>& samples) {
   // (about 1.6 n steps in all instead of n log n).
   auto from = samples.begin();
   const auto at = [&](double q) {
-    const auto k =
-        static_cast<std::ptrdiff_t>(vigil::supervisor::detail::nearest_rank(q, n) - 1);
+    const auto k = static_cast<std::ptrdiff_t>(vigil::supervisor::detail::nearest_rank(q, n) - 1);
     const auto kth = samples.begin() + k;
     if (kth >= from) {
       std::nth_element(from, kth, samples.end());

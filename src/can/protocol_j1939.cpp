@@ -1,6 +1,7 @@
 // SAE J1939 in the protocol tracker: DM1 active and DM2 previously active trouble codes
-// (J1939-73), single frame and reassembled by the transport protocol (J1939-21: BAM and connection mode, as a passive
-// observer), address claims (J1939-81). Docs: docs/guide/can-protocols.md, "SAE J1939".
+// (J1939-73), single frame and reassembled by the transport protocol (J1939-21: BAM and
+// connection mode, as a passive observer), address claims (J1939-81). Docs:
+// docs/guide/can-protocols.md, "SAE J1939".
 #include <fmt/format.h>
 
 #include <algorithm>

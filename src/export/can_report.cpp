@@ -347,11 +347,11 @@ std::string dtc_list(const std::vector<j1939::Dtc>& codes, std::uint64_t untrack
 std::string j1939_table(const CanReport& r, const CanTextOptions& options) {
   const auto& nodes = r.snapshot.protocol.j1939;
   if (nodes.empty()) return {};
-  const bool dm2 = std::any_of(nodes.begin(), nodes.end(),
-                               [](const j1939::NodeStats& n) { return n.dm2s > 0; });
-  std::vector<std::string> head{"BUS", "SA", "NAME", "CLAIMED AS", "DM1", "ACTIVE", "APPEARED",
-                                "CLEARED", "LAMPS", "TP MSGS", "TP TIMEOUTS", "MALFORMED",
-                                "ACTIVE DTCS"};
+  const bool dm2 =
+      std::any_of(nodes.begin(), nodes.end(), [](const j1939::NodeStats& n) { return n.dm2s > 0; });
+  std::vector<std::string> head{"BUS",         "SA",        "NAME",       "CLAIMED AS", "DM1",
+                                "ACTIVE",      "APPEARED",  "CLEARED",    "LAMPS",      "TP MSGS",
+                                "TP TIMEOUTS", "MALFORMED", "ACTIVE DTCS"};
   std::vector<bool> right{false, false, false, false, true, true, true,
                           true,  false, true,  true,  true, false};
   if (dm2) {
@@ -373,15 +373,21 @@ std::string j1939_table(const CanReport& r, const CanTextOptions& options) {
       lamps = lamps.empty() ? "off" : lamps.substr(0, lamps.size() - 1);
     }
     std::vector<std::string> row{
-        bus_name(n.bus, options.bus_names), fmt::format("0x{:02X}", n.address),
+        bus_name(n.bus, options.bus_names),
+        fmt::format("0x{:02X}", n.address),
         rep != nullptr && rep->named ? rep->name : "-",
         n.name ? n.name->label() +
                      fmt::format(" (mfr {}, id {})", n.name->manufacturer, n.name->identity)
                : "-",
-        fmt::format("{}", n.dm1s), fmt::format("{}", n.active.size()),
-        fmt::format("{}", n.dtcs_appeared), fmt::format("{}", n.dtcs_cleared), lamps,
-        fmt::format("{}", n.tp_messages), fmt::format("{}", n.tp_timeouts),
-        fmt::format("{}", n.malformed), dtcs};
+        fmt::format("{}", n.dm1s),
+        fmt::format("{}", n.active.size()),
+        fmt::format("{}", n.dtcs_appeared),
+        fmt::format("{}", n.dtcs_cleared),
+        lamps,
+        fmt::format("{}", n.tp_messages),
+        fmt::format("{}", n.tp_timeouts),
+        fmt::format("{}", n.malformed),
+        dtcs};
     if (dm2) {
       row.push_back(fmt::format("{}", n.dm2s));
       row.push_back(n.dm2s > 0 ? dtc_list(n.previously_active, n.previously_active_untracked)
@@ -1079,10 +1085,10 @@ std::string format_can_replay(const LogReplay& replay, const CanReport& report,
       if (n.dm1s > 0) ++with_dm1;
       if (n.dm2s > 0) ++with_dm2;
     }
-    const std::string dm2_text =
-        with_dm2 == 0 ? std::string()
-                      : fmt::format("{} previously active (DM2 from {} node{}), ", previous,
-                                    with_dm2, with_dm2 == 1 ? "" : "s");
+    const std::string dm2_text = with_dm2 == 0
+                                     ? std::string()
+                                     : fmt::format("{} previously active (DM2 from {} node{}), ",
+                                                   previous, with_dm2, with_dm2 == 1 ? "" : "s");
     j1939_text = fmt::format(
         "J1939: {} node{} with DM1, {} active DTC{} ({} appeared), {}{} address "
         "claim{}, ",

@@ -115,8 +115,7 @@ TEST_CASE("J1939 DM2: previously active DTCs decoded like DM1, named DM2 in erro
   // Lamps 0x44: MIL 01 on (bits 8-7), amber warning 01 on (bits 4-3). DTC 00 F0 EE 01: SPN
   // 0x00 | 0xF0 << 8 | (0xEE >> 5 = 7) << 16 = 0x7F000 = 520192, FMI 0xEE & 0x1F = 14, CM 0,
   // 1 occurrence. DTC 21 06 1F FE: SPN 0x621 = 1569, FMI 31, CM 1, 126 occurrences.
-  const std::vector<std::uint8_t> two{0x44, 0xFF, 0x00, 0xF0, 0xEE, 0x01,
-                                      0x21, 0x06, 0x1F, 0xFE};
+  const std::vector<std::uint8_t> two{0x44, 0xFF, 0x00, 0xF0, 0xEE, 0x01, 0x21, 0x06, 0x1F, 0xFE};
   const auto d = j1939::decode_dm2(two, false, error);
   REQUIRE(d.has_value());
   CHECK(d->lamps.mil == j1939::Lamp::On);
@@ -126,8 +125,7 @@ TEST_CASE("J1939 DM2: previously active DTCs decoded like DM1, named DM2 in erro
   CHECK(d->dtcs[0] == j1939::Dtc{.spn = 520192, .fmi = 14, .occurrences = 1});
   CHECK(d->dtcs[1] ==
         j1939::Dtc{.spn = 1569, .fmi = 31, .occurrences = 126, .conversion_method = true});
-  CHECK_FALSE(
-      j1939::decode_dm2(std::vector<std::uint8_t>{0, 0xFF, 0, 0}, true, error).has_value());
+  CHECK_FALSE(j1939::decode_dm2(std::vector<std::uint8_t>{0, 0xFF, 0, 0}, true, error).has_value());
   CHECK(error == "DM2 of 4 bytes (at least 6: lamps and one DTC)");
   CHECK_FALSE(j1939::decode_dm2(std::vector<std::uint8_t>(9, 0), false, error).has_value());
   CHECK(error == "DM2 of 9 bytes (2 + 4 per DTC expected)");

@@ -329,10 +329,10 @@ struct NodeStats {
 
 namespace j1939 {
 
-inline constexpr std::uint32_t kPgnDm1 = 0xFECA;             ///< DM1, active DTCs (J1939-73)
-inline constexpr std::uint32_t kPgnDm2 = 0xFECB;  ///< DM2, previously active DTCs (J1939-73)
-inline constexpr std::uint32_t kPgnTpCm = 0xEC00;            ///< TP.CM (J1939-21)
-inline constexpr std::uint32_t kPgnTpDt = 0xEB00;            ///< TP.DT (J1939-21)
+inline constexpr std::uint32_t kPgnDm1 = 0xFECA;   ///< DM1, active DTCs (J1939-73)
+inline constexpr std::uint32_t kPgnDm2 = 0xFECB;   ///< DM2, previously active DTCs (J1939-73)
+inline constexpr std::uint32_t kPgnTpCm = 0xEC00;  ///< TP.CM (J1939-21)
+inline constexpr std::uint32_t kPgnTpDt = 0xEB00;  ///< TP.DT (J1939-21)
 inline constexpr std::uint32_t kPgnAddressClaimed = 0xEE00;  ///< address claimed (J1939-81)
 
 /// TP.CM control bytes (J1939-21, transport protocol connection management).
@@ -461,14 +461,14 @@ struct NodeStats {
   std::uint64_t dtcs_cleared = 0;    ///< `dtc_cleared` events
   std::uint64_t dm2s = 0;            ///< DM2 messages decoded (previously active DTCs)
   Nanos last_dm2_ns = -1;
-  Lamps dm2_lamps;                   ///< as of its latest DM2
+  Lamps dm2_lamps;  ///< as of its latest DM2
   /// Its previously active DTCs (latest DM2), at most `max_dtcs`. No events: a DM2 usually
   /// answers a request, its list is a record of the past, not a change on the bus.
   std::vector<Dtc> previously_active;
   std::uint64_t previously_active_untracked = 0;  ///< codes of its latest DM2 beyond `max_dtcs`
-  std::uint64_t tp_messages = 0;     ///< transport protocol messages it completed
-  std::uint64_t tp_aborts = 0;       ///< its sessions ended by a connection abort
-  std::uint64_t tp_timeouts = 0;     ///< its sessions that timed out (also malformed)
+  std::uint64_t tp_messages = 0;                  ///< transport protocol messages it completed
+  std::uint64_t tp_aborts = 0;                    ///< its sessions ended by a connection abort
+  std::uint64_t tp_timeouts = 0;                  ///< its sessions that timed out (also malformed)
   /// Malformed input: DM1 or DM2 of a wrong length, address claims not of 8 bytes, TP announcements
   /// that do not add up, data packets out of sequence or beyond the announced count, without a
   /// session, sessions that timed out or were replaced before they completed.

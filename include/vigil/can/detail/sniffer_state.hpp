@@ -102,8 +102,7 @@ class TrackTable {
         max_(max_entries),
         probe_limit_(std::min(kMaxProbe, slot_count_)),
         slots_(slot_count_ == 0 ? nullptr : std::make_unique<Slot[]>(slot_count_)),
-        order_(max_ == 0 || slot_count_ == 0 ? nullptr
-                                             : std::make_unique<std::uint32_t[]>(max_)) {}
+        order_(max_ == 0 || slot_count_ == 0 ? nullptr : std::make_unique<std::uint32_t[]>(max_)) {}
 
   /// The slot of `key`; a new slot is set up by `init(slot)` and published when there is room.
   /// Returns {slot, inserted}, or {nullptr, false} when the key finds no room. Writer only.
