@@ -434,9 +434,16 @@ TEST_CASE("J1939: replay and live pipeline find the same trouble codes and claim
           "[can][j1939][replay]") {
   const auto log = read_candump_file(dm1_log());
   REQUIRE(log.has_value());
-  // The log's frames among periodic EEC1 frames of the engine every 20 ms.
+  const auto dm2 = read_candump_file(dm2_log());
+  REQUIRE(dm2.has_value());
+  // The DM1 log's frames, then the DM2 log's 10 s later, among periodic EEC1 frames of the
+  // engine every 20 ms.
   std::vector<Frame> frames;
   for (const LogEntry& e : log->entries) frames.push_back(e.frame);
+  for (LogEntry e : dm2->entries) {
+    e.frame.timestamp += 10 * kNanosPerSecond;
+    frames.push_back(e.frame);
+  }
   const Nanos first = frames.front().timestamp;
   const Nanos last = frames.back().timestamp;
   for (Nanos t = first + 5 * kNanosPerMilli; t < last; t += 20 * kNanosPerMilli) {
@@ -469,7 +476,7 @@ TEST_CASE("J1939: replay and live pipeline find the same trouble codes and claim
   const ProtocolSnapshot& a = lr.snapshot.protocol;
   const ProtocolSnapshot& b = rr.snapshot.protocol;
   REQUIRE(a.recent_events.size() == b.recent_events.size());
-  CHECK(a.recent_events.size() == 9);
+  CHECK(a.recent_events.size() == 10);  // the DM1 log's 9, the DM2 log's DM1: no DM2 event
   for (std::size_t i = 0; i < a.recent_events.size(); ++i) {
     CHECK(a.recent_events[i].kind == b.recent_events[i].kind);
     CHECK(a.recent_events[i].time_ns == b.recent_events[i].time_ns);
@@ -481,7 +488,11 @@ TEST_CASE("J1939: replay and live pipeline find the same trouble codes and claim
     CHECK(a.j1939[i].malformed == b.j1939[i].malformed);
     CHECK(a.j1939[i].tp_timeouts == b.j1939[i].tp_timeouts);
     CHECK(a.j1939[i].name == b.j1939[i].name);
+    CHECK(a.j1939[i].dm2s == b.j1939[i].dm2s);
+    CHECK(a.j1939[i].previously_active == b.j1939[i].previously_active);
   }
+  REQUIRE(a.find_j1939(0, 0x0B) != nullptr);
+  CHECK(a.find_j1939(0, 0x0B)->previously_active.size() == 3);
   // Text and JSON: the J1939 table and array are the same.
   const auto section = [](const std::string& s, const std::string& from, const std::string& to) {
     const auto i = s.find(from);
