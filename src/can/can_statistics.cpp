@@ -45,16 +45,31 @@ const IdStats* CanSnapshot::find_id(std::uint8_t bus, std::uint32_t id, bool ext
 StatsSummary exact_summary(std::vector<Nanos>& samples) {
   StatsSummary s;
   if (samples.empty()) return s;
-  std::sort(samples.begin(), samples.end());
   const auto n = static_cast<std::uint64_t>(samples.size());
   s.count = n;
-  s.min = samples.front();
-  s.max = samples.back();
   long double sum = 0;
-  for (const Nanos v : samples) sum += static_cast<long double>(v);
+  Nanos lo = samples.front();
+  Nanos hi = samples.front();
+  for (const Nanos v : samples) {
+    sum += static_cast<long double>(v);
+    lo = std::min(lo, v);
+    hi = std::max(hi, v);
+  }
+  s.min = lo;
+  s.max = hi;
   s.mean = static_cast<double>(sum / static_cast<long double>(n));
+  // The four ranks by selection, not a full sort: each nth_element leaves every sample after
+  // its rank >= the sample at it, so the next (higher) rank is selected from the rest alone
+  // (about 1.6 n steps in all instead of n log n).
+  auto from = samples.begin();
   const auto at = [&](double q) {
-    return samples[vigil::supervisor::detail::nearest_rank(q, n) - 1];
+    const auto k = static_cast<std::ptrdiff_t>(vigil::supervisor::detail::nearest_rank(q, n) - 1);
+    const auto kth = samples.begin() + k;
+    if (kth >= from) {
+      std::nth_element(from, kth, samples.end());
+      from = kth + 1;
+    }
+    return *kth;
   };
   s.p50 = at(0.5);
   s.p90 = at(0.9);

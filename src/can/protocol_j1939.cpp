@@ -1,6 +1,7 @@
-// SAE J1939 in the protocol tracker: DM1 active trouble codes (J1939-73), single frame and
-// reassembled by the transport protocol (J1939-21: BAM and connection mode, as a passive
-// observer), address claims (J1939-81). Docs: docs/guide/can-protocols.md, "SAE J1939".
+// SAE J1939 in the protocol tracker: DM1 active and DM2 previously active trouble codes
+// (J1939-73), single frame and reassembled by the transport protocol (J1939-21: BAM and
+// connection mode, as a passive observer), address claims (J1939-81). Docs:
+// docs/guide/can-protocols.md, "SAE J1939".
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -95,19 +96,22 @@ std::string Dtc::describe() const {
   return s;
 }
 
-std::optional<Dm1> decode_dm1(std::span<const std::uint8_t> p, bool single_frame,
-                              std::string& error) {
+namespace {
+
+// DM1 and DM2 share their layout (J1939-73): `what` names the message in errors.
+std::optional<Dm1> decode_dtc_message(std::string_view what, std::span<const std::uint8_t> p,
+                                      bool single_frame, std::string& error) {
   if (p.size() < 6) {
-    error = fmt::format("DM1 of {} byte{} (at least 6: lamps and one DTC)", p.size(),
+    error = fmt::format("{} of {} byte{} (at least 6: lamps and one DTC)", what, p.size(),
                         p.size() == 1 ? "" : "s");
     return std::nullopt;
   }
   if (!single_frame && (p.size() - 2) % 4 != 0) {
-    error = fmt::format("DM1 of {} bytes (2 + 4 per DTC expected)", p.size());
+    error = fmt::format("{} of {} bytes (2 + 4 per DTC expected)", what, p.size());
     return std::nullopt;
   }
   if (single_frame && p.size() > 8) {
-    error = fmt::format("DM1 frame of {} bytes (8 at most)", p.size());
+    error = fmt::format("{} frame of {} bytes (8 at most)", what, p.size());
     return std::nullopt;
   }
   Dm1 m;
@@ -135,6 +139,18 @@ std::optional<Dm1> decode_dm1(std::span<const std::uint8_t> p, bool single_frame
     if (!dup) m.dtcs.push_back(d);
   }
   return m;
+}
+
+}  // namespace
+
+std::optional<Dm1> decode_dm1(std::span<const std::uint8_t> p, bool single_frame,
+                              std::string& error) {
+  return decode_dtc_message("DM1", p, single_frame, error);
+}
+
+std::optional<Dm1> decode_dm2(std::span<const std::uint8_t> p, bool single_frame,
+                              std::string& error) {
+  return decode_dtc_message("DM2", p, single_frame, error);
 }
 
 Name decode_name(std::span<const std::uint8_t, 8> b) noexcept {
@@ -265,6 +281,9 @@ void ProtocolTracker::on_j1939(const FrameRecord& r) {
       on_dm1(r.bus, sa, r.time_ns, r.direction, std::span<const std::uint8_t>(r.data.data(), len),
              true);
       break;
+    case j1939::kPgnDm2:
+      on_dm2(r.bus, sa, r.time_ns, std::span<const std::uint8_t>(r.data.data(), len), true);
+      break;
     case j1939::kPgnTpCm:
       on_tp_cm(r, sa, j.destination);
       break;
@@ -323,6 +342,27 @@ void ProtocolTracker::on_dm1(std::uint8_t bus, std::uint8_t sa, Nanos t, Directi
   }
   n->dtcs_untracked += beyond;
   n->active = std::move(next);
+}
+
+void ProtocolTracker::on_dm2(std::uint8_t bus, std::uint8_t sa, Nanos t,
+                             std::span<const std::uint8_t> payload, bool single_frame) {
+  std::string error;
+  const auto dm2 = j1939::decode_dm2(payload, single_frame, error);
+  j1939::NodeStats* n = j1939_node(bus, sa);
+  if (n == nullptr) return;
+  if (!dm2) {
+    ++n->malformed;
+    n->last_malformed = std::move(error);
+    return;
+  }
+  // The latest DM2 replaces the list; no events (see NodeStats::previously_active).
+  ++n->dm2s;
+  n->last_dm2_ns = t;
+  n->dm2_lamps = dm2->lamps;
+  const std::size_t keep = std::min(dm2->dtcs.size(), options_.max_dtcs);
+  n->previously_active.assign(dm2->dtcs.begin(),
+                              dm2->dtcs.begin() + static_cast<std::ptrdiff_t>(keep));
+  n->previously_active_untracked = dm2->dtcs.size() - keep;
 }
 
 void ProtocolTracker::on_address_claim(const FrameRecord& r, std::uint8_t sa) {
@@ -419,7 +459,7 @@ void ProtocolTracker::on_tp_cm(const FrameRecord& r, std::uint8_t sa, std::uint8
       s.pgn = pgn;
       s.size = size;
       s.packets = packets;
-      s.keep = pgn == j1939::kPgnDm1;
+      s.keep = pgn == j1939::kPgnDm1 || pgn == j1939::kPgnDm2;
       if (s.keep) s.data.reserve(size);
       if (bam) {
         s.deadline = t + j1939::kT1;
@@ -542,14 +582,19 @@ void ProtocolTracker::on_tp_dt(const FrameRecord& r, std::uint8_t sa, std::uint8
   // The last packet: the message is complete.
   j1939::NodeStats* n = j1939_node(r.bus, sa);
   if (n != nullptr) ++n->tp_messages;
-  if (s.pgn == j1939::kPgnDm1) {
+  if (s.keep) {  // DM1 or DM2
     const std::vector<std::uint8_t> data = std::move(s.data);
+    const std::uint32_t pgn = s.pgn;
     s.data.clear();
     s.done = true;
     s.deadline = t + (s.bam ? j1939::kT1 : j1939::kT3);  // kept to see packets beyond the count
     s.waiting = "";
     tp_next_deadline_ = std::min(tp_next_deadline_, s.deadline);
-    on_dm1(r.bus, sa, t, r.direction, data, false);
+    if (pgn == j1939::kPgnDm1) {
+      on_dm1(r.bus, sa, t, r.direction, data, false);
+    } else {
+      on_dm2(r.bus, sa, t, data, false);
+    }
     return;
   }
   s.done = true;

@@ -151,15 +151,14 @@ struct Source {
   std::variant<CandumpReader, TrcReader> reader;
   std::size_t file = 0;              // index in LogReplay's files()
   std::vector<std::uint8_t> bus_of;  // reader's bus index -> replay bus index
-  std::optional<LogEntry> next;
+  LogEntry* next = nullptr;          // the reader's own entry (no copy), null at the end
 };
 
 expected<void, Error> advance(Source& s, LogReplay::Impl& m) {
-  expected<std::optional<LogEntry>, Error> e =
-      std::visit([](auto& r) { return r.next(); }, s.reader);
+  expected<LogEntry*, Error> e = std::visit([](auto& r) { return r.next_entry(); }, s.reader);
   if (!e) return unexpected(e.error());
   s.next = *e;
-  if (!s.next) return {};
+  if (s.next == nullptr) return {};
   Frame& f = s.next->frame;
   // Map the reader's bus index to the replay's.
   if (auto* c = std::get_if<CandumpReader>(&s.reader)) {
@@ -202,11 +201,11 @@ expected<void, Error> LogReplay::feed_files(std::span<const std::filesystem::pat
     if (rf.format == LogFormat::Trc) {
       auto r = TrcReader::open(p, m.options.reader);
       if (!r) return unexpected(r.error());
-      sources.push_back(Source{std::move(*r), index, {}, std::nullopt});
+      sources.push_back(Source{std::move(*r), index, {}, nullptr});
     } else {
       auto r = CandumpReader::open(p, m.options.reader);
       if (!r) return unexpected(r.error());
-      sources.push_back(Source{std::move(*r), index, {}, std::nullopt});
+      sources.push_back(Source{std::move(*r), index, {}, nullptr});
     }
   }
   for (Source& s : sources) {

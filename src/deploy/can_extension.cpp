@@ -311,7 +311,7 @@ Report node_report(const can::CanReport& r, const can::NodeReport& n) {
     rep.add_field(Field::of_count("restarts", dc.restarts));
     if (dc.malformed > 0) rep.add_field(Field::of_count("malformed", dc.malformed));
   }
-  if (n.j1939) {  // SAE J1939: DM1, address claim
+  if (n.j1939) {  // SAE J1939: DM1, DM2, address claim
     const can::j1939::NodeStats& j = *n.j1939;
     if (j.name) rep.add_field(Field::of_text("j1939_name", j.name->describe()));
     if (j.dm1s > 0) {
@@ -323,6 +323,15 @@ Report node_report(const can::CanReport& r, const can::NodeReport& n) {
       }
       if (!list.empty()) rep.add_field(Field::of_text("dtcs", list));
       rep.add_field(Field::of_text("lamps", j.lamps.describe()));
+    }
+    if (j.dm2s > 0) {  // DM2: previously active codes, as of the latest one
+      rep.add_field(Field::of_count("previously_active_dtcs", j.previously_active.size()));
+      std::string list;
+      for (const can::j1939::Dtc& d : j.previously_active) {
+        if (!list.empty()) list += "; ";
+        list += d.describe();
+      }
+      if (!list.empty()) rep.add_field(Field::of_text("previous_dtcs", list));
     }
     if (j.malformed > 0) rep.add_field(Field::of_count("malformed", j.malformed));
   }

@@ -331,21 +331,37 @@ std::string dronecan_table(const CanReport& r, const CanTextOptions& options) {
   return t.str();
 }
 
-// Every J1939 node with a DM1 or an address claim (or malformed J1939 input).
+// "SPN 100 FMI 1 x3, SPN 110 FMI 0 x5 (+2 not kept)", or "-".
+std::string dtc_list(const std::vector<j1939::Dtc>& codes, std::uint64_t untracked) {
+  std::string dtcs;
+  for (const j1939::Dtc& d : codes) {
+    if (!dtcs.empty()) dtcs += ", ";
+    dtcs += fmt::format("SPN {} FMI {} x{}", d.spn, d.fmi, d.occurrences);
+  }
+  if (untracked > 0) dtcs += fmt::format(" (+{} not kept)", untracked);
+  return dtcs.empty() ? "-" : dtcs;
+}
+
+// Every J1939 node with a DM1, a DM2 or an address claim (or malformed J1939 input). The DM2
+// columns only when some node sent a DM2.
 std::string j1939_table(const CanReport& r, const CanTextOptions& options) {
   const auto& nodes = r.snapshot.protocol.j1939;
   if (nodes.empty()) return {};
-  TextTable t({"BUS", "SA", "NAME", "CLAIMED AS", "DM1", "ACTIVE", "APPEARED", "CLEARED", "LAMPS",
-               "TP MSGS", "TP TIMEOUTS", "MALFORMED", "ACTIVE DTCS"},
-              {false, false, false, false, true, true, true, true, false, true, true, true, false});
+  const bool dm2 =
+      std::any_of(nodes.begin(), nodes.end(), [](const j1939::NodeStats& n) { return n.dm2s > 0; });
+  std::vector<std::string> head{"BUS",         "SA",        "NAME",       "CLAIMED AS", "DM1",
+                                "ACTIVE",      "APPEARED",  "CLEARED",    "LAMPS",      "TP MSGS",
+                                "TP TIMEOUTS", "MALFORMED", "ACTIVE DTCS"};
+  std::vector<bool> right{false, false, false, false, true, true, true,
+                          true,  false, true,  true,  true, false};
+  if (dm2) {
+    head.insert(head.end(), {"DM2", "PREVIOUSLY ACTIVE DTCS"});
+    right.insert(right.end(), {true, false});
+  }
+  TextTable t(head, right);
   for (const j1939::NodeStats& n : nodes) {
     const NodeReport* rep = r.find(n.bus, n.address);
-    std::string dtcs;
-    for (const j1939::Dtc& d : n.active) {
-      if (!dtcs.empty()) dtcs += ", ";
-      dtcs += fmt::format("SPN {} FMI {} x{}", d.spn, d.fmi, d.occurrences);
-    }
-    if (n.dtcs_untracked > 0) dtcs += fmt::format(" (+{} not kept)", n.dtcs_untracked);
+    const std::string dtcs = dtc_list(n.active, n.dtcs_untracked);
     std::string lamps = "-";
     if (n.dm1s > 0) {
       const auto on = [](j1939::Lamp l) { return l == j1939::Lamp::On; };
@@ -356,15 +372,28 @@ std::string j1939_table(const CanReport& r, const CanTextOptions& options) {
       if (on(n.lamps.protect)) lamps += "PL ";
       lamps = lamps.empty() ? "off" : lamps.substr(0, lamps.size() - 1);
     }
-    t.add({bus_name(n.bus, options.bus_names), fmt::format("0x{:02X}", n.address),
-           rep != nullptr && rep->named ? rep->name : "-",
-           n.name ? n.name->label() +
-                        fmt::format(" (mfr {}, id {})", n.name->manufacturer, n.name->identity)
-                  : "-",
-           fmt::format("{}", n.dm1s), fmt::format("{}", n.active.size()),
-           fmt::format("{}", n.dtcs_appeared), fmt::format("{}", n.dtcs_cleared), lamps,
-           fmt::format("{}", n.tp_messages), fmt::format("{}", n.tp_timeouts),
-           fmt::format("{}", n.malformed), dtcs.empty() ? "-" : dtcs});
+    std::vector<std::string> row{
+        bus_name(n.bus, options.bus_names),
+        fmt::format("0x{:02X}", n.address),
+        rep != nullptr && rep->named ? rep->name : "-",
+        n.name ? n.name->label() +
+                     fmt::format(" (mfr {}, id {})", n.name->manufacturer, n.name->identity)
+               : "-",
+        fmt::format("{}", n.dm1s),
+        fmt::format("{}", n.active.size()),
+        fmt::format("{}", n.dtcs_appeared),
+        fmt::format("{}", n.dtcs_cleared),
+        lamps,
+        fmt::format("{}", n.tp_messages),
+        fmt::format("{}", n.tp_timeouts),
+        fmt::format("{}", n.malformed),
+        dtcs};
+    if (dm2) {
+      row.push_back(fmt::format("{}", n.dm2s));
+      row.push_back(n.dm2s > 0 ? dtc_list(n.previously_active, n.previously_active_untracked)
+                               : "-");
+    }
+    t.add(row);
   }
   return t.str();
 }
@@ -842,6 +871,12 @@ void write_j1939(exporter::JsonWriter& w, const CanReport& r, const j1939::NodeS
   w.end_array();
   w.field("dtcs_untracked", n.dtcs_untracked);
   w.field("dtcs_appeared", n.dtcs_appeared).field("dtcs_cleared", n.dtcs_cleared);
+  w.field("dm2s", n.dm2s);
+  optional_ns(w, "last_dm2_ns", n.last_dm2_ns);
+  w.key("previously_active_dtcs").begin_array();
+  for (const j1939::Dtc& d : n.previously_active) write_dtc(w, d);
+  w.end_array();
+  w.field("previously_active_untracked", n.previously_active_untracked);
   w.field("tp_messages", n.tp_messages).field("tp_aborts", n.tp_aborts);
   w.field("tp_timeouts", n.tp_timeouts);
   w.field("malformed", n.malformed).field("last_malformed", n.last_malformed);
@@ -926,12 +961,15 @@ void write_can_report_members(exporter::JsonWriter& w, const CanReport& r,
   std::uint64_t active_dtcs = 0;
   std::uint64_t dtcs_appeared = 0;
   std::uint64_t claims = 0;
+  std::uint64_t previously_active = 0;
   for (const j1939::NodeStats& n : p.j1939) {
     active_dtcs += n.active.size();
     dtcs_appeared += n.dtcs_appeared;
+    previously_active += n.previously_active.size();
     if (n.name) ++claims;
   }
   w.field("j1939_nodes", p.j1939.size()).field("active_dtcs", active_dtcs);
+  w.field("previously_active_dtcs", previously_active);
   w.field("dtcs_appeared", dtcs_appeared).field("address_claims", claims);
   w.field("tp_sessions_open", p.tp_sessions_open);
   w.key("recent_events").begin_array();
@@ -1046,17 +1084,25 @@ std::string format_can_replay(const LogReplay& replay, const CanReport& report,
     std::uint64_t appeared = 0;
     std::size_t claimed = 0;
     std::size_t with_dm1 = 0;
+    std::size_t with_dm2 = 0;
+    std::size_t previous = 0;
     for (const j1939::NodeStats& n : p.j1939) {
       active += n.active.size();
       appeared += n.dtcs_appeared;
+      previous += n.previously_active.size();
       if (n.name) ++claimed;
       if (n.dm1s > 0) ++with_dm1;
+      if (n.dm2s > 0) ++with_dm2;
     }
+    const std::string dm2_text = with_dm2 == 0
+                                     ? std::string()
+                                     : fmt::format("{} previously active (DM2 from {} node{}), ",
+                                                   previous, with_dm2, with_dm2 == 1 ? "" : "s");
     j1939_text = fmt::format(
-        "J1939: {} node{} with DM1, {} active DTC{} ({} appeared), {} address "
+        "J1939: {} node{} with DM1, {} active DTC{} ({} appeared), {}{} address "
         "claim{}, ",
-        with_dm1, with_dm1 == 1 ? "" : "s", active, active == 1 ? "" : "s", appeared, claimed,
-        claimed == 1 ? "" : "s");
+        with_dm1, with_dm1 == 1 ? "" : "s", active, active == 1 ? "" : "s", appeared, dm2_text,
+        claimed, claimed == 1 ? "" : "s");
   }
   out += fmt::format(
       "  findings: {} CANopen node{}, {} reset{}, {} emergenc{}, {}{}{} error passive, {} bus "

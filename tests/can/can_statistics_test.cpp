@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <atomic>
 #include <catch2/catch.hpp>
+#include <cmath>
+#include <random>
 #include <thread>
 
 #include "can_test_support.hpp"
@@ -243,6 +245,36 @@ TEST_CASE("Exact percentiles keep every gap", "[can][statistics]") {
   CHECK(e.mean == 3.0);
   std::vector<Nanos> none;
   CHECK(exact_summary(none).count == 0);
+}
+
+TEST_CASE("Exact percentiles by selection equal those of a full sort", "[can][statistics]") {
+  // exact_summary selects the four ranks with nth_element; a sorted copy is the reference
+  // (nearest rank: the smallest sample with at least q * n samples <= it).
+  std::mt19937_64 rng(48);
+  for (const std::size_t n : {1U, 2U, 3U, 10U, 99U, 1000U, 1001U, 20000U}) {
+    for (const Nanos spread : {Nanos{3}, Nanos{1000000}}) {  // many ties, then few
+      std::vector<Nanos> v(n);
+      std::uniform_int_distribution<Nanos> value(0, spread);
+      for (Nanos& x : v) x = value(rng);
+      std::vector<Nanos> sorted = v;
+      std::sort(sorted.begin(), sorted.end());
+      const auto rank = [&](double q) {
+        const auto need = static_cast<std::size_t>(std::ceil(q * static_cast<double>(n)));
+        return sorted[std::max<std::size_t>(need, 1) - 1];
+      };
+      const vigil::StatsSummary e = exact_summary(v);
+      INFO("n " << n << " spread " << spread);
+      CHECK(e.count == n);
+      CHECK(e.min == sorted.front());
+      CHECK(e.max == sorted.back());
+      CHECK(e.p50 == rank(0.5));
+      CHECK(e.p90 == rank(0.9));
+      CHECK(e.p99 == rank(0.99));
+      CHECK(e.p999 == rank(0.999));
+      std::sort(v.begin(), v.end());
+      CHECK(v == sorted);  // reordered, not changed
+    }
+  }
 }
 
 TEST_CASE("Statistics of a sniffer survive its departure", "[can][statistics]") {

@@ -1,11 +1,12 @@
 #!/usr/bin/python3
-"""An independent reader of J1939 DM1 and address claims, to check `vigil can-stats`.
+"""An independent reader of J1939 DM1, DM2 and address claims, to check `vigil can-stats`.
 
 python3-can (Debian `python3-can`) reads the candump log; this script reassembles the
 transport protocol (J1939-21 BAM and RTS/CTS, well-formed sessions only), decodes every DM1
-(J1939-73) and address claim (J1939-81) itself, and compares with what
-`vigil can-stats --node-map j1939 --json LOG` reports: the frame count, each source address's
-active DTCs, lamps and claimed NAME, and the sequence of dtc_active / dtc_cleared events.
+and DM2 (J1939-73: the same layout) and address claim (J1939-81) itself, and compares with
+what `vigil can-stats --node-map j1939 --json LOG` reports: the frame count, each source
+address's active DTCs, lamps, previously active DTCs (its latest DM2) and claimed NAME, and the
+sequence of dtc_active / dtc_cleared events.
 
 usage: j1939_reference.py VIGIL LOG...   (exit 0: equal, 1: different, 77: python3-can absent)
 """
@@ -56,6 +57,7 @@ def decode_dm1(p, single):
 def reference(paths):
     count = 0
     active = {}  # sa -> list of dtc tuples
+    previous = {}  # sa -> list of dtc tuples, from its latest DM2
     lamps = {}
     names = {}
     events = []
@@ -76,6 +78,11 @@ def reference(paths):
                 events.append(("dtc_active", sa, d[0], d[1]))
         active[sa] = dtcs
 
+    def dm2(sa, payload, single):
+        got = decode_dm1(payload, single)  # DM2 has DM1's layout
+        if got is not None:
+            previous[sa] = got[1]
+
     for path in paths:
         for t, ident, data, extended in frames(path):
             count += 1
@@ -87,6 +94,8 @@ def reference(paths):
             pgn = ((ident >> 8) & 0x3FF00) if pf < 240 else ((ident >> 8) & 0x3FFFF)
             if pgn == 0xFECA:
                 dm1(sa, data, True)
+            elif pgn == 0xFECB:
+                dm2(sa, data, True)
             elif pgn == 0xEE00 and len(data) == 8:
                 names[sa] = int.from_bytes(data, "little")
             elif pgn == 0xEC00 and len(data) == 8:
@@ -110,11 +119,13 @@ def reference(paths):
                 if data[0] == s[2]:
                     if s[0] == 0xFECA:
                         dm1(sa, s[3][:s[1]], False)
+                    elif s[0] == 0xFECB:
+                        dm2(sa, s[3][:s[1]], False)
                     if ps == 0xFF:
                         del bam[sa]
                     else:
                         del cm[(sa, ps)]
-    return count, active, lamps, names, events
+    return count, active, previous, lamps, names, events
 
 
 def main():
@@ -125,7 +136,7 @@ def main():
         except OSError:
             print(f"skipped: {log} absent")
             return 77
-    count, active, lamps, names, events = reference(logs)
+    count, active, previous, lamps, names, events = reference(logs)
     out = subprocess.run([vigil, "can-stats", "--node-map", "j1939", "--json", *logs],
                          check=True, capture_output=True, text=True).stdout
     report = json.loads(out)
@@ -133,7 +144,7 @@ def main():
     if report["frames"] != count:
         problems.append(f"frames: vigil {report['frames']}, python-can {count}")
     nodes = {n["node"]: n for n in report["j1939"]}
-    for sa in sorted(set(active) | set(names)):
+    for sa in sorted(set(active) | set(previous) | set(names)):
         n = nodes.get(sa)
         if n is None:
             problems.append(f"0x{sa:02X}: missing in vigil's j1939 array")
@@ -142,6 +153,11 @@ def main():
                 for d in n["active_dtcs"]]
         if mine != active.get(sa, []):
             problems.append(f"0x{sa:02X} DTCs: vigil {mine}, reference {active.get(sa, [])}")
+        mine = [(d["spn"], d["fmi"], d["occurrences"], int(d["conversion_method"]))
+                for d in n["previously_active_dtcs"]]
+        if mine != previous.get(sa, []):
+            problems.append(f"0x{sa:02X} DM2 DTCs: vigil {mine}, "
+                            f"reference {previous.get(sa, [])}")
         if sa in lamps and {k: n["lamps"][k] for k in lamps[sa]} != lamps[sa]:
             problems.append(f"0x{sa:02X} lamps: vigil {n['lamps']}, reference {lamps[sa]}")
         if sa in names and int(n["claimed_name"]["raw"], 16) != names[sa]:
@@ -156,7 +172,8 @@ def main():
         problems.append(f"events: vigil {mine}, reference {events}")
     for p in problems:
         print(p)
-    print(f"{count} frames, {len(active)} nodes with DM1, {len(names)} address claims, "
+    print(f"{count} frames, {len(active)} nodes with DM1, {len(previous)} with DM2, "
+          f"{len(names)} address claims, "
           f"{len(events)} DTC events: {'equal' if not problems else 'DIFFERENT'}")
     return 1 if problems else 0
 

@@ -35,6 +35,10 @@ std::filesystem::path dm1_log() {
   return std::filesystem::path(VIGIL_CAN_TEST_DATA_DIR) / "j1939_dm1.log";
 }
 
+std::filesystem::path dm2_log() {
+  return std::filesystem::path(VIGIL_CAN_TEST_DATA_DIR) / "j1939_dm2.log";
+}
+
 Frame ext(std::uint32_t id, std::initializer_list<std::uint8_t> data, Nanos t) {
   Frame f = Frame::classic(id, data, IdFormat::Extended);
   f.timestamp = t;
@@ -51,9 +55,10 @@ std::vector<std::string> event_lines(const ProtocolSnapshot& s) {
   return out;
 }
 
-ProtocolSnapshot replay_dm1_log(ProtocolOptions o = {}) {
+ProtocolSnapshot replay_dm1_log(ProtocolOptions o = {},
+                                const std::filesystem::path& log = dm1_log()) {
   LogReplay replay({.node_map = NodeMap::j1939(), .protocol = std::move(o)});
-  const std::vector<std::filesystem::path> files{dm1_log()};
+  const std::vector<std::filesystem::path> files{log};
   REQUIRE(replay.feed_files(files).has_value());
   return replay.snapshot().protocol;
 }
@@ -102,6 +107,119 @@ TEST_CASE("J1939 DM1: lamps and DTCs decoded from hand-computed payloads", "[can
   CHECK(error == "DM1 of 13 bytes (2 + 4 per DTC expected)");
   CHECK(j1939::fmi_name(31) == "condition exists");
   CHECK(j1939::fmi_name(25) == "reserved");
+}
+
+TEST_CASE("J1939 DM2: previously active DTCs decoded like DM1, named DM2 in errors",
+          "[can][j1939][dm2]") {
+  std::string error;
+  // Lamps 0x44: MIL 01 on (bits 8-7), amber warning 01 on (bits 4-3). DTC 00 F0 EE 01: SPN
+  // 0x00 | 0xF0 << 8 | (0xEE >> 5 = 7) << 16 = 0x7F000 = 520192, FMI 0xEE & 0x1F = 14, CM 0,
+  // 1 occurrence. DTC 21 06 1F FE: SPN 0x621 = 1569, FMI 31, CM 1, 126 occurrences.
+  const std::vector<std::uint8_t> two{0x44, 0xFF, 0x00, 0xF0, 0xEE, 0x01, 0x21, 0x06, 0x1F, 0xFE};
+  const auto d = j1939::decode_dm2(two, false, error);
+  REQUIRE(d.has_value());
+  CHECK(d->lamps.mil == j1939::Lamp::On);
+  CHECK(d->lamps.amber_warning == j1939::Lamp::On);
+  CHECK(d->lamps.red_stop == j1939::Lamp::Off);
+  REQUIRE(d->dtcs.size() == 2);
+  CHECK(d->dtcs[0] == j1939::Dtc{.spn = 520192, .fmi = 14, .occurrences = 1});
+  CHECK(d->dtcs[1] ==
+        j1939::Dtc{.spn = 1569, .fmi = 31, .occurrences = 126, .conversion_method = true});
+  CHECK_FALSE(j1939::decode_dm2(std::vector<std::uint8_t>{0, 0xFF, 0, 0}, true, error).has_value());
+  CHECK(error == "DM2 of 4 bytes (at least 6: lamps and one DTC)");
+  CHECK_FALSE(j1939::decode_dm2(std::vector<std::uint8_t>(9, 0), false, error).has_value());
+  CHECK(error == "DM2 of 9 bytes (2 + 4 per DTC expected)");
+}
+
+// tests/can/data/j1939_dm2.log, line by line:
+//   0.000 single-frame DM2 of 0x00: lamps off, DTC BE 00 02 07 = SPN 190 FMI 2 x7;
+//   0.100 single-frame DM1 of 0x00: amber warning lamp, SPN 100 FMI 1 x3 (active);
+//   0.200-0.300 BAM of 0x0B: a 14-byte DM2 (TP.CM 20 0E 00 02 FF CB FE 00: 14 bytes, 2
+//   packets, PGN 0x00FECB) with lamps 0x44 and DTCs 00 F0 EE 01 (SPN 520192 FMI 14 x1), 64 00
+//   01 03 (SPN 100 FMI 1 x3), 21 06 1F FE (SPN 1569 FMI 31 x126, CM 1);
+//   0.400-0.440 RTS/CTS from 0x21 to 0xF9: a 10-byte DM2 (lamps 0x10, SPN 110 FMI 0 x5, SPN
+//   190 FMI 2 x1), CTS for 2 packets from 1, EndOfMsgAck;
+//   1.000 DM2 of 0x00 without DTC (all zeros): its list empties, with no event;
+//   2.000 a DM2 of 4 bytes from 0x0B: malformed, its list stays.
+TEST_CASE("J1939 DM2 through a single frame, BAM and RTS/CTS: per node, no events",
+          "[can][j1939][dm2]") {
+  const ProtocolSnapshot s = replay_dm1_log({}, dm2_log());
+  // Only the DM1's code is an event: DM2 lists the past.
+  CHECK(event_lines(s) == std::vector<std::string>{"dtc_active 0x00 1"});
+  const j1939::NodeStats* engine = s.find_j1939(0, 0x00);
+  REQUIRE(engine != nullptr);
+  CHECK(engine->dm2s == 2);
+  CHECK(engine->last_dm2_ns == 1700000001 * kNanosPerSecond);
+  CHECK(engine->previously_active.empty());  // the latest DM2 has none
+  CHECK(engine->dm1s == 1);
+  REQUIRE(engine->active.size() == 1);  // DM1 and DM2 are kept apart
+  CHECK(engine->active[0] == j1939::Dtc{.spn = 100, .fmi = 1, .occurrences = 3});
+  const j1939::NodeStats* brakes = s.find_j1939(0, 0x0B);
+  REQUIRE(brakes != nullptr);
+  CHECK(brakes->dm2s == 1);
+  CHECK(brakes->dm1s == 0);
+  CHECK(brakes->active.empty());
+  CHECK(brakes->dm2_lamps.mil == j1939::Lamp::On);
+  CHECK(brakes->dm2_lamps.amber_warning == j1939::Lamp::On);
+  CHECK(brakes->previously_active ==
+        std::vector<j1939::Dtc>{
+            {.spn = 520192, .fmi = 14, .occurrences = 1},
+            {.spn = 100, .fmi = 1, .occurrences = 3},
+            {.spn = 1569, .fmi = 31, .occurrences = 126, .conversion_method = true}});
+  CHECK(brakes->tp_messages == 1);
+  CHECK(brakes->malformed == 1);
+  CHECK(brakes->last_malformed == "DM2 of 4 bytes (at least 6: lamps and one DTC)");
+  const j1939::NodeStats* body = s.find_j1939(0, 0x21);
+  REQUIRE(body != nullptr);
+  CHECK(body->previously_active ==
+        std::vector<j1939::Dtc>{{.spn = 110, .fmi = 0, .occurrences = 5},
+                                {.spn = 190, .fmi = 2, .occurrences = 1}});
+  CHECK(body->tp_messages == 1);
+  CHECK(body->malformed == 0);
+  CHECK(s.find_j1939(0, 0xF9) == nullptr);
+  CHECK(s.tp_sessions_open == 0);
+
+  // Bounded like the active codes: `max_dtcs`, the rest counted.
+  const ProtocolSnapshot b = replay_dm1_log({.max_dtcs = 2}, dm2_log());
+  CHECK(b.find_j1939(0, 0x0B)->previously_active.size() == 2);
+  CHECK(b.find_j1939(0, 0x0B)->previously_active_untracked == 1);
+  CHECK(b.find_j1939(0, 0x21)->previously_active_untracked == 0);
+
+  // A DM2 does not judge the node: 0x21 has previously active codes only and stays OK.
+  LogReplay replay({.node_map = NodeMap::j1939()});
+  const std::vector<std::filesystem::path> files{dm2_log()};
+  REQUIRE(replay.feed_files(files).has_value());
+  CanConfig cfg;
+  cfg.node_map = NodeMapKind::J1939;
+  const CanReport r = replay.report(CanMonitor(cfg), replay.last_ns());
+  const NodeReport* rbody = r.find(0, 0x21);
+  REQUIRE(rbody != nullptr);
+  CHECK(rbody->status.summary().find("DTC") == std::string::npos);
+  CHECK(r.find(0, 0x00)->status.summary().find("active DTC") != std::string::npos);  // DM1's
+}
+
+TEST_CASE("vigil can-stats reports J1939 DM2 previously active codes, text and JSON",
+          "[can][j1939][dm2][replay]") {
+  vigil::app::CanStatsOptions o;
+  o.files = {dm2_log()};
+  o.node_map = NodeMapKind::J1939;
+  std::ostringstream out;
+  std::ostringstream err;
+  CHECK(vigil::app::run_can_stats(o, out, err) == 0);
+  const std::string text = out.str();
+  CHECK(text.find("J1939: 1 node with DM1, 1 active DTC (1 appeared), 5 previously active (DM2 "
+                  "from 3 nodes), 0 address claims") != std::string::npos);
+  CHECK(text.find("PREVIOUSLY ACTIVE DTCS") != std::string::npos);
+  CHECK(text.find("SPN 520192 FMI 14 x1, SPN 100 FMI 1 x3, SPN 1569 FMI 31 x126") !=
+        std::string::npos);
+  o.json = true;
+  std::ostringstream jout;
+  CHECK(vigil::app::run_can_stats(o, jout, err) == 0);
+  const std::string json = jout.str();
+  CHECK(json.find("\"previously_active_dtcs\": 5") != std::string::npos);
+  CHECK(json.find("\"dm2s\": 2") != std::string::npos);
+  CHECK(json.find("\"previously_active_dtcs\": [") != std::string::npos);
+  CHECK(json.find("\"spn\": 1569") != std::string::npos);
 }
 
 TEST_CASE("J1939 NAME of an address claim decoded field by field", "[can][j1939]") {
@@ -316,9 +434,16 @@ TEST_CASE("J1939: replay and live pipeline find the same trouble codes and claim
           "[can][j1939][replay]") {
   const auto log = read_candump_file(dm1_log());
   REQUIRE(log.has_value());
-  // The log's frames among periodic EEC1 frames of the engine every 20 ms.
+  const auto dm2 = read_candump_file(dm2_log());
+  REQUIRE(dm2.has_value());
+  // The DM1 log's frames, then the DM2 log's 10 s later, among periodic EEC1 frames of the
+  // engine every 20 ms.
   std::vector<Frame> frames;
   for (const LogEntry& e : log->entries) frames.push_back(e.frame);
+  for (LogEntry e : dm2->entries) {
+    e.frame.timestamp += 10 * kNanosPerSecond;
+    frames.push_back(e.frame);
+  }
   const Nanos first = frames.front().timestamp;
   const Nanos last = frames.back().timestamp;
   for (Nanos t = first + 5 * kNanosPerMilli; t < last; t += 20 * kNanosPerMilli) {
@@ -351,7 +476,7 @@ TEST_CASE("J1939: replay and live pipeline find the same trouble codes and claim
   const ProtocolSnapshot& a = lr.snapshot.protocol;
   const ProtocolSnapshot& b = rr.snapshot.protocol;
   REQUIRE(a.recent_events.size() == b.recent_events.size());
-  CHECK(a.recent_events.size() == 9);
+  CHECK(a.recent_events.size() == 10);  // the DM1 log's 9, the DM2 log's DM1: no DM2 event
   for (std::size_t i = 0; i < a.recent_events.size(); ++i) {
     CHECK(a.recent_events[i].kind == b.recent_events[i].kind);
     CHECK(a.recent_events[i].time_ns == b.recent_events[i].time_ns);
@@ -363,7 +488,11 @@ TEST_CASE("J1939: replay and live pipeline find the same trouble codes and claim
     CHECK(a.j1939[i].malformed == b.j1939[i].malformed);
     CHECK(a.j1939[i].tp_timeouts == b.j1939[i].tp_timeouts);
     CHECK(a.j1939[i].name == b.j1939[i].name);
+    CHECK(a.j1939[i].dm2s == b.j1939[i].dm2s);
+    CHECK(a.j1939[i].previously_active == b.j1939[i].previously_active);
   }
+  REQUIRE(a.find_j1939(0, 0x0B) != nullptr);
+  CHECK(a.find_j1939(0, 0x0B)->previously_active.size() == 3);
   // Text and JSON: the J1939 table and array are the same.
   const auto section = [](const std::string& s, const std::string& from, const std::string& to) {
     const auto i = s.find(from);

@@ -2,6 +2,7 @@
 // registration call anywhere in this binary).
 #include "vigil/deploy/can_extension.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <catch2/catch.hpp>
 #include <condition_variable>
@@ -78,7 +79,8 @@ class CanOpenBus : public Task<CanOpenBus> {
 };
 
 // A J1939 engine (source address 0x00): EEC1 every cycle, its address claim at cycle 1, a DM1
-// with SPN 100 FMI 1 and the amber warning lamp at cycle 20, a DM1 without DTC at cycle 60.
+// with SPN 100 FMI 1 and the amber warning lamp at cycle 20, a DM2 with SPN 190 FMI 2 (x7, a
+// previously active code) at cycle 30, a DM1 without DTC at cycle 60.
 class J1939Bus : public Task<J1939Bus> {
  public:
   explicit J1939Bus(const ComponentContext& c) : Task(c.name, c.supervision, c.registry()) {
@@ -99,6 +101,7 @@ class J1939Bus : public Task<J1939Bus> {
     // NAME: identity 1, manufacturer 0, function 0 (engine), industry group 1.
     if (cycle_ == 1) read(0x18EEFF00, {0x01, 0, 0, 0, 0, 0, 0, 0x10});
     if (cycle_ == 20) read(0x18FECA00, {0x04, 0xFF, 0x64, 0x00, 0x01, 0x03, 0xFF, 0xFF});
+    if (cycle_ == 30) read(0x18FECB00, {0x00, 0xFF, 0xBE, 0x00, 0x02, 0x07, 0xFF, 0xFF});
     if (cycle_ == 60) read(0x18FECA00, {0x00, 0xFF, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF});
   }
 
@@ -405,6 +408,13 @@ can:
   CHECK(engine->field("active_dtcs")->count == 0);
   REQUIRE(engine->field("j1939_name") != nullptr);
   CHECK(engine->field("lamps")->text == "MIL off, red stop off, amber warning off, protect off");
+  // The DM2's code, previously active: a field, no event.
+  REQUIRE(engine->field("previously_active_dtcs") != nullptr);
+  CHECK(engine->field("previously_active_dtcs")->count == 1);
+  REQUIRE(engine->field("previous_dtcs") != nullptr);
+  CHECK(engine->field("previous_dtcs")->text.rfind("SPN 190 FMI 2 (data erratic", 0) == 0);
+  CHECK(std::count_if(seen.begin(), seen.end(),
+                      [](const Event& e) { return e.kind == EventKind::DtcActive; }) == 1);
 }
 
 TEST_CASE("CAN events leave at the CAN supervisor's pace, not the monitor's",

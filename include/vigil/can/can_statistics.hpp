@@ -310,9 +310,10 @@ static_assert(supervisor::SupervisorHandler<CanAggregator, CanMessage>);
 /// The CAN supervisor: drains the sniffers' ports into a `CanAggregator`.
 using CanDrainLoop = supervisor::DrainLoop<CanMessage, CanAggregator>;
 
-/// Exact nearest-rank percentiles of `samples` (sorted in place): count, min, max, mean, p50,
-/// p90, p99, p99.9, with the same rank rule as `RunningStats` (smallest sample with at least
-/// q * count samples <= it); `last` and `ewma` are 0. Not RT-safe (sorts).
+/// Exact nearest-rank percentiles of `samples` (reordered in place: the ranks are selected with
+/// std::nth_element, not sorted): count, min, max, mean, p50, p90, p99, p99.9, with the same
+/// rank rule as `RunningStats` (smallest sample with at least q * count samples <= it); `last`
+/// and `ewma` are 0. Not RT-safe.
 [[nodiscard]] StatsSummary exact_summary(std::vector<Nanos>& samples);
 
 }  // namespace vigil::can

@@ -323,15 +323,16 @@ struct NodeStats {
 }  // namespace dronecan
 
 // ---------------------------------------------------------------------------------------------
-// SAE J1939: DM1 active trouble codes (J1939-73), transport protocol (J1939-21), address claim
-// (J1939-81)
+// SAE J1939: DM1 active and DM2 previously active trouble codes (J1939-73), transport protocol
+// (J1939-21), address claim (J1939-81)
 // ---------------------------------------------------------------------------------------------
 
 namespace j1939 {
 
-inline constexpr std::uint32_t kPgnDm1 = 0xFECA;             ///< DM1, active DTCs (J1939-73)
-inline constexpr std::uint32_t kPgnTpCm = 0xEC00;            ///< TP.CM (J1939-21)
-inline constexpr std::uint32_t kPgnTpDt = 0xEB00;            ///< TP.DT (J1939-21)
+inline constexpr std::uint32_t kPgnDm1 = 0xFECA;   ///< DM1, active DTCs (J1939-73)
+inline constexpr std::uint32_t kPgnDm2 = 0xFECB;   ///< DM2, previously active DTCs (J1939-73)
+inline constexpr std::uint32_t kPgnTpCm = 0xEC00;  ///< TP.CM (J1939-21)
+inline constexpr std::uint32_t kPgnTpDt = 0xEB00;  ///< TP.DT (J1939-21)
 inline constexpr std::uint32_t kPgnAddressClaimed = 0xEE00;  ///< address claimed (J1939-81)
 
 /// TP.CM control bytes (J1939-21, transport protocol connection management).
@@ -352,13 +353,15 @@ inline constexpr Nanos kT2 = Nanos{1250} * 1'000'000;
 inline constexpr Nanos kT3 = Nanos{1250} * 1'000'000;
 inline constexpr Nanos kT4 = Nanos{1050} * 1'000'000;
 
-/// A DM1 lamp (2 bits, J1939-73 DM1 bytes 1-2): 00 off, 01 on, 10 error, 11 not available.
+/// A DM1 lamp (2 bits, J1939-73 DM1 byte 1): 00 off, 01 on, 10 error (so Detroit Diesel's DDEC VI
+/// manual; other public descriptions say "reserved"; never counted as on), 11 not available.
 enum class Lamp : std::uint8_t { Off = 0, On = 1, Error = 2, NotAvailable = 3 };
 /// "off", "on", "error", "n/a".
 [[nodiscard]] std::string_view to_string(Lamp l) noexcept;
 
-/// The lamp status of a DM1 (byte 1: bits 8-7 malfunction indicator lamp, 6-5 red stop lamp,
-/// 4-3 amber warning lamp, 2-1 protect lamp; byte 2 their flash codes).
+/// The lamp status of a DM1 or DM2 (byte 1: bits 8-7 malfunction indicator lamp, 6-5 red stop
+/// lamp, 4-3 amber warning lamp, 2-1 protect lamp; byte 2 their flash codes, in the same bit
+/// pairs: 00 slow flash, 01 fast flash, 11 not flashing or not available).
 struct Lamps {
   Lamp mil = Lamp::NotAvailable;            ///< malfunction indicator lamp (emissions)
   Lamp red_stop = Lamp::NotAvailable;       ///< red stop lamp
@@ -392,10 +395,10 @@ struct Dtc {
 /// Name of a failure mode identifier (J1939-73 FMI table, 0-21 and 31; "reserved" otherwise).
 [[nodiscard]] std::string_view fmi_name(std::uint8_t fmi) noexcept;
 
-/// One DM1 message, decoded.
+/// One DM1 message (or DM2: the same layout), decoded.
 struct Dm1 {
   Lamps lamps;
-  std::vector<Dtc> dtcs;  ///< the active codes; empty: none ("no DTC" records are dropped)
+  std::vector<Dtc> dtcs;  ///< the codes listed; empty: none ("no DTC" records are dropped)
 };
 
 /// Decodes a DM1 payload. `single_frame`: a message in one CAN frame (6-8 bytes: the lamps and
@@ -403,6 +406,10 @@ struct Dm1 {
 /// bytes exactly). A record of all zeros or all ones is "no DTC" (J1939-73). On a malformed
 /// payload returns empty and says why in `error`.
 [[nodiscard]] std::optional<Dm1> decode_dm1(std::span<const std::uint8_t> payload,
+                                            bool single_frame, std::string& error);
+/// Decodes a DM2 payload (previously active DTCs, J1939-73): the layout of DM1, the same rules;
+/// its errors say "DM2".
+[[nodiscard]] std::optional<Dm1> decode_dm2(std::span<const std::uint8_t> payload,
                                             bool single_frame, std::string& error);
 
 /// A 64-bit NAME (J1939-81, address claimed message, little-endian): identity number (21
@@ -431,8 +438,8 @@ struct Name {
 };
 /// The NAME of 8 address-claimed bytes (little-endian).
 [[nodiscard]] Name decode_name(std::span<const std::uint8_t, 8> bytes) noexcept;
-/// Name of a NAME function 0-30 (the industry-independent functions J1939 names; others
-/// empty).
+/// Name of a NAME function 0-30 (the first of the functions 0-127 that J1939 assigns whatever
+/// the industry group; 128-255 depend on the industry group and vehicle system); others empty.
 [[nodiscard]] std::string_view function_name(std::uint8_t function) noexcept;
 /// Name of an industry group 0-5 ("global", "on-highway", "agricultural and forestry",
 /// "construction", "marine", "industrial"); others empty.
@@ -452,10 +459,17 @@ struct NodeStats {
   std::uint64_t dtcs_untracked = 0;  ///< codes beyond `max_dtcs` (no events for them)
   std::uint64_t dtcs_appeared = 0;   ///< `dtc_active` events
   std::uint64_t dtcs_cleared = 0;    ///< `dtc_cleared` events
-  std::uint64_t tp_messages = 0;     ///< transport protocol messages it completed
-  std::uint64_t tp_aborts = 0;       ///< its sessions ended by a connection abort
-  std::uint64_t tp_timeouts = 0;     ///< its sessions that timed out (also malformed)
-  /// Malformed input: DM1 of a wrong length, address claims not of 8 bytes, TP announcements
+  std::uint64_t dm2s = 0;            ///< DM2 messages decoded (previously active DTCs)
+  Nanos last_dm2_ns = -1;
+  Lamps dm2_lamps;  ///< as of its latest DM2
+  /// Its previously active DTCs (latest DM2), at most `max_dtcs`. No events: a DM2 usually
+  /// answers a request, its list is a record of the past, not a change on the bus.
+  std::vector<Dtc> previously_active;
+  std::uint64_t previously_active_untracked = 0;  ///< codes of its latest DM2 beyond `max_dtcs`
+  std::uint64_t tp_messages = 0;                  ///< transport protocol messages it completed
+  std::uint64_t tp_aborts = 0;                    ///< its sessions ended by a connection abort
+  std::uint64_t tp_timeouts = 0;                  ///< its sessions that timed out (also malformed)
+  /// Malformed input: DM1 or DM2 of a wrong length, address claims not of 8 bytes, TP announcements
   /// that do not add up, data packets out of sequence or beyond the announced count, without a
   /// session, sessions that timed out or were replaced before they completed.
   std::uint64_t malformed = 0;
@@ -505,7 +519,8 @@ struct ProtocolOptions {
   /// J1939 transport protocol sessions open at once, over every bus (more are refused and
   /// counted as malformed for their source).
   std::size_t max_tp_sessions = 64;
-  /// Active DTCs remembered per J1939 node (more are counted in `dtcs_untracked`).
+  /// Active DTCs remembered per J1939 node (more are counted in `dtcs_untracked`), and
+  /// previously active ones (DM2; more in `previously_active_untracked`).
   std::size_t max_dtcs = 64;
 
   /// The settings of bus `bus`, `Auto` resolved with node mapping `map` (to `None` when the
@@ -696,6 +711,8 @@ class ProtocolTracker {
   void on_tp_dt(const FrameRecord& r, std::uint8_t sa, std::uint8_t da);
   void on_dm1(std::uint8_t bus, std::uint8_t sa, Nanos t, Direction d,
               std::span<const std::uint8_t> payload, bool single_frame);
+  void on_dm2(std::uint8_t bus, std::uint8_t sa, Nanos t, std::span<const std::uint8_t> payload,
+              bool single_frame);
   void on_address_claim(const FrameRecord& r, std::uint8_t sa);
   void expire_sessions(Nanos t);
   void j1939_malformed(std::uint8_t bus, std::uint8_t sa, std::string what);

@@ -204,11 +204,12 @@ bool parse_frame(std::string_view s, std::size_t base, Frame& f, Problem& p) {
 
 enum class LineKind : std::uint8_t { Frame, Comment, Malformed };
 
+// What `parse_line` fills: the frame and direction in place (the reader's entry), the interface.
 struct ParsedLine {
-  Frame frame;
+  Frame* frame = nullptr;
+  std::optional<Direction>* direction = nullptr;
   std::string_view iface;
   std::size_t iface_offset = 0;
-  std::optional<Direction> direction;
 };
 
 std::size_t skip_blanks(std::string_view s, std::size_t pos) {
@@ -289,13 +290,13 @@ LineKind parse_line(std::string_view line, ParsedLine& out, Problem& p) {
   }
   const std::size_t frame_start = pos;
   pos = token_end(line, pos);
-  if (!parse_frame(line.substr(frame_start, pos - frame_start), frame_start, out.frame, p)) {
+  if (!parse_frame(line.substr(frame_start, pos - frame_start), frame_start, *out.frame, p)) {
     return LineKind::Malformed;
   }
-  out.frame.timestamp = ts;
+  out.frame->timestamp = ts;
 
   // Optional direction (candump -x): " R" or " T", nothing after it but blanks.
-  out.direction.reset();
+  out.direction->reset();
   pos = skip_blanks(line, pos);
   if (pos < n) {
     const std::size_t dir_end = token_end(line, pos);
@@ -303,7 +304,7 @@ LineKind parse_line(std::string_view line, ParsedLine& out, Problem& p) {
       return malformed(p, pos,
                        "unexpected text after the frame (only a direction R or T may follow)");
     }
-    out.direction = line[pos] == 'T' ? Direction::Tx : Direction::Rx;
+    *out.direction = line[pos] == 'T' ? Direction::Tx : Direction::Rx;
     if (skip_blanks(line, dir_end) != n) {
       return malformed(p, skip_blanks(line, dir_end), "unexpected text after the direction");
     }
@@ -417,14 +418,15 @@ struct CandumpReader::Impl {
       fail(problem, parsed.iface_offset, fmt::format("more than {} interfaces", kMaxInterfaces));
       return detail::LineOutcome::Malformed;
     }
-    parsed.frame.bus = bus;
+    entry.frame.bus = bus;
     return detail::LineOutcome::Frame;
   }
 
   detail::TextLog text;
   std::vector<std::string> interfaces;
   std::size_t last_bus = 0;
-  ParsedLine parsed;
+  LogEntry entry;  // parsed in place: handed out by next_entry without a copy
+  ParsedLine parsed{&entry.frame, &entry.direction, {}, 0};
   Problem problem;
 };
 
@@ -448,7 +450,14 @@ expected<std::optional<LogEntry>, Error> CandumpReader::next() {
   const auto got = d.text.next(d.problem, [&d](std::string_view line) { return d.parse(line); });
   if (!got) return unexpected(got.error());
   if (!*got) return std::optional<LogEntry>{};
-  return std::optional<LogEntry>(LogEntry{d.parsed.frame, d.parsed.direction});
+  return std::optional<LogEntry>(d.entry);
+}
+
+expected<LogEntry*, Error> CandumpReader::next_entry() {
+  Impl& d = *impl_;
+  const auto got = d.text.next(d.problem, [&d](std::string_view line) { return d.parse(line); });
+  if (!got) return unexpected(got.error());
+  return *got ? &d.entry : nullptr;
 }
 
 const std::vector<std::string>& CandumpReader::interfaces() const noexcept {

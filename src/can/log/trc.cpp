@@ -862,6 +862,13 @@ expected<std::optional<LogEntry>, Error> TrcReader::next() {
   return std::optional<LogEntry>(d.entry);
 }
 
+expected<LogEntry*, Error> TrcReader::next_entry() {
+  Impl& d = *impl_;
+  const auto got = d.text.next(d.problem, [&d](std::string_view line) { return d.parse(line); });
+  if (!got) return unexpected(got.error());
+  return *got ? &d.entry : nullptr;
+}
+
 TrcVersion TrcReader::version() const noexcept { return impl_->version; }
 std::optional<Nanos> TrcReader::start_time() const noexcept { return impl_->start; }
 std::uint64_t TrcReader::malformed_count() const noexcept { return impl_->text.malformed_count(); }

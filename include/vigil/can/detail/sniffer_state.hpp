@@ -101,7 +101,8 @@ class TrackTable {
         mask_(slot_count_ == 0 ? 0 : slot_count_ - 1),
         max_(max_entries),
         probe_limit_(std::min(kMaxProbe, slot_count_)),
-        slots_(slot_count_ == 0 ? nullptr : std::make_unique<Slot[]>(slot_count_)) {}
+        slots_(slot_count_ == 0 ? nullptr : std::make_unique<Slot[]>(slot_count_)),
+        order_(max_ == 0 || slot_count_ == 0 ? nullptr : std::make_unique<std::uint32_t[]>(max_)) {}
 
   /// The slot of `key`; a new slot is set up by `init(slot)` and published when there is room.
   /// Returns {slot, inserted}, or {nullptr, false} when the key finds no room. Writer only.
@@ -118,20 +119,25 @@ class TrackTable {
         if (used_ >= max_) return {nullptr, false};
         init(s);
         s.key.store(key, std::memory_order_release);  // publishes init's stores to readers
+        order_[used_] = static_cast<std::uint32_t>(i);
         ++used_;
-        size_.store(used_, std::memory_order_relaxed);
+        size_.store(used_, std::memory_order_release);  // publishes order_[used_ - 1]
         return {&s, true};
       }
     }
     return {nullptr, false};
   }
 
-  /// Calls `f(key, slot)` for every published slot. Any thread; O(slot_count()).
+  /// Calls `f(key, slot)` for every published slot, in the order they were inserted. Any
+  /// thread; O(size()): the writer lists the slots it fills, so a reader never scans the empty
+  /// ones (a replay's table has 32768 slots for a few dozen keys, read every 4096 frames).
   template <class F>
   void for_each(F&& f) const {
-    for (std::size_t i = 0; i < slot_count_; ++i) {
-      const std::uint64_t k = slots_[i].key.load(std::memory_order_acquire);  // see IdCounter
-      if (k != 0) f(k, slots_[i]);
+    const std::size_t n = size_.load(std::memory_order_acquire);  // pairs with the insert's
+    for (std::size_t j = 0; j < n; ++j) {
+      const Slot& slot = slots_[order_[j]];
+      const std::uint64_t k = slot.key.load(std::memory_order_acquire);  // see IdCounter
+      if (k != 0) f(k, slot);
     }
   }
 
@@ -148,7 +154,8 @@ class TrackTable {
   std::size_t max_;
   std::size_t probe_limit_;
   std::unique_ptr<Slot[]> slots_;
-  std::size_t used_ = 0;  // writer's own count
+  std::unique_ptr<std::uint32_t[]> order_;  // the filled slots' indices, in insertion order
+  std::size_t used_ = 0;                    // writer's own count
   std::atomic<std::size_t> size_{0};
 };
 

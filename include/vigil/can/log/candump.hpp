@@ -81,6 +81,9 @@ class CandumpReader {
   /// to report an error. Exceptions thrown by `ReaderOptions::on_error` propagate. Not RT-safe
   /// (it reads the stream).
   [[nodiscard]] expected<std::optional<LogEntry>, Error> next();
+  /// Same as `next()` without copying the entry: a pointer to the reader's own entry (which the
+  /// caller may modify), valid until the next call; null at the end of the log.
+  [[nodiscard]] expected<LogEntry*, Error> next_entry();
 
   /// Interface names by bus index, in order of first appearance so far. O(1), noexcept.
   [[nodiscard]] const std::vector<std::string>& interfaces() const noexcept;

@@ -77,6 +77,9 @@ class TrcReader {
   /// returns the same error. Does not allocate except to report an error. Exceptions thrown by
   /// `ReaderOptions::on_error` propagate. Not RT-safe (it reads the stream).
   [[nodiscard]] expected<std::optional<LogEntry>, Error> next();
+  /// Same as `next()` without copying the entry: a pointer to the reader's own entry (which the
+  /// caller may modify), valid until the next call; null at the end of the log.
+  [[nodiscard]] expected<LogEntry*, Error> next_entry();
 
   /// The file version, known once the header has been read (1.0 before and without one).
   /// O(1), noexcept.
