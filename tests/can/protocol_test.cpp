@@ -855,7 +855,8 @@ TEST_CASE("protocol auto with an identity mapping: the traffic decides, none sta
     // DM1 from 0x00: amber lamp on, SPN 100 FMI 1 occurrence 3.
     t.on(rec(
         Frame::classic(0x18FECA00, {0x04, 0xFF, 100, 0, 0x01, 3, 0xFF, 0xFF}, IdFormat::Extended)));
-    const j1939::NodeStats* n = t.snapshot().find_j1939(0, 0x00);
+    const ProtocolSnapshot s = t.snapshot();
+    const j1939::NodeStats* n = s.find_j1939(0, 0x00);
     REQUIRE(n != nullptr);
     CHECK(n->active.size() == 1);
   }
