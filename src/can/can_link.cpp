@@ -318,7 +318,14 @@ expected<LinkInfo, Error> parse_link_message(std::span<const std::uint8_t> messa
     if (msg.size() < sizeof(nlmsghdr) + sizeof(int)) {
       return unexpected(fail(EINVAL, "NLMSG_ERROR without its error code"));
     }
-    const int err = -load<int>(msg, sizeof(nlmsghdr));
+    // A negative errno, or 0 for an acknowledgement (netlink(7)); anything else is bad input
+    // (and INT_MIN has no negation).
+    const int raw = load<int>(msg, sizeof(nlmsghdr));
+    if (raw > 0 || raw < -4095) {
+      return unexpected(fail(
+          EINVAL, fmt::format("NLMSG_ERROR with error code {}, not a negative errno or 0", raw)));
+    }
+    const int err = -raw;
     return unexpected(
         fail(err, fmt::format("the kernel answered an error: {}",
                               err == 0 ? "none (an acknowledgement)" : std::strerror(err))));

@@ -14,6 +14,7 @@
 
 #include <array>
 #include <catch2/catch.hpp>
+#include <limits>
 #include <cerrno>
 #include <cstring>
 #include <random>
@@ -330,6 +331,14 @@ TEST_CASE("netlink: bad messages are refused with where and why, never read beyo
     const auto r = parse_link_message(msg);
     REQUIRE_FALSE(r.has_value());
     CHECK(r.error().code == ENODEV);
+    // Not a negative errno: INT_MIN (no negation; found by the fuzzer) and a positive code.
+    for (const int bad : {std::numeric_limits<int>::min(), 5}) {
+      std::memcpy(msg.data() + at, &bad, sizeof(bad));
+      const auto b = parse_link_message(msg);
+      REQUIRE_FALSE(b.has_value());
+      CHECK(b.error().code == EINVAL);
+      CHECK_THAT(b.error().message, Catch::Contains("not a negative errno"));
+    }
 
     const auto other = parse_link_message(Message(RTM_NEWADDR).done());
     REQUIRE_FALSE(other.has_value());
