@@ -14,9 +14,9 @@
 
 #include <array>
 #include <catch2/catch.hpp>
-#include <limits>
 #include <cerrno>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <vector>
 
