@@ -32,6 +32,18 @@ namespace {
 
 constexpr const char* kTruckLog = "can/j1939_truck_candump-2022-03-29.log";
 
+// The record the CAN aggregator hands the tracker for frame `f` received at `time`.
+FrameRecord record_of(const Frame& f, Nanos time) {
+  FrameRecord r;
+  r.time_ns = time;
+  r.id = f.id;
+  r.extended = f.extended;
+  r.rtr = f.rtr;
+  r.length = f.length;
+  std::copy_n(f.data.begin(), 8, r.data.begin());
+  return r;
+}
+
 std::vector<std::uint8_t> bits_of_byte(std::uint8_t b) {
   std::vector<std::uint8_t> v;
   for (int i = 7; i >= 0; --i) v.push_back(static_cast<std::uint8_t>((b >> i) & 1));
@@ -324,14 +336,7 @@ TEST_CASE("CANopen: NMT states from heartbeats, resets, emergencies, NMT command
   ProtocolTracker t;
   Nanos now = 0;
   const auto feed = [&](const Frame& f, NodeMapKind map = NodeMapKind::CanOpen) {
-    FrameRecord r;
-    r.time_ns = (now += kNanosPerMilli);
-    r.id = f.id;
-    r.extended = f.extended;
-    r.rtr = f.rtr;
-    r.length = f.length;
-    std::copy_n(f.data.begin(), 8, r.data.begin());
-    t.on(r, map);
+    t.on(record_of(f, now += kNanosPerMilli), map);
   };
   feed(Frame::classic(0x705, {0x00}));                             // boot-up
   feed(Frame::classic(0x705, {0x7F}));                             // pre-operational
@@ -805,16 +810,7 @@ TEST_CASE("Protocol evidence: what one frame says of its bus's protocol", "[can]
 TEST_CASE("protocol auto with an identity mapping: the traffic decides, none stays none",
           "[can][protocol][canopen]") {
   Nanos now = 0;
-  const auto rec = [&](const Frame& f) {
-    FrameRecord r;
-    r.time_ns = (now += kNanosPerMilli);
-    r.id = f.id;
-    r.extended = f.extended;
-    r.rtr = f.rtr;
-    r.length = f.length;
-    std::copy_n(f.data.begin(), 8, r.data.begin());
-    return r;
-  };
+  const auto rec = [&](const Frame& f) { return record_of(f, now += kNanosPerMilli); };
   SECTION("two heartbeats of one node make the bus CANopen; its reset and emergency follow") {
     ProtocolTracker t;
     t.on(rec(Frame::classic(0x705, {0x05})));
